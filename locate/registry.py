@@ -1,0 +1,87 @@
+"""The method registry and the refinement stage shared by every method."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from edgetruth.errors import InputError
+from locate.candidates import Candidates, candidates as _candidates
+from locate.image_input import as_float_image
+from locate.result import EdgePoints, Refinement
+
+
+@dataclass(frozen=True)
+class Method:
+    id: str
+    label: str  # the seed study's name
+    family: str  # "proposed", "erf-fixed" or "baseline"
+    fn: Callable[..., Refinement]
+    summary: str = ""
+
+
+#: Every method id -> Method.  ``list(METHODS)`` gives the ids.
+METHODS: dict[str, Method] = {}
+
+
+def register(method_id: str, label: str, family: str = "baseline", summary: str = ""):
+    """Decorator: register ``fn(image_f64, cand, **options) -> Refinement`` under ``method_id``."""
+
+    def deco(fn):
+        if method_id in METHODS:
+            raise RuntimeError(f"method {method_id!r} registered twice")
+        METHODS[method_id] = Method(method_id, label, family, fn, summary or (fn.__doc__ or "").strip().split("\n")[0])
+        return fn
+
+    return deco
+
+
+def get_method(method: str) -> Method:
+    if method not in METHODS:
+        raise InputError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
+    return METHODS[method]
+
+
+def refine(image, cand: Candidates, method: str = "dynamic_erf_4p", **options) -> EdgePoints:
+    """Refine the candidates ``cand`` of ``image`` with ``method``.
+
+    Points whose refinement failed or left the image keep the candidate pixel
+    and are flagged ``converged=False``, so every output point is finite and
+    inside the image.
+    """
+    m = get_method(method)
+    img = as_float_image(image)
+    if tuple(img.shape) != tuple(cand.shape):
+        raise InputError(f"candidates were found on a {cand.shape} image but image is {img.shape}; "
+                         "pass the image the candidates came from")
+    n = len(cand)
+    t0 = time.perf_counter()
+    if n:
+        r = m.fn(img, cand, **options)
+    else:
+        z = np.zeros(0)
+        r = Refinement(z, z, np.zeros(0, bool))
+    elapsed = time.perf_counter() - t0
+    x = np.asarray(r.x, np.float64)
+    y = np.asarray(r.y, np.float64)
+    nx = cand.nx if r.nx is None else np.asarray(r.nx, np.float64)
+    ny = cand.ny if r.ny is None else np.asarray(r.ny, np.float64)
+    h, w = img.shape
+    ok = np.isfinite(x) & np.isfinite(y) & (x >= 0) & (y >= 0) & (x <= w - 1) & (y <= h - 1)
+    conv = np.asarray(r.converged, bool) & ok
+    x = np.where(ok, x, cand.x)
+    y = np.where(ok, y, cand.y)
+    nok = np.isfinite(nx) & np.isfinite(ny)
+    nx = np.where(nok, nx, cand.nx)
+    ny = np.where(nok, ny, cand.ny)
+    return EdgePoints(method, x, y, nx, ny, conv, np.arange(n), dict(r.extras), elapsed)
+
+
+def locate(image, method: str = "dynamic_erf_4p", sigma_px: float = 1.0, low=None, high=None, **options) -> EdgePoints:
+    """Canny candidates + refinement with ``method`` in one call."""
+    get_method(method)
+    img = as_float_image(image)
+    cand = _candidates(img, sigma_px=sigma_px, low=low, high=high)
+    return refine(img, cand, method, **options)
