@@ -52,7 +52,8 @@ def finish(cand, out, windows, entropy, four_param: bool) -> Refinement:
     dof = windows - npar
     use = conv & (dof > 0) & np.isfinite(out[:, 4])
     sigma2 = out[use, 4].sum() / dof[use].sum() if use.any() else np.nan
-    se = np.sqrt(sigma2 * out[:, 5])
+    c_mumu = out[:, 5]
+    se = np.sqrt(sigma2 * np.where(c_mumu > 0, c_mumu, np.nan))
     return Refinement.from_offset(
         cand, mu, conv,
         A=out[:, 0], B=out[:, 1], s=out[:, 3], window=windows, entropy=entropy,

@@ -1,0 +1,1 @@
+"""evaluate: statistics, the Cramér–Rao bound, studies and reports."""
