@@ -17,8 +17,11 @@ _INV_SQRT2PI = 1.0 / np.sqrt(2.0 * np.pi)
 
 
 def _jacobian(mu, s, window, B=1.0):
+    """(..., window, 4) Jacobian of the pixel means w.r.t. (A, B, mu, s); mu, s broadcast."""
     half = (window - 1) / 2.0
     t = np.arange(window) - half
+    mu = np.asarray(mu, float)[..., None]
+    s = np.asarray(s, float)[..., None]
     up = (t + 0.5 - mu) / s
     um = (t - 0.5 - mu) / s
     g1 = lambda u: u * ndtr(u) + _INV_SQRT2PI * np.exp(-0.5 * u * u)
@@ -26,7 +29,7 @@ def _jacobian(mu, s, window, B=1.0):
     m = s * (g1(up) - g1(um))
     d_mu = -(ndtr(up) - ndtr(um))
     d_s = phi(up) - phi(um)
-    return np.stack([np.ones_like(t), m, B * d_mu, B * d_s], axis=-1)
+    return np.stack([np.ones_like(m), m, B * d_mu, B * d_s], axis=-1)
 
 
 def position_std_bound(blur_px: float, noise_rel: float, window: int = 11, mu_px: float = 0.0,
@@ -37,24 +40,22 @@ def position_std_bound(blur_px: float, noise_rel: float, window: int = 11, mu_px
     "2p" (mu, s unknown).  ``window``: number of pixels in the row (use a
     large odd number, e.g. 201, for an unlimited row).
     """
-    J = _jacobian(mu_px, blur_px, window)
-    if unknowns == "mu":
-        return float(noise_rel / np.sqrt(J[:, 2] @ J[:, 2]))
-    cols = {"4p": [0, 1, 2, 3], "2p": [2, 3]}[unknowns]
-    Jc = J[:, cols]
-    F = Jc.T @ Jc
-    cov = np.linalg.inv(F)
-    i = cols.index(2)
-    return float(noise_rel * np.sqrt(cov[i, i]))
+    return float(position_std_bound_many(blur_px, noise_rel, mu_px, window, unknowns))
 
 
 def position_std_bound_many(blur_px, noise_rel, mu_px, window: int = 11, unknowns: str = "4p") -> np.ndarray:
-    """Vectorised ``position_std_bound`` over arrays of blur, noise and offset."""
-    b = np.broadcast(np.asarray(blur_px, float), np.asarray(noise_rel, float), np.asarray(mu_px, float))
-    out = np.empty(b.shape)
-    for i, (s, n, m) in enumerate(b):
-        out.flat[i] = position_std_bound(s, n, window, m, unknowns)
-    return out
+    """``position_std_bound`` over broadcast arrays of blur, noise and offset (batched Fisher matrices)."""
+    blur, noise, mu = np.broadcast_arrays(np.asarray(blur_px, float), np.asarray(noise_rel, float),
+                                          np.asarray(mu_px, float))
+    J = _jacobian(mu, blur, window)
+    if unknowns == "mu":
+        return noise / np.sqrt(np.sum(J[..., 2] ** 2, axis=-1))
+    cols = {"4p": [0, 1, 2, 3], "2p": [2, 3]}[unknowns]
+    Jc = J[..., cols]
+    F = np.swapaxes(Jc, -1, -2) @ Jc
+    cov = np.linalg.inv(F)
+    i = cols.index(2)
+    return noise * np.sqrt(cov[..., i, i])
 
 
 def continuous_mu_only_bound(blur_px: float, noise_rel: float) -> float:

@@ -1,0 +1,46 @@
+"""The study's statistics (BRIEF §5): one definition, used by every table.
+
+Error summaries are of |e| (e = signed error): MAE = mean |e|, RMSE =
+sqrt(mean e^2), SD = standard deviation of |e|, median, IQR (75th - 25th
+percentile) and max of |e|.  Paired comparisons: Wilcoxon signed-rank
+(two-sided, scipy) on per-image MAE.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats as _st
+
+SUMMARY_KEYS = ("n", "mae", "rmse", "sd", "median", "iqr", "max")
+
+
+def summary(errors) -> dict:
+    e = np.asarray(errors, float)
+    e = e[np.isfinite(e)]
+    if e.size == 0:
+        return {k: (0 if k == "n" else float("nan")) for k in SUMMARY_KEYS}
+    a = np.abs(e)
+    q1, q3 = np.percentile(a, [25, 75])
+    return {"n": int(a.size), "mae": float(a.mean()), "rmse": float(np.sqrt(np.mean(e * e))),
+            "sd": float(a.std(ddof=1)) if a.size > 1 else 0.0, "median": float(np.median(a)),
+            "iqr": float(q3 - q1), "max": float(a.max())}
+
+
+def relative_errors_pct(estimate, truth) -> np.ndarray:
+    truth = np.asarray(truth, float)
+    return 100.0 * np.abs(np.asarray(estimate, float) - truth) / np.abs(truth)
+
+
+def wilcoxon_paired(a, b, alpha: float = 0.05) -> dict:
+    """Two-sided Wilcoxon signed-rank of paired samples a vs b (e.g. per-image MAE)."""
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    ok = np.isfinite(a) & np.isfinite(b)
+    a, b = a[ok], b[ok]
+    d = a - b
+    out = {"n_pairs": int(a.size), "median_difference": float(np.median(d)) if d.size else float("nan")}
+    if d.size < 2 or np.all(d == 0):
+        out.update(statistic=float("nan"), p_value=1.0, significant=False)
+        return out
+    res = _st.wilcoxon(a, b, zero_method="wilcox", alternative="two-sided")
+    out.update(statistic=float(res.statistic), p_value=float(res.pvalue), significant=bool(res.pvalue < alpha))
+    return out
