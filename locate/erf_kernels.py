@@ -21,7 +21,6 @@ import numba
 import numpy as np
 
 from locate.profiles import bilinear
-from locate.small_linalg import solve_small as _solve  # noqa: F401  (re-exported for curve_fit_kernels)
 
 PROFILE_LEN = 11
 PROFILE_HALF = 5
@@ -30,11 +29,7 @@ _INV_SQRT2PI = 1.0 / math.sqrt(2.0 * math.pi)
 _LN_M = math.log(PROFILE_LEN - 1)
 S_MIN = 0.05  # blur scale floor (px): below it the model is a step, mu is undetermined within a pixel
 
-# status codes per point
-OK = 0
-NOT_CONVERGED = 1
-NO_CONTRAST = 2
-OUT_OF_WINDOW = 3
+from locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW  # noqa: E402
 
 
 @numba.njit(cache=True, inline="always")
