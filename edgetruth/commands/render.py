@@ -1,0 +1,54 @@
+"""``edgetruth render SPEC -o DIR``: render a spec (``scenes/<name>.toml`` or a path) into a dataset."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from edgetruth.paths import RUNS_DIR
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "render", help="render a spec into images + ground truth (resumable)",
+        description="Render every image of SPEC (a name in scenes/ or a TOML path) into DIR: "
+                    "NAME.exr (radiance), NAME.png (16-bit sensor image), NAME.json (ground truth) and "
+                    "manifest.json.  Images already complete (hashes verified) are skipped.")
+    p.add_argument("spec", metavar="SPEC", help="spec name (standard, snr, targets, calibration, quick) or TOML path")
+    p.add_argument("-o", "--output", metavar="DIR", type=Path, default=None,
+                   help="output directory (default: runs/render/SPEC)")
+    p.add_argument("--variant", default=None,
+                   help="Mitsuba variant to use (default: best working of cuda_ad_rgb, llvm_ad_rgb, scalar_rgb)")
+    p.add_argument("--only", metavar="I,J-K", default=None, help="render only these image indices")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(handler=run)
+
+
+def _parse_indices(text: str | None) -> list[int] | None:
+    from edgetruth.errors import InputError
+
+    if not text:
+        return None
+    out: list[int] = []
+    try:
+        for part in text.split(","):
+            a, _, b = part.partition("-")
+            out += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    except ValueError:
+        raise InputError(f"--only {text!r}: expected indices like 0,3,5-9") from None
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    from render.dataset import render_spec
+    from render.spec import load_spec
+
+    spec = load_spec(args.spec)
+    out = args.output or RUNS_DIR / "render" / spec.name
+    timings: dict = {}
+    manifest = render_spec(spec, out, variant=args.variant, progress=not args.no_progress,
+                           only=_parse_indices(args.only), timings=timings)
+    done = sum(1 for e in manifest["images"].values() if e.get("complete"))
+    n = timings.get("n_rendered", 0)
+    extra = f", {n} rendered in {timings.get('wall_s', 0):.1f} s" if n else ", nothing to do"
+    print(f"render: {done}/{len(spec.jobs)} images of {spec.name!r} complete in {out}{extra}")
+    return 0

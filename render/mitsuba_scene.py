@@ -1,0 +1,267 @@
+"""Mitsuba scenes, loaded ONCE per process and re-posed with ``mi.traverse`` + ``update``.
+
+(Repeated ``mi.load_dict`` leaks memory: mitsuba3 issue 1890.)
+
+Target scene: a white matte board facing the camera with four targets, of which
+the active one is placed flush on the board (10 µm stand-off, only to avoid
+coplanar surfaces; a stand-off casts ambient-occlusion shading that moves the
+edge) and the others are parked out of sight behind the camera:
+T1 black matte square, T2 black matte disk, T3 gray matte square, T4 glossy black
+square (rough plastic: specular highlights from the light).
+
+Checkerboard scene: a white plate with black squares (one mesh), flush likewise.
+
+Light: one square area light beside the camera (behind its image plane, so never
+in view), aimed at the board centre; its radiance is set so that the board's
+irradiance at its centre equals the requested ``irradiance_w_m2`` whatever the
+distance (one light: emitter selection adds no Monte-Carlo noise).
+The world frame is the OpenCV camera frame (see ``render.pose``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from render.camera import Camera
+from render.lens_sensor import sensor_dict
+from render.pose import Pose
+
+TARGET_STANDOFF_M = 10e-6
+BOARD_HALF_SIZE_M = (1.8, 1.5)  # fills the frame at 3 m with room for lateral offsets
+BOARD_REFLECTANCE = 0.8
+
+#: Target ids -> (shape, material).  Reflectances are Lambertian albedos.
+TARGETS = {
+    "T1": {"shape": "square", "material": "black_matte", "reflectance": 0.04},
+    "T2": {"shape": "circle", "material": "black_matte", "reflectance": 0.04},
+    "T3": {"shape": "square", "material": "gray_matte", "reflectance": 0.25},
+    "T4": {"shape": "square", "material": "glossy_black", "reflectance": 0.03, "alpha": 0.15, "eta": 1.5},
+}
+#: One shape per target, each with a fixed BSDF (the loader merges identical BSDFs, so their
+#: parameters cannot be changed independently through ``traverse``).
+_SHAPE_KEY = {"T1": "square_black", "T2": "disk_black", "T3": "square_gray", "T4": "square_glossy"}
+
+LIGHT_OFFSET_M = np.array([0.0, -0.15, -0.05])  # above the camera, behind its image plane
+LIGHT_HALF_SIZE_M = 0.025  # small: less MC noise (BRDF and geometry vary less across it)
+_PARKED = np.diag([1e-3, 1e-3, 1e-3, 1.0]) @ np.array(  # tiny, far behind the camera, facing away
+    [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, -1e4], [0, 0, 0, 1]], dtype=float)
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Monte-Carlo settings; the defaults keep MC noise below a quarter of the dark noise."""
+
+    spp: int = 64
+    sampler: str = "multijitter"
+    samples_per_pass: int = 0  # 0: all in one pass (JIT memory ~ pixels × spp)
+
+    def to_dict(self) -> dict:
+        return {"spp": self.spp, "sampler": self.sampler, "samples_per_pass": self.samples_per_pass}
+
+
+def _rect_local(half_x: float, half_y: float, z_m: float) -> np.ndarray:
+    """Local transform of Mitsuba's [-1,1]² rectangle/unit disk, facing the camera (normal = -z local)."""
+    m = np.diag([half_x, -half_y, -1.0, 1.0])  # flip y and z: det > 0 and the normal points to the camera
+    m[2, 3] = z_m
+    return m
+
+
+def _look_at(origin: np.ndarray, target: np.ndarray, up=(0.0, -1.0, 0.0)) -> np.ndarray:
+    """4×4 transform taking local +z to the direction origin -> target (Mitsuba's look_at)."""
+    d = target - origin
+    d = d / np.linalg.norm(d)
+    left = np.cross(np.asarray(up, float), d)
+    left /= np.linalg.norm(left)
+    new_up = np.cross(d, left)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, new_up, d, origin
+    return m
+
+
+def light_radiance_for(irradiance_w_m2: float, pose: Pose, light_pos: np.ndarray) -> float:
+    """Radiance of the square light giving ``irradiance_w_m2`` at the board centre (small-source formula)."""
+    c = pose.translation_m
+    to_light = light_pos - c
+    r = np.linalg.norm(to_light)
+    board_normal = -pose.rotation[:, 2]  # towards the camera
+    cos_b = max(float(np.dot(board_normal, to_light / r)), 1e-3)
+    area = (2 * LIGHT_HALF_SIZE_M) ** 2
+    return float(irradiance_w_m2 * r * r / (area * cos_b))  # the light faces the centre: cos_l = 1
+
+
+class _Rig:
+    """Common part: one loaded scene, one camera, parameter updates."""
+
+    def __init__(self, camera: Camera, settings: RenderSettings, crop=None):
+        import mitsuba as mi
+
+        self.mi = mi
+        self.camera = camera
+        self.settings = settings
+        self.crop = crop
+        sampler = {"type": settings.sampler, "sample_count": settings.spp}
+        integrator = {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0}
+        if settings.samples_per_pass:
+            integrator["samples_per_pass"] = settings.samples_per_pass
+        self.scene_dict = {"type": "scene", "integrator": integrator,
+                           "sensor": sensor_dict(camera, sampler, crop)}
+        self.scene_dict.update(self._shapes())
+        self.scene = mi.load_dict(self.scene_dict)
+        self.params = mi.traverse(self.scene)
+
+    def _T(self, m: np.ndarray):
+        return self.mi.ScalarTransform4f(np.asarray(m, dtype=np.float64).tolist())
+
+    def _set_transform(self, key: str, m: np.ndarray) -> None:
+        self.params[key] = self.mi.Transform4f(np.asarray(m, dtype=np.float64).tolist())
+
+    def _set_light(self, pose: Pose, irradiance_w_m2: float) -> float:
+        pos = LIGHT_OFFSET_M
+        m = _look_at(pos, pose.translation_m) @ np.diag([LIGHT_HALF_SIZE_M, LIGHT_HALF_SIZE_M, 1.0, 1.0])
+        self._set_transform("light.to_world", m)
+        le = light_radiance_for(irradiance_w_m2, pose, pos)
+        self.params["light.emitter.radiance.value"] = le
+        return le
+
+    def _light_dict(self) -> dict:
+        return {"type": "rectangle", "to_world": self._T(np.eye(4)),
+                "emitter": {"type": "area", "radiance": {"type": "uniform", "value": 1.0}}}
+
+    def render(self, seed: int) -> np.ndarray:
+        """Render with the current parameters; radiance (H, W) float32 (RGB channels are equal)."""
+        img = self.mi.render(self.scene, self.params, seed=int(seed) & 0x7FFFFFFF, spp=self.settings.spp)
+        arr = np.asarray(img, dtype=np.float32)
+        return arr[..., 1].copy()  # achromatic scene: R = G = B exactly
+
+    def light_ground_truth(self, pose: Pose, le: float, irradiance_w_m2: float) -> dict:
+        return {"type": "square area light", "side_m": 2 * LIGHT_HALF_SIZE_M,
+                "position_m": LIGHT_OFFSET_M.tolist(), "aimed_at": "board centre",
+                "radiance_w_m2_sr": le, "board_centre_irradiance_w_m2": irradiance_w_m2}
+
+
+class TargetRig(_Rig):
+    """The target scene."""
+
+    def __init__(self, camera: Camera, settings: RenderSettings, target_size_m: float = 0.13, crop=None):
+        self.target_size_m = float(target_size_m)
+        super().__init__(camera, settings, crop)
+
+    def _shapes(self) -> dict:
+        T = self._T(_PARKED)
+        return {
+            "light": self._light_dict(),
+            "board": {"type": "rectangle", "to_world": self._T(_rect_local(*BOARD_HALF_SIZE_M, 0.0)),
+                      "bsdf": {"type": "diffuse", "reflectance": BOARD_REFLECTANCE}},
+            "square_black": {"type": "rectangle", "to_world": T,
+                             "bsdf": {"type": "diffuse", "reflectance": TARGETS["T1"]["reflectance"]}},
+            "disk_black": {"type": "disk", "to_world": T,
+                           "bsdf": {"type": "diffuse", "reflectance": TARGETS["T2"]["reflectance"]}},
+            "square_gray": {"type": "rectangle", "to_world": T,
+                            "bsdf": {"type": "diffuse", "reflectance": TARGETS["T3"]["reflectance"]}},
+            "square_glossy": {"type": "rectangle", "to_world": T,
+                              "bsdf": {"type": "roughplastic", "distribution": "ggx",
+                                       "alpha": TARGETS["T4"]["alpha"], "int_ior": TARGETS["T4"]["eta"],
+                                       "diffuse_reflectance": TARGETS["T4"]["reflectance"]}},
+        }
+
+    def set_state(self, target: str, pose: Pose, irradiance_w_m2: float) -> float:
+        """Place ``target`` (T1..T4) at ``pose``; returns the light's radiance."""
+        board = pose.matrix @ _rect_local(*BOARD_HALF_SIZE_M, 0.0)
+        self._set_transform("board.to_world", board)
+        half = self.target_size_m / 2
+        active = _SHAPE_KEY[target]
+        for key in _SHAPE_KEY.values():
+            m = pose.matrix @ _rect_local(half, half, -TARGET_STANDOFF_M) if key == active else _PARKED
+            self._set_transform(f"{key}.to_world", m)
+        le = self._set_light(pose, irradiance_w_m2)
+        self.params.update()
+        return le
+
+
+# --- checkerboards ------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Checkerboard:
+    """``cols`` × ``rows`` squares of ``square_m``; inner corners (cols-1) × (rows-1)."""
+
+    cols: int = 10
+    rows: int = 7
+    square_m: float = 0.03
+    margin_m: float = 0.03
+
+    @property
+    def pattern_size(self) -> tuple[int, int]:
+        """OpenCV's patternSize (inner corners per row, per column)."""
+        return self.cols - 1, self.rows - 1
+
+    def inner_corners_local(self, z_m: float = 0.0) -> np.ndarray:
+        """Inner corners, row-major (x fastest) like ``cv2.findChessboardCorners``; board centre at 0."""
+        xs = (np.arange(1, self.cols) - self.cols / 2) * self.square_m
+        ys = (np.arange(1, self.rows) - self.rows / 2) * self.square_m
+        gx, gy = np.meshgrid(xs, ys)
+        return np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, z_m)], axis=1)
+
+    def black_quads_local(self, z_m: float) -> np.ndarray:
+        """(n, 4, 3) corners of the black squares ((i + j) even is black)."""
+        quads = []
+        for j in range(self.rows):
+            for i in range(self.cols):
+                if (i + j) % 2 == 0:
+                    x0 = (i - self.cols / 2) * self.square_m
+                    y0 = (j - self.rows / 2) * self.square_m
+                    s = self.square_m
+                    quads.append([[x0, y0, z_m], [x0 + s, y0, z_m], [x0 + s, y0 + s, z_m], [x0, y0 + s, z_m]])
+        return np.asarray(quads, dtype=np.float64)
+
+    def to_dict(self) -> dict:
+        return {"cols": self.cols, "rows": self.rows, "square_m": self.square_m, "margin_m": self.margin_m,
+                "pattern_size": list(self.pattern_size), "black_square": "(col + row) even, col 0 row 0 at top-left"}
+
+
+class CheckerRig(_Rig):
+    """The checkerboard scene: black squares as one triangle mesh on a white plate."""
+
+    def __init__(self, camera: Camera, settings: RenderSettings, board: Checkerboard = Checkerboard(), crop=None):
+        self.board = board
+        super().__init__(camera, settings, crop)
+
+    def _mesh(self):
+        mi = self.mi
+        quads = self.board.black_quads_local(-TARGET_STANDOFF_M)
+        n = len(quads)
+        verts = quads.reshape(-1, 3)
+        faces = np.concatenate([np.stack([4 * np.arange(n), 4 * np.arange(n) + 1, 4 * np.arange(n) + 2], 1),
+                                np.stack([4 * np.arange(n), 4 * np.arange(n) + 2, 4 * np.arange(n) + 3], 1)])
+        mesh = mi.Mesh("checker", vertex_count=len(verts), face_count=len(faces), has_vertex_normals=False,
+                       has_vertex_texcoords=False,
+                       props=mi.Properties())
+        params = mi.traverse(mesh)
+        # buffer types differ per variant (mi.Float on JIT, drjit.scalar.ArrayXf on scalar)
+        self._vertex_type = type(params["vertex_positions"])
+        params["vertex_positions"] = self._vertex_type(verts.astype(np.float32).ravel())
+        params["faces"] = type(params["faces"])(faces.astype(np.uint32).ravel())
+        params.update()
+        self._verts_local = verts
+        return mesh
+
+    def _shapes(self) -> dict:
+        b = self.board
+        half_x = b.cols * b.square_m / 2 + b.margin_m
+        half_y = b.rows * b.square_m / 2 + b.margin_m
+        self._plate_local = _rect_local(half_x, half_y, 0.0)
+        mesh = self._mesh()
+        return {
+            "light": self._light_dict(),
+            "plate": {"type": "rectangle", "to_world": self._T(self._plate_local),
+                      "bsdf": {"type": "diffuse", "reflectance": BOARD_REFLECTANCE}},
+            "checker": mesh,
+        }
+
+    def set_state(self, pose: Pose, irradiance_w_m2: float) -> float:
+        self._set_transform("plate.to_world", pose.matrix @ self._plate_local)
+        self.params["checker.vertex_positions"] = self._vertex_type(
+            pose.to_camera(self._verts_local).astype(np.float32).ravel())
+        le = self._set_light(pose, irradiance_w_m2)
+        self.params.update()
+        return le
