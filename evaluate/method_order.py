@@ -2,13 +2,9 @@
 from __future__ import annotations
 
 import locate
+import locate.registry
 
-ORDER = (
-    "canny_pixel", "canny_devernay", "glm1984", "canny_zernike2020", "hagara_aef2011", "pae2013",
-    "gaussian_fit2014", "arctan_fit2016", "sigmoid_logistic_fit2023", "ser_cis",
-    "erf2p_fixed5", "erf2p_fixed7", "erf2p_fixed9", "erf2p_fixed11", "dynamic_erf_2p",
-    "erf4p_fixed5", "erf4p_fixed7", "erf4p_fixed9", "erf4p_fixed11", "dynamic_erf_4p",
-)
+ORDER = locate.registry.CANONICAL_ORDER
 
 #: Options the studies pass to a method (documented in every report).
 #: PAE2013: the paper's smoothed variant (its Sec. 5, for noisy images); the study's images are

@@ -14,13 +14,14 @@ import importlib as _importlib
 import pkgutil as _pkgutil
 
 from locate.candidates import Candidates, candidates
-from locate.registry import METHODS, Method, get_method, locate, refine, register
+from locate.registry import METHODS, Method, get_method, locate, refine, register, sort_registry as _sort
 from locate.result import EdgePoints, Refinement
 from locate import methods as _methods
 
 for _info in sorted(_pkgutil.iter_modules(_methods.__path__), key=lambda m: m.name):
     if not _info.name.startswith("_"):
         _importlib.import_module(f"locate.methods.{_info.name}")
+_sort()
 
 __all__ = ["METHODS", "Method", "Candidates", "EdgePoints", "Refinement", "candidates", "get_method",
            "locate", "refine", "register"]

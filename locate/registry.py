@@ -22,8 +22,24 @@ class Method:
     summary: str = ""
 
 
-#: Every method id -> Method.  ``list(METHODS)`` gives the ids.
+#: Every method id -> Method.  ``list(METHODS)`` gives the ids, in ``CANONICAL_ORDER``.
 METHODS: dict[str, Method] = {}
+
+#: Presentation order: the seed's baselines, then the ERF family (2P, then 4P) ending in the proposed method.
+CANONICAL_ORDER = (
+    "canny_pixel", "canny_devernay", "glm1984", "canny_zernike2020", "hagara_aef2011", "pae2013",
+    "gaussian_fit2014", "arctan_fit2016", "sigmoid_logistic_fit2023", "ser_cis",
+    "erf2p_fixed5", "erf2p_fixed7", "erf2p_fixed9", "erf2p_fixed11", "dynamic_erf_2p",
+    "erf4p_fixed5", "erf4p_fixed7", "erf4p_fixed9", "erf4p_fixed11", "dynamic_erf_4p",
+)
+
+
+def sort_registry() -> None:
+    """Put METHODS in CANONICAL_ORDER (methods not listed follow, alphabetically)."""
+    rank = {m: i for i, m in enumerate(CANONICAL_ORDER)}
+    items = sorted(METHODS.items(), key=lambda kv: (rank.get(kv[0], len(rank)), kv[0]))
+    METHODS.clear()
+    METHODS.update(items)
 
 
 def register(method_id: str, label: str, family: str = "baseline", summary: str = ""):
