@@ -1,0 +1,198 @@
+"""Camera calibration by Zhang's method on rendered checkerboards (OpenCV), as a real user would.
+
+Per board image: ``cv2.findChessboardCorners`` (on an 8-bit copy scaled to the
+image's own 0.5/99.5 percentiles), then ``cv2.cornerSubPix`` on the float
+image; then one ``cv2.calibrateCamera`` over all boards with the full 5-term
+Brown–Conrady model (k1, k2, p1, p2, k3), the OpenCV default.
+
+What the user "knows" is the printed board (pattern size and square size, read
+from the dataset's board description); the intrinsics, distortion and corner
+positions recorded in the ground truth are used *only* to report the
+calibration error next to the recovered values.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from edgetruth.errors import InputError
+
+#: cornerSubPix termination: 100 iterations or 1e-4 px.
+_SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
+
+
+def to_uint8(image: np.ndarray) -> np.ndarray:
+    """A display/detection copy: linear stretch of the 0.5-99.5 percentile range to 0-255."""
+    img = np.asarray(image, dtype=np.float64)
+    lo, hi = np.percentile(img, [0.5, 99.5])
+    if hi <= lo:
+        hi = lo + 1.0
+    return np.clip((img - lo) * (255.0 / (hi - lo)), 0, 255).astype(np.uint8)
+
+
+def object_points(pattern_size: tuple[int, int], square_m: float) -> np.ndarray:
+    """(N, 3) float32 board points, row-major with x fastest (OpenCV's corner order), z = 0."""
+    nx, ny = pattern_size
+    gx, gy = np.meshgrid(np.arange(nx), np.arange(ny))
+    return np.stack([gx.ravel() * square_m, gy.ravel() * square_m, np.zeros(nx * ny)], 1).astype(np.float32)
+
+
+def subpix_window(corners: np.ndarray, pattern_size: tuple[int, int]) -> int:
+    """cornerSubPix half-window: 0.4 of the smallest imaged square side, clamped to 2..30 px.
+
+    Larger windows average more pixels (measured on the calibration spec: corner RMS error
+    0.051 px with a third-of-square window capped at 11 px, 0.048 px with 0.4 of the square);
+    below half a square the window never reaches a neighbouring corner.
+    """
+    nx, ny = pattern_size
+    c = corners.reshape(ny, nx, 2)
+    dx = np.linalg.norm(np.diff(c, axis=1), axis=2).min()
+    dy = np.linalg.norm(np.diff(c, axis=0), axis=2).min()
+    return int(np.clip(np.floor(min(dx, dy) / 2.5), 2, 30))
+
+
+def detect_corners(image: np.ndarray, pattern_size: tuple[int, int]) -> np.ndarray | None:
+    """Subpixel inner corners (N, 2) in OpenCV pixel coordinates, or None if the board is not found."""
+    img8 = to_uint8(image)
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH + cv2.CALIB_CB_NORMALIZE_IMAGE
+    found, corners = cv2.findChessboardCorners(img8, tuple(pattern_size), flags=flags)
+    if not found:
+        return None
+    win = subpix_window(corners.reshape(-1, 2), pattern_size)
+    img32 = np.asarray(image, dtype=np.float32)
+    refined = cv2.cornerSubPix(img32, corners.astype(np.float32), (win, win), (-1, -1), _SUBPIX_CRITERIA)
+    return refined.reshape(-1, 2).astype(np.float64)
+
+
+@dataclass
+class Calibration:
+    """A calibrated camera (OpenCV conventions) and how well it was determined."""
+
+    K: np.ndarray
+    dist: np.ndarray  # (k1, k2, p1, p2, k3)
+    image_size: tuple[int, int]  # (width, height)
+    rms_px: float
+    n_views: int
+    per_view_rms_px: list[float] = field(default_factory=list)
+    used: list[str] = field(default_factory=list)
+    rejected: list[str] = field(default_factory=list)
+    corner_error_px: dict = field(default_factory=dict)  # detected vs true corners (check only)
+    truth: dict | None = None  # true intrinsics from the ground truth (check only)
+
+    @property
+    def fx(self) -> float:
+        return float(self.K[0, 0])
+
+    @property
+    def fy(self) -> float:
+        return float(self.K[1, 1])
+
+    @property
+    def cx(self) -> float:
+        return float(self.K[0, 2])
+
+    @property
+    def cy(self) -> float:
+        return float(self.K[1, 2])
+
+    def errors(self) -> dict:
+        """Recovered minus true values (needs ``truth``)."""
+        if not self.truth:
+            return {}
+        t = self.truth
+        return {"fx_rel_pct": 100.0 * (self.fx - t["fx_px"]) / t["fx_px"],
+                "fy_rel_pct": 100.0 * (self.fy - t["fy_px"]) / t["fy_px"],
+                "cx_px": self.cx - t["cx_px"], "cy_px": self.cy - t["cy_px"],
+                "dist": (self.dist - np.asarray(t["dist_coeffs_opencv"])).tolist()}
+
+    def to_dict(self) -> dict:
+        return {"method": "Zhang (cv2.calibrateCamera, 5-term Brown-Conrady), cornerSubPix corners",
+                "K": self.K.tolist(), "fx_px": self.fx, "fy_px": self.fy, "cx_px": self.cx, "cy_px": self.cy,
+                "dist_coeffs_opencv": self.dist.tolist(), "image_size": list(self.image_size),
+                "reprojection_rms_px": self.rms_px, "n_views": self.n_views,
+                "per_view_rms_px": self.per_view_rms_px, "used": self.used, "rejected": self.rejected,
+                "corner_detection_error_px": self.corner_error_px, "truth": self.truth, "errors": self.errors()}
+
+
+def _match_order(detected: np.ndarray, true_px: np.ndarray) -> np.ndarray:
+    """The detected corners in the true corners' order (OpenCV may start from the opposite end)."""
+    fwd = np.linalg.norm(detected - true_px, axis=1).mean()
+    rev = np.linalg.norm(detected[::-1] - true_px, axis=1).mean()
+    return detected if fwd <= rev else detected[::-1]
+
+
+def calibrate(views: list[tuple[str, np.ndarray]], pattern_size: tuple[int, int], square_m: float,
+              truths: list[dict] | None = None, flags: int = 0, progress=None) -> Calibration:
+    """Zhang's calibration from ``views`` = [(name, image), ...].
+
+    ``truths`` (optional, same order): the ground-truth dicts of the views, used only to
+    report corner-detection errors and the true intrinsics.
+    """
+    if not views:
+        raise InputError("calibration: no checkerboard images; the spec needs a checkerboard group")
+    obj = object_points(pattern_size, square_m)
+    obj_list, img_list, used, rejected, corner_err = [], [], [], [], []
+    shape = None
+    it = views if progress is None else progress(views)
+    for k, (name, image) in enumerate(it):
+        shape = image.shape
+        corners = detect_corners(image, pattern_size)
+        if corners is None:
+            rejected.append(name)
+            continue
+        obj_list.append(obj)
+        img_list.append(corners.astype(np.float32).reshape(-1, 1, 2))
+        used.append(name)
+        if truths is not None and "corners" in truths[k]:
+            tp = np.asarray(truths[k]["corners"]["distorted_px"])
+            corner_err.append(np.linalg.norm(_match_order(corners, tp) - tp, axis=1))
+    if len(used) < 3:
+        raise InputError(f"calibration: the board was found in only {len(used)} of {len(views)} images "
+                         f"(need >= 3); check the pattern size {tuple(pattern_size)}")
+    h, w = shape
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj_list, img_list, (w, h), None, None, flags=flags,
+                                                     criteria=crit)
+    per_view = []
+    for o, i, r, t in zip(obj_list, img_list, rvecs, tvecs):
+        p, _ = cv2.projectPoints(o, r, t, K, dist)
+        per_view.append(float(np.sqrt(np.mean(np.sum((p.reshape(-1, 2) - i.reshape(-1, 2)) ** 2, 1)))))
+    cerr = {}
+    if corner_err:
+        e = np.concatenate(corner_err)
+        cerr = {"mean": float(e.mean()), "rms": float(np.sqrt(np.mean(e ** 2))), "max": float(e.max())}
+    truth = None
+    if truths:
+        cam = truths[0].get("camera", {})
+        truth = {k: cam[k] for k in ("fx_px", "fy_px", "cx_px", "cy_px", "dist_coeffs_opencv") if k in cam}
+    return Calibration(K=np.asarray(K, float), dist=np.asarray(dist, float).ravel()[:5], image_size=(w, h),
+                       rms_px=float(rms), n_views=len(used), per_view_rms_px=per_view, used=used,
+                       rejected=rejected, corner_error_px=cerr, truth=truth)
+
+
+def calibrate_dataset(out_dir: str | Path, names: list[str] | None = None, progress: bool = False) -> Calibration:
+    """Calibrate from every checkerboard image of a rendered dataset (``render.dataset`` layout)."""
+    from render.dataset import list_images, load_image
+
+    out_dir = Path(out_dir)
+    names = names if names is not None else list_images(out_dir)
+    views, truths = [], []
+    board = None
+    for n in names:
+        img, gt = load_image(out_dir, n)
+        if gt.get("kind") != "checkerboard":
+            continue
+        board = gt["checkerboard"]
+        views.append((n, img.astype(np.float64)))
+        truths.append(gt)
+    if board is None:
+        raise InputError(f"{out_dir}: no checkerboard images to calibrate from")
+    prog = None
+    if progress:
+        import sys
+        from tqdm import tqdm
+        prog = lambda it: tqdm(it, desc="calibrate", unit="board", file=sys.stderr, dynamic_ncols=True)  # noqa: E731
+    return calibrate(views, tuple(board["pattern_size"]), float(board["square_m"]), truths, progress=prog)

@@ -1,0 +1,221 @@
+"""The ranging study (seed §4.4): calibrated camera -> undistort -> find target -> every method -> Z.
+
+Per target image:
+
+1. undistort with the *calibrated* model (``evaluate.undistort``);
+2. find the target and its boundary candidates from the image (``evaluate.target_finding``);
+3. refine the *same* candidates with every method (``locate.refine``);
+4. size: square -> robust side lines, l = left/right distance (the seed's l, with fx);
+   circle -> robust circle fit, l = diameter (``evaluate.size_extraction``);
+5. Z = fx * S / l with the calibrated fx and S = the target's physical size (13 cm).
+
+What the experimenter knows and the pipeline uses: the target's shape and physical size
+(``target.shape``, ``target.size_m`` in the image's JSON, like the seed's "13 cm square").
+What it does *not* use: the true intrinsics, distortion, pose or outline - those only
+score the result: e = Z_hat - Z_true with Z_true the target centre's depth
+(``true_distance_m``), and ``model_floor_cm``, the error the same ranging model makes
+with the *true* outline and the *true* fx (tilt and perspective alone).
+"""
+from __future__ import annotations
+
+import csv
+import json
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from edgetruth.errors import InputError
+from evaluate.size_extraction import distance_from_size, fit_circle, fit_square
+
+INTERVALS_CM = ((50, 100), (100, 150), (150, 200), (200, 250), (250, 300))
+REFERENCE_METHOD = "dynamic_erf_4p"
+#: The seed's Table 13 methods, and the representative set of Tables 16-17.
+SEED_TABLE13 = ("canny_pixel", "canny_devernay", "hagara_aef2011", "sigmoid_logistic_fit2023", "ser_cis",
+                "dynamic_erf_4p")
+SEED_ROBUSTNESS = ("canny_pixel", "erf4p_fixed11", "ser_cis", "dynamic_erf_4p")
+
+
+def interval_label(distance_cm: float) -> str:
+    for a, b in INTERVALS_CM:
+        if a <= distance_cm < b or (b == INTERVALS_CM[-1][1] and distance_cm == b):
+            return f"{a}-{b}"
+    return "<50" if distance_cm < INTERVALS_CM[0][0] else ">300"
+
+
+@dataclass
+class ImageResult:
+    """Everything measured on one image (one row per method in ``rows``)."""
+
+    name: str
+    rows: list[dict]
+    n_candidates: int = 0
+    n_boundary: int = 0
+    region: dict = field(default_factory=dict)
+    points: dict = field(default_factory=dict)  # method -> (x, y) in image coords (for figures)
+    crop: tuple = ()
+    error: str = ""
+
+
+def size_of(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float) -> dict:
+    """Image size l (pixels, in fx units) of the target from refined points."""
+    if shape == "square":
+        fit = fit_square(x, y, nx, ny)
+        return {"size_px": fit.width_px, "size_tb_px": fit.height_px * fx / fy, "size_seed_px": fit.width_seed_px,
+                "n_used": int(fit.used.sum()), "fit_rms_px": float(np.nanmean([ln.rms_px for ln in fit.lines.values()]))}
+    fit = fit_circle(x, y, aspect=fx / fy, cy_px=cy)
+    return {"size_px": fit.diameter_px, "size_tb_px": float("nan"), "size_seed_px": float("nan"),
+            "n_used": int(fit.used.sum()), "fit_rms_px": fit.rms_px}
+
+
+def true_size_px(gt: dict) -> float:
+    """The ranging model's l evaluated on the TRUE undistorted outline (truth, for the model floor)."""
+    pts = np.asarray(gt["outline"]["undistorted_px"])
+    if gt["target"]["shape"] == "square":
+        tl, tr, br, bl = pts
+        from evaluate.size_extraction import Line, _line_gap
+
+        def through(a, b):
+            t = (b - a) / np.linalg.norm(b - a)
+            n = np.array([-t[1], t[0]])
+            return Line(n, float(n @ a), np.ones(2, bool), 0.0)
+
+        return _line_gap(through(tl, bl), np.array([tl, bl]), through(tr, br), np.array([tr, br]))
+    from evaluate.size_extraction import circle_taubin
+    return 2.0 * circle_taubin(pts[:, 0], pts[:, 1])[2]
+
+
+def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[str], keep_points: bool = False,
+                  name: str = "image") -> ImageResult:
+    """Run steps 1-5 on one image; ``gt`` supplies only the target's shape/size (and the scoring truth)."""
+    import locate
+    from evaluate.target_finding import target_candidates
+
+    shape = gt["target"]["shape"]
+    size_m = float(gt["target"]["size_m"])
+    z_true = float(gt["true_distance_m"])
+    fx, fy, cy = cal.fx, cal.fy, cal.cy
+    base = {"image": name, "spec": gt.get("spec", ""), "group": gt.get("group", ""),
+            "target": gt["target"]["id"], "shape": shape, "true_distance_m": z_true,
+            "interval": interval_label(100 * z_true)}
+    floor_l = true_size_px(gt)
+    f_true = float(gt["camera"]["fx_px"])
+    base["model_floor_cm"] = 100.0 * (distance_from_size(f_true, size_m, floor_l) - z_true)
+    und = undistorter(image)
+    try:
+        tc = target_candidates(und, undistorter.valid_mask())
+    except InputError as exc:
+        return ImageResult(name, [dict(base, method=m, status=f"no target: {exc}", z_hat_m=float("nan"),
+                                       error_cm=float("nan"), rel_error_pct=float("nan")) for m in methods],
+                           error=str(exc))
+    x0, y0 = tc.offset
+    res = ImageResult(name, [], len(tc.all_candidates), len(tc.candidates),
+                      {"bbox": list(tc.region.bbox), "solidity": tc.region.solidity,
+                       "shape_guess": tc.region.shape_guess, "interior_ratio": tc.region.interior_ratio},
+                      crop=(x0, y0, tc.crop.shape[1], tc.crop.shape[0]))
+    if keep_points:
+        res.points["_canny_all"] = (tc.all_candidates.x + x0, tc.all_candidates.y + y0)
+        res.points["_canny_kept"] = (tc.candidates.x + x0, tc.candidates.y + y0)
+        res.points["_image"] = tc.crop
+    for m in methods:
+        row = dict(base, method=m, n_points=len(tc.candidates))
+        try:
+            pts = locate.refine(tc.crop, tc.candidates, m)
+            x, y = pts.x + x0, pts.y + y0
+            s = size_of(shape, x, y, pts.nx, pts.ny, fx, fy, cy)
+            z = distance_from_size(fx, size_m, s["size_px"])
+            row.update(s, status="ok", converged_frac=float(np.mean(pts.converged)), time_s=pts.elapsed_s,
+                       z_hat_m=z, error_cm=100.0 * (z - z_true), rel_error_pct=100.0 * abs(z - z_true) / z_true,
+                       size_error_px=s["size_px"] - floor_l)
+            if keep_points:
+                res.points[m] = (x, y)
+        except InputError as exc:
+            row.update(status=f"size failed: {exc}", z_hat_m=float("nan"), error_cm=float("nan"),
+                       rel_error_pct=float("nan"))
+        res.rows.append(row)
+    return res
+
+
+ROW_FIELDS = ("image", "spec", "group", "target", "shape", "true_distance_m", "interval", "method", "status",
+              "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px", "size_seed_px", "size_error_px",
+              "model_floor_cm", "n_points", "n_used", "fit_rms_px", "converged_frac", "time_s")
+
+
+def write_rows(path: Path, rows: list[dict]) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    with open(tmp, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=ROW_FIELDS, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k, "") for k in ROW_FIELDS})
+    tmp.replace(path)
+
+
+def read_rows(path: Path) -> list[dict]:
+    out = []
+    with open(path, newline="") as fh:
+        for r in csv.DictReader(fh):
+            for k in ("true_distance_m", "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px",
+                      "size_seed_px", "size_error_px", "model_floor_cm", "fit_rms_px", "converged_frac", "time_s"):
+                if k in r:
+                    r[k] = float(r[k]) if r[k] not in ("", None) else float("nan")
+            out.append(r)
+    return out
+
+
+def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | None = None,
+                progress: bool = True, names: dict | None = None, figure_examples: int = 2) -> dict:
+    """Range every target image of ``datasets`` with every method; write ``ranging_rows.csv``.
+
+    Returns {"rows": [...], "examples": [ImageResult with points, ...], "per_image": [...]}.
+    """
+    import locate
+    from render.dataset import list_images, load_image
+    from evaluate.undistort import from_calibration
+
+    methods = list(methods or locate.METHODS)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    jobs = []
+    for ds in datasets:
+        for n in (names or {}).get(str(ds)) or list_images(ds):
+            jobs.append((Path(ds), n))
+    undistorters: dict = {}
+    rows, per_image, examples = [], [], []
+    shapes_shown: set = set()
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(jobs), desc="ranging", unit="img", file=sys.stderr, dynamic_ncols=True)
+    t0 = time.perf_counter()
+    try:
+        for ds, n in jobs:
+            img, gt = load_image(ds, n)
+            if bar:
+                bar.update(1)
+            if gt.get("kind") != "target":
+                continue
+            size = (int(gt["camera"]["width_px"]), int(gt["camera"]["height_px"]))
+            if size != tuple(cal.image_size):
+                raise InputError(f"{ds}/{n}: image size {size} differs from the calibrated {tuple(cal.image_size)}; "
+                                 "calibrate with boards from the same camera")
+            if size not in undistorters:
+                undistorters[size] = from_calibration(cal)
+            shape = gt["target"]["shape"]
+            keep = len(examples) < figure_examples and shape not in shapes_shown
+            r = process_image(img.astype(np.float64), gt, cal, undistorters[size], methods, keep, name=n)
+            if keep and not r.error:
+                examples.append(r)
+                shapes_shown.add(shape)
+            rows += r.rows
+            per_image.append({"image": n, "dataset": str(ds), "n_candidates": r.n_candidates,
+                              "n_boundary": r.n_boundary, **r.region, "error": r.error})
+    finally:
+        if bar:
+            bar.close()
+    write_rows(out_dir / "ranging_rows.csv", rows)
+    (out_dir / "ranging_images.json").write_text(json.dumps(per_image, indent=1))
+    return {"rows": rows, "examples": examples, "per_image": per_image, "wall_s": time.perf_counter() - t0,
+            "methods": methods}

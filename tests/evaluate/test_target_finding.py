@@ -1,0 +1,53 @@
+"""Target finding from the image alone: robust to board shading, border regions and highlights."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from edgetruth.errors import InputError
+from evaluate.target_finding import find_target, target_candidates
+
+
+def scene(shape="square", gray=0.05, highlight=False, border_dark=True, h=240, w=320):
+    """A board with an illumination gradient, a dark target (area-sampled, 4x4 supersampling),
+    optionally a bright highlight inside it and an unlit region touching the image border."""
+    ss = 4
+    yy, xx = (np.mgrid[0:h * ss, 0:w * ss] + 0.5) / ss - 0.5
+    cx, cy, half = 150.3, 118.7, 40.0
+    if shape == "square":
+        inside = (np.abs(xx - cx) <= half) & (np.abs(yy - cy) <= half)
+    else:
+        inside = np.hypot(xx - cx, yy - cy) <= half
+    refl = np.where(inside, gray, 1.0)
+    if highlight:
+        refl = np.where(np.hypot(xx - cx + 10, yy - cy + 12) < 8, 0.9, refl)
+    img = refl.reshape(h, ss, w, ss).mean(axis=(1, 3))
+    img *= 3000.0 * (1.0 - 0.3 * np.arange(h)[:, None] / h) * (1.0 - 0.2 * np.arange(w)[None, :] / w)
+    if border_dark:
+        img[:, :25] = 5.0  # beyond the board's edge
+    img += np.random.default_rng(0).normal(0, 5.0, img.shape)
+    return img, (cx, cy, half)
+
+
+@pytest.mark.parametrize("shape,gray,highlight", [("square", 0.05, False), ("circle", 0.05, False),
+                                                  ("square", 0.3, False), ("square", 0.04, True)])
+def test_finds_the_target_and_keeps_only_its_boundary(shape, gray, highlight):
+    img, (cx, cy, half) = scene(shape, gray, highlight)
+    reg = find_target(img)
+    assert reg.centroid == pytest.approx((cx, cy), abs=1.0)
+    assert reg.shape_guess == shape
+    tc = target_candidates(img)
+    x = tc.candidates.x + tc.offset[0]
+    y = tc.candidates.y + tc.offset[1]
+    if shape == "square":
+        d = np.maximum(np.abs(x - cx), np.abs(y - cy)) - half
+    else:
+        d = np.hypot(x - cx, y - cy) - half
+    assert np.all(np.abs(d) <= 1.5)
+    assert len(tc.candidates) > 0.8 * (8 * half if shape == "square" else 2 * np.pi * half)
+
+
+def test_no_target_is_an_input_error():
+    img = np.full((100, 120), 1000.0) + np.random.default_rng(1).normal(0, 3, (100, 120))
+    with pytest.raises(InputError):
+        find_target(img)
