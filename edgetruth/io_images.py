@@ -1,12 +1,34 @@
 """Reading images from disk with one clear error per failure mode."""
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from edgetruth.errors import InputError
+
+
+@contextlib.contextmanager
+def _quiet_stderr_fd():
+    """Silence file descriptor 2 (C libraries such as OpenEXR's decoder print their own diagnostics
+    there); our one-line error is printed after this block."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):
+        yield
+        return
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 def read_gray(path) -> np.ndarray:
@@ -28,7 +50,7 @@ def read_gray(path) -> np.ndarray:
         try:
             import OpenEXR
 
-            with OpenEXR.File(str(p)) as f:
+            with _quiet_stderr_fd(), OpenEXR.File(str(p)) as f:
                 chans = f.channels()
                 name = next(iter(chans))
                 img = np.asarray(chans[name].pixels)

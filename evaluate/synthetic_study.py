@@ -376,7 +376,7 @@ def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: 
     """Run (or resume) the synthetic study into ``out_dir``; returns the path of its report.md."""
     if preset not in PRESETS:
         raise InputError(f"preset {preset!r}: choose one of {', '.join(PRESETS)}")
-    n_per = images_per_scenario or PRESETS[preset]["images_per_scenario"]
+    n_per = PRESETS[preset]["images_per_scenario"] if images_per_scenario is None else int(images_per_scenario)
     if n_per < 2:
         raise InputError(f"images per scenario = {n_per}: need at least 2")
     methods = mo.ordered(methods)

@@ -110,6 +110,12 @@ def candidates(
     in gray levels per pixel (defaults: see ``_default_thresholds``).
     """
     img = as_float_image(image, name)
+    try:
+        sigma_px = float(sigma_px)
+        low = None if low is None else float(low)
+        high = None if high is None else float(high)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"sigma_px={sigma_px!r}, low={low!r}, high={high!r}: must be numbers") from exc
     if not (np.isfinite(sigma_px) and 0.3 <= sigma_px <= 10.0):
         raise InputError(f"sigma_px={sigma_px}: must be a number in [0.3, 10] pixels")
     smooth, gx, gy = smoothed_gradient(img, sigma_px)

@@ -363,7 +363,8 @@ def finish(cand, out, n_samples: int, npar: int, mu_index: int, width_index: int
     dof = n_samples - npar
     use = conv & np.isfinite(out[:, 4]) & np.isfinite(out[:, 5])
     sigma2 = out[use, 4].sum() / (dof * use.sum()) if use.any() else np.nan
-    se = np.where(conv, np.sqrt(sigma2 * out[:, 5]), np.nan)
+    c_mumu = out[:, 5]
+    se = np.where(conv & (c_mumu > 0), np.sqrt(sigma2 * np.where(c_mumu > 0, c_mumu, np.nan)), np.nan)
     named = {name: out[:, i] for i, name in enumerate(amp_names)}
     return Refinement.from_offset(
         cand, mu, conv, **named, width=out[:, width_index], rss=out[:, 4],

@@ -1,6 +1,7 @@
 """The method registry and the refinement stage shared by every method."""
 from __future__ import annotations
 
+import inspect
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -60,6 +61,20 @@ def get_method(method: str) -> Method:
     return METHODS[method]
 
 
+def method_options(m: Method) -> list[str]:
+    """The keyword options a method accepts (its named parameters after image and candidates)."""
+    params = list(inspect.signature(m.fn).parameters.values())[2:]
+    return [p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+
+
+def check_options(m: Method, options: dict) -> None:
+    known = method_options(m)
+    bad = sorted(set(options) - set(known))
+    if bad:
+        raise InputError(f"method {m.id} has no option(s) {', '.join(bad)}; its options are: "
+                         f"{', '.join(known) or 'none'}")
+
+
 def refine(image, cand: Candidates, method: str = "dynamic_erf_4p", **options) -> EdgePoints:
     """Refine the candidates ``cand`` of ``image`` with ``method``.
 
@@ -69,6 +84,9 @@ def refine(image, cand: Candidates, method: str = "dynamic_erf_4p", **options) -
     """
     m = get_method(method)
     img = as_float_image(image)
+    if not isinstance(cand, Candidates):
+        raise InputError(f"candidates: got {type(cand).__name__}; pass the result of locate.candidates(image)")
+    check_options(m, options)
     if tuple(img.shape) != tuple(cand.shape):
         raise InputError(f"candidates were found on a {cand.shape} image but image is {img.shape}; "
                          "pass the image the candidates came from")

@@ -7,6 +7,9 @@ manifest entry says so *and* its files still hash to the recorded values.
 """
 from __future__ import annotations
 
+import hashlib
+import json
+import os
 import platform
 import sys
 import time
@@ -17,7 +20,8 @@ import numpy as np
 from edgetruth import __version__
 from edgetruth.errors import InputError, require
 from render.camera import Camera, load_camera
-from render.files import read_exr, read_json, read_png16, sha256_file, write_exr, write_json, write_png16
+from render.files import (atomic_write_bytes, read_exr, read_json, read_png16, sha256_file, write_exr,
+                          write_json)
 from render.ground_truth import checker_ground_truth, outline_in_view, target_ground_truth, target_outline_local
 from render.mitsuba_scene import TARGETS, CheckerRig, Checkerboard, RenderSettings, TargetRig
 from render.pose import Pose
@@ -161,60 +165,211 @@ def _new_manifest(spec: Spec) -> dict:
             "spec_sha256": spec.text_sha256, "n_images": len(spec.jobs), "images": {}}
 
 
+def _encode_exr(radiance: np.ndarray) -> bytes:
+    """The bytes ``write_exr`` would write (one-channel ZIP EXR), via a private temporary file."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="edgetruth-exr-") as d:
+        tmp = Path(d) / "r.exr"
+        write_exr(tmp, radiance)
+        return tmp.read_bytes()
+
+
+def _encode_png16(image_dn: np.ndarray) -> bytes:
+    import cv2
+
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(image_dn, dtype=np.uint16))
+    if not ok:  # pragma: no cover
+        raise OSError("cv2 could not encode a 16-bit PNG")
+    return buf.tobytes()
+
+
+def _encode_json(obj) -> bytes:
+    return (json.dumps(obj, indent=1, sort_keys=False) + "\n").encode()
+
+
+def init_worker(variant: str, threads: int | None = None) -> None:
+    """Once per worker process: activate ``variant`` and share the cores among the workers."""
+    import render.variants  # noqa: F401  (points Dr.Jit at the pip libLLVM before it is imported)
+    import mitsuba as mi
+
+    if mi.variant() != variant:
+        mi.set_variant(variant)
+    if threads and variant.startswith("llvm"):
+        import drjit as dr
+
+        dr.set_thread_count(int(threads))
+
+
+def render_task(spec: Spec, index: int, variant: str, out_dir: str | None) -> dict:
+    """Render image ``index`` of ``spec``: a pure function of (spec, index) (its seed is
+    ``image_seed(spec.name, index)``).  With ``out_dir`` the files are written there, each
+    atomically; otherwise their bytes come back in ``payload`` for the driver to write.
+    Returns the image's manifest entry (with SHA-256 of every file) -- the driver records it."""
+    import mitsuba as mi
+
+    if mi.variant() != variant:
+        init_worker(variant)
+    job = spec.jobs[index]
+    assert job["index"] == index, (job["index"], index)
+    timings: dict = {}
+    radiance, dn, gt = render_job(spec, job, timings=timings)
+    name = job["name"]
+    gt["files"] = {"exr": f"{name}.exr", "png": f"{name}.png"}
+    data = {"exr": _encode_exr(radiance), "png": _encode_png16(dn), "json": _encode_json(gt)}
+    if out_dir is not None:
+        _write_files(Path(out_dir), name, data)
+    entry = {
+        "index": index, "kind": job["kind"], "group": job["group"], "seed": job["seed"],
+        "variant": variant, "complete": True,
+        "files": {k: {"path": f"{name}.{k}", "sha256": hashlib.sha256(b).hexdigest()} for k, b in data.items()},
+    }
+    return {"name": name, "entry": entry, "render_s": timings.get("render_s", 0.0),
+            "payload": None if out_dir is not None else data}
+
+
+def _write_files(out_dir: Path, name: str, data: dict) -> None:
+    # the JSON (which names the other two) last; each file appears whole or not at all
+    for ext in ("exr", "png", "json"):
+        atomic_write_bytes(out_dir / f"{name}.{ext}", data[ext])
+
+
+def is_temporary(p: Path) -> bool:
+    """A writer's temporary file (``.tmp-PID-NAME.EXT``), left behind only by a killed run."""
+    return p.name.startswith(".tmp-")
+
+
+class _DirLock:
+    """An exclusive ``flock`` on the dataset directory itself (no lock file to leave behind);
+    the kernel releases it when the process dies, even on ``kill -9``."""
+
+    def __init__(self, path: Path):
+        import fcntl
+
+        self.fd = os.open(path, os.O_RDONLY)
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.fd)
+            raise InputError(f"{path}: another `edgetruth render` is writing this dataset now; "
+                             "wait for it to finish or choose another output directory") from None
+
+    def release(self) -> None:
+        os.close(self.fd)  # closing the descriptor drops the flock
+
+
+def _prepare_out_dir(out_dir: Path) -> None:
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"-o {out_dir}: is a file, not a directory; choose a directory path")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"-o {out_dir}: cannot create the output directory ({exc.strerror}); "
+                         "choose a writable location") from None
+    if not os.access(out_dir, os.W_OK | os.X_OK):
+        raise InputError(f"-o {out_dir}: directory is not writable; fix its permissions or choose another")
+
+
 def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | None = None, progress: bool = True,
-                only: list[int] | None = None, timings: dict | None = None, announce=print) -> dict:
+                only: list[int] | None = None, timings: dict | None = None, announce=print,
+                backend: str = "local", workers: int | None = 1, address: str | None = None) -> dict:
     """Render every image of ``spec`` into ``out_dir`` (resumable) and return the manifest.
 
     ``only`` restricts to those job indices; ``timings`` (a dict) accumulates ``render_s``
-    (inside ``mi.render``), ``wall_s`` and ``n_rendered``.
+    (inside ``mi.render``, summed over workers), ``wall_s`` and ``n_rendered``.
+
+    ``backend``/``workers``/``address``: where images render (see ``edgetruth.backends``);
+    the default renders in this process.  Whatever the backend, the files of an image are
+    identical, only this (driver) process writes ``manifest.json`` (atomically, after each
+    image), and an interrupted run -- even ``kill -9`` -- resumes where it stopped.
     """
+    from edgetruth.backends import check_backend_args, default_workers, make_backend
     from render.variants import choose_variant
 
+    from render.spec_checks import check_spec, load_checked_spec
+
+    check_backend_args(backend, workers, address)  # before anything is written
+    if variant:
+        import mitsuba as mi
+
+        if variant not in mi.variants():
+            raise InputError(f"--variant {variant}: not in this Mitsuba build (have: {', '.join(mi.variants())})")
     if not isinstance(spec, Spec):
-        spec = load_spec(spec)
+        spec = load_checked_spec(spec)
+    else:
+        check_spec(spec)
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if only is not None:
+        bad = sorted(set(only) - set(range(len(spec.jobs))))
+        if bad:
+            raise InputError(f"--only: index {bad[0]} out of range; {spec.name!r} has images 0-{len(spec.jobs) - 1}")
+    _prepare_out_dir(out_dir)
+    lock = _DirLock(out_dir)
+    try:
+        return _render_locked(spec, out_dir, variant, progress, only, timings, announce, backend, workers,
+                              address, make_backend, default_workers, choose_variant)
+    finally:
+        lock.release()
+
+
+def _render_locked(spec, out_dir, variant, progress, only, timings, announce, backend, workers, address,
+                   make_backend, default_workers, choose_variant) -> dict:
     mpath = out_dir / MANIFEST
     manifest = read_json(mpath) if mpath.is_file() else _new_manifest(spec)
+    if not isinstance(manifest, dict) or not isinstance(manifest.get("images"), dict):
+        raise InputError(f"{mpath}: not an edgetruth manifest; choose a new output directory or delete it")
     if manifest.get("spec") != spec.name or manifest.get("spec_sha256") != spec.text_sha256:
         raise InputError(f"{out_dir} holds renders of another spec (or another version of {spec.name!r}); "
                          "choose a new output directory or delete it")
+    for p in out_dir.iterdir():  # temporaries of a killed run (we hold the lock: no writer is alive)
+        if is_temporary(p) and p.is_file():
+            p.unlink()
     jobs = [j for j in spec.jobs if only is None or j["index"] in only]
     todo = [j for j in jobs if not _entry_complete(out_dir, manifest["images"].get(j["name"]))]
-    if todo:
-        used = choose_variant(variant, announce=announce)
-    t_start = time.perf_counter()
     stats = timings if timings is not None else {}
+    t_start = time.perf_counter()
+    if not todo:
+        if not mpath.is_file():
+            write_json(mpath, manifest)
+        stats["wall_s"] = stats.get("wall_s", 0.0) + time.perf_counter() - t_start
+        return manifest
+    n_workers = default_workers() if workers is None else int(workers)
+    n_workers = min(n_workers, len(todo)) if backend == "local" else n_workers
+    be = make_backend(backend, workers=n_workers, address=address)  # validates before any rendering
     bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=len(jobs), initial=len(jobs) - len(todo), unit="img", desc=f"render {spec.name}",
-                   file=sys.stderr, dynamic_ncols=True)
     try:
-        for job in todo:
-            radiance, dn, gt = render_job(spec, job, timings=stats)
-            name = job["name"]
-            gt["files"] = {"exr": f"{name}.exr", "png": f"{name}.png"}
-            write_exr(out_dir / f"{name}.exr", radiance)
-            write_png16(out_dir / f"{name}.png", dn)
-            write_json(out_dir / f"{name}.json", gt)
-            manifest["images"][name] = {
-                "index": job["index"], "kind": job["kind"], "group": job["group"], "seed": job["seed"],
-                "variant": used, "complete": True,
-                "files": {k: {"path": f"{name}.{k}", "sha256": sha256_file(out_dir / f"{name}.{k}")}
-                          for k in ("exr", "png", "json")},
-            }
+        if backend == "ray" and getattr(be, "num_gpus", 0) and not variant:
+            used = "cuda_ad_rgb"
+            announce(f"render: using Mitsuba variant {used} (the Ray cluster has GPUs)")
+        else:
+            used = choose_variant(variant, announce=announce)
+        threads = max(1, default_workers() // max(1, be.concurrency)) if be.concurrency > 1 else None
+        be.set_initializer(init_worker, (used, threads))
+        if progress:
+            from tqdm import tqdm
+            bar = tqdm(total=len(jobs), initial=len(jobs) - len(todo), unit="img", desc=f"render {spec.name}",
+                       file=sys.stderr, dynamic_ncols=True)
+        worker_dir = str(out_dir.resolve()) if be.shares_filesystem else None
+        tasks = [(spec, j["index"], used, worker_dir) for j in todo]
+        for res in be.map_unordered(render_task, tasks):
+            name = res["name"]
+            if res["payload"] is not None:
+                _write_files(out_dir, name, res["payload"])
+            manifest["images"][name] = res["entry"]
             manifest["images"] = dict(sorted(manifest["images"].items(), key=lambda kv: kv[1]["index"]))
             write_json(mpath, manifest)
+            stats["render_s"] = stats.get("render_s", 0.0) + res["render_s"]
             stats["n_rendered"] = stats.get("n_rendered", 0) + 1
             if bar:
                 bar.update(1)
+    except BaseException:
+        be.close(abort=True)
+        raise
     finally:
         if bar:
             bar.close()
+    be.close()
     stats["wall_s"] = stats.get("wall_s", 0.0) + time.perf_counter() - t_start
-    if not mpath.is_file():
-        write_json(mpath, manifest)
     return manifest
 
 

@@ -99,6 +99,9 @@ def load_spec(name_or_path: str | Path) -> Spec:
         require("name" in g, f"{path}: every [[group]] needs a name")
     spec = Spec(name=settings["name"], path=path, settings=settings, sensor=dict(data.get("sensor", {})),
                 groups=groups, text_sha256=hashlib.sha256(raw).hexdigest())
+    from render.spec_checks import check_spec  # values (types, ranges, camera) before expanding jobs
+
+    check_spec(spec)
     spec.jobs = expand(spec)
     return spec
 

@@ -10,6 +10,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from edgetruth.errors import InputError
+
+    if args.repeats < 1:
+        raise InputError(f"--repeats {args.repeats}: must be >= 1 (the figures are medians over repeats)")
     if args.only in (None, "locate"):
         from locate.bench import run_bench
 

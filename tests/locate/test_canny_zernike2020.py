@@ -7,45 +7,13 @@ blur spreads the step symmetrically, so Z20 / Z11' underestimates |l| and the
 point is pulled toward the candidate pixel.  At blur 1 px that bias dominates
 the error budget (a few tenths of the offset).
 """
+from functools import partial
+
 import numpy as np
 
-from locate import refine
-from locate.candidates import candidates
 from locate.methods.canny_zernike2020 import zernike_masks
-from render.edge_truth import CircleEdge, StraightEdge
-from render.synthetic import render_edge_image
-
-SHAPE = (64, 64)
-A_LEVEL, B_CONTRAST = 40.0, 120.0
-NEAR_PX = 1.5  # candidates whose pixel centre lies within 1.5 px of the true edge
-
-
-def make_edge(kind, seed):
-    rng = np.random.default_rng([0xED6E, seed])
-    cx, cy = SHAPE[1] / 2 - 0.5 + rng.uniform(-1, 1), SHAPE[0] / 2 - 0.5 + rng.uniform(-1, 1)
-    if kind == "line":
-        return StraightEdge(cx, cy, rng.uniform(-np.pi, np.pi))
-    return CircleEdge(cx, cy, rng.uniform(12.0, 20.0), seed % 2 == 0)
-
-
-def run_method(method, kind, seeds, blur=1.0, noise_rel=0.0, **opts):
-    """Errors (signed distance to the true edge, px) of the converged points, and the converged fraction."""
-    errs, conv = [], []
-    for seed in seeds:
-        edge = make_edge(kind, seed)
-        img = render_edge_image(SHAPE, edge, A_LEVEL, B_CONTRAST, blur, noise_sigma=noise_rel * B_CONTRAST,
-                                rng=np.random.default_rng([0x401E, seed]))
-        cand = candidates(img)
-        cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= NEAR_PX)
-        pts = refine(img, cand, method, **opts)
-        errs.append(edge.signed_distance(pts.x, pts.y)[pts.converged])
-        conv.append(pts.converged)
-    e = np.concatenate(errs)
-    return e, float(np.concatenate(conv).mean())
-
-
-def stats(e):
-    return abs(float(e.mean())), float(np.sqrt(np.mean(e * e)))
+from tests.support.edge_scenes import (SHAPE_64 as SHAPE, make_edge, noise_displacement, refine_near_edge, render,
+                                       run_method, stats)
 
 
 def test_masks_integrate_the_zernike_polynomials_over_the_disk():
@@ -67,10 +35,7 @@ def _unblurred_offsets(seeds):
     ls, ds = [], []
     for s in seeds:
         edge = make_edge("line", s)
-        img = render_edge_image(SHAPE, edge, A_LEVEL, B_CONTRAST, 0.0)
-        cand = candidates(img)
-        cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= NEAR_PX)
-        pts = refine(img, cand, "canny_zernike2020")
+        cand, pts = refine_near_edge(render(SHAPE, edge, 0.0), edge, "canny_zernike2020")
         c, sn = edge.normal
         ls.append(pts.l)
         ds.append(-edge.signed_distance(cand.x, cand.y) / (pts.nx * c + pts.ny * sn))
@@ -107,10 +72,7 @@ def test_ideal_straight_edges():
     d_true, d_est = [], []
     for s in range(12):
         edge = make_edge("line", s)
-        img = render_edge_image(SHAPE, edge, A_LEVEL, B_CONTRAST, 1.0)
-        cand = candidates(img)
-        cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= NEAR_PX)
-        pts = refine(img, cand, "canny_zernike2020")
+        cand, pts = refine_near_edge(render(SHAPE, edge, 1.0), edge, "canny_zernike2020")
         d_true.append(-edge.signed_distance(cand.x, cand.y))
         d_est.append(pts.offset * (pts.nx * edge.normal[0] + pts.ny * edge.normal[1]))
     d_true, d_est = np.concatenate(d_true), np.concatenate(d_est)
@@ -128,20 +90,10 @@ def test_ideal_circles():
     assert mean < 0.02, mean
 
 
-def _noise_displacement(noise_rel, seeds):
-    """Per-point displacement caused by noise alone: the noisy image refined on the
-    noise-free image's candidates (the operator reads the image, not cand.smoothed)."""
-    out = []
-    for seed in seeds:
-        edge = make_edge("line", seed)
-        clean = render_edge_image(SHAPE, edge, A_LEVEL, B_CONTRAST, 1.0)
-        noisy = clean + np.random.default_rng([0x401E, seed]).normal(0, noise_rel * B_CONTRAST, SHAPE)
-        cand = candidates(clean)
-        cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= NEAR_PX)
-        p0 = refine(clean, cand, "canny_zernike2020")
-        p1 = refine(noisy, cand, "canny_zernike2020")
-        out.append(edge.signed_distance(p1.x, p1.y) - edge.signed_distance(p0.x, p0.y))
-    return float(np.sqrt(np.mean(np.concatenate(out) ** 2)))
+# Per-point displacement caused by noise alone: the noisy image refined on the
+# noise-free image's candidates (the operator reads the image, not cand.smoothed).
+# Every point is scored, converged or not.
+_noise_displacement = partial(noise_displacement, "canny_zernike2020")
 
 
 def test_error_grows_with_noise():

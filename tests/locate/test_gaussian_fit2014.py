@@ -6,44 +6,18 @@ blur 1.0 px, 48x48 images, shared Canny candidates (sigma 1 px); the error of
 a point is truth.signed_distance(x, y); only candidates whose pixel centre
 lies within 1.5 px of the true edge are scored.
 """
+from functools import partial
+
 import numpy as np
 import pytest
-from scipy.optimize import least_squares
 
 import locate
-from locate.profiles import profile_offsets, sample_profiles
-from render.edge_truth import CircleEdge, StraightEdge
-from render.synthetic import render_edge_image
+from tests.support import edge_scenes
+from tests.support.edge_scenes import assert_flat_region_not_converged, circle, lm_reference_fits, straight
 
 METHOD = "gaussian_fit2014"
-SHAPE = (48, 48)
-A, B, BLUR = 40.0, 120.0, 1.0
-
-
-def straight(seed):
-    r = np.random.default_rng(1000 + seed)
-    return StraightEdge(SHAPE[1] / 2 - 0.5 + r.uniform(-1, 1), SHAPE[0] / 2 - 0.5 + r.uniform(-1, 1),
-                        r.uniform(-np.pi, np.pi))
-
-
-def circle(seed):
-    r = np.random.default_rng(2000 + seed)
-    return CircleEdge(SHAPE[1] / 2 - 0.5 + r.uniform(-1, 1), SHAPE[0] / 2 - 0.5 + r.uniform(-1, 1),
-                      r.uniform(12, 16), bool(seed % 2))
-
-
-def scored(edge, noise_rel=0.0, seed=0, **options):
-    """(image, near candidates, EdgePoints) for one rendered edge."""
-    img = render_edge_image(SHAPE, edge, A, B, BLUR, noise_sigma=noise_rel * B, rng=np.random.default_rng(seed))
-    cand = locate.candidates(img)
-    cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= 1.5)
-    return img, cand, locate.refine(img, cand, METHOD, **options)
-
-
-def errors(edge, **kw):
-    _, _, pts = scored(edge, **kw)
-    assert pts.converged.all()
-    return edge.signed_distance(pts.x, pts.y)
+scored = partial(edge_scenes.scored, METHOD)  # (image, near candidates, EdgePoints) for one rendered edge
+errors = partial(edge_scenes.errors, METHOD)  # signed errors of the points, all of which must converge
 
 
 def test_registered_as_baseline():
@@ -77,10 +51,7 @@ def test_ideal_circles_only_curvature_bias():
     assert np.sqrt(np.mean(e ** 2)) < 0.016
 
 
-def _rmse_at(noise_rel, **options):
-    e = np.concatenate([errors(straight(s), noise_rel=noise_rel, seed=10 * s + rep + 1, **options)
-                        for s in range(4) for rep in range(3)])
-    return np.sqrt(np.mean(e ** 2))
+_rmse_at = partial(edge_scenes.rmse_at, METHOD)  # RMSE over straight edges 0-3, 3 noise draws each
 
 
 def test_error_grows_linearly_with_noise():
@@ -104,31 +75,18 @@ def test_least_squares_fit_beats_three_point_log_parabola_under_noise():
 def test_fit_agrees_with_scipy_least_squares():
     """The batched LM kernel lands on scipy's LM minimum of the constant-free
     Gaussian on the profile differences to 1e-6 px on real noisy profiles."""
-    img, cand, pts = scored(straight(1), noise_rel=0.01, seed=3)
-    g = np.diff(sample_profiles(img, cand), axis=1)
-    t = profile_offsets()
-    tg = 0.5 * (t[1:] + t[:-1])
-    for i in range(0, len(cand), max(1, len(cand) // 6)):
-        y = g[i]
-
-        def res(p):
-            return p[0] * np.exp(-0.5 * ((tg - p[1]) / p[2]) ** 2) - y
-
-        x0 = [y.max(), tg[np.argmax(y)], 1.0]
-        ref = least_squares(res, x0, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=10000)
-        assert abs(pts.offset[i] - ref.x[1]) < 1e-6
-        assert abs(pts.width[i] - abs(ref.x[2])) < 1e-5
-        assert abs(pts.amplitude[i] - ref.x[0]) < 1e-4
+    pts, refs = lm_reference_fits(METHOD, lambda tg, p: p[0] * np.exp(-0.5 * ((tg - p[1]) / p[2]) ** 2),
+                                  lambda tg, y: [y.max(), tg[np.argmax(y)], 1.0], differences=True)
+    for i, ref_x in refs:
+        assert abs(pts.offset[i] - ref_x[1]) < 1e-6
+        assert abs(pts.width[i] - abs(ref_x[2])) < 1e-5
+        assert abs(pts.amplitude[i] - ref_x[0]) < 1e-4
 
 
 def test_flat_image_region_is_not_converged():
     """No positive difference, no Gaussian: converged=False, candidate pixel kept (both variants)."""
-    img, cand, _ = scored(straight(0))
     for variant in ("lsq", "log3"):
-        pts = locate.refine(np.full_like(img, 50.0), cand, METHOD, variant=variant)
-        assert not pts.converged.any()
-        np.testing.assert_array_equal(pts.x, cand.x)
-        np.testing.assert_array_equal(pts.y, cand.y)
+        assert_flat_region_not_converged(METHOD, variant=variant)
 
 
 def test_unknown_variant_is_an_input_error():

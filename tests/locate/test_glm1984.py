@@ -12,43 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from locate import refine
-from locate.candidates import candidates
 from locate.methods.glm1984 import glm1984
-from render.edge_truth import CircleEdge, StraightEdge
-from render.synthetic import render_edge_image
-
-SHAPE = (64, 64)
-A_LEVEL, B_CONTRAST = 40.0, 120.0
-NEAR_PX = 1.5  # candidates whose pixel centre lies within 1.5 px of the true edge
-
-
-def make_edge(kind, seed):
-    rng = np.random.default_rng([0xED6E, seed])
-    cx, cy = SHAPE[1] / 2 - 0.5 + rng.uniform(-1, 1), SHAPE[0] / 2 - 0.5 + rng.uniform(-1, 1)
-    if kind == "line":
-        return StraightEdge(cx, cy, rng.uniform(-np.pi, np.pi))
-    return CircleEdge(cx, cy, rng.uniform(12.0, 20.0), seed % 2 == 0)
-
-
-def run_method(method, kind, seeds, blur=1.0, noise_rel=0.0, **opts):
-    """Errors (signed distance to the true edge, px) of the converged points, and the converged fraction."""
-    errs, conv = [], []
-    for seed in seeds:
-        edge = make_edge(kind, seed)
-        img = render_edge_image(SHAPE, edge, A_LEVEL, B_CONTRAST, blur, noise_sigma=noise_rel * B_CONTRAST,
-                                rng=np.random.default_rng([0x401E, seed]))
-        cand = candidates(img)
-        cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= NEAR_PX)
-        pts = refine(img, cand, method, **opts)
-        errs.append(edge.signed_distance(pts.x, pts.y)[pts.converged])
-        conv.append(pts.converged)
-    e = np.concatenate(errs)
-    return e, float(np.concatenate(conv).mean())
-
-
-def stats(e):
-    return abs(float(e.mean())), float(np.sqrt(np.mean(e * e)))
+from tests.support.edge_scenes import run_method, stats
 
 
 class _Cand:

@@ -12,54 +12,19 @@
    0.160 px over uniform d; the smoothed variant's wider windows mostly remove it.
 """
 import math
+from functools import partial
 
 import numpy as np
 
-from locate import refine
-from locate.candidates import candidates
 from render.analytic import StepProfile
-from render.edge_truth import CircleEdge, StraightEdge
-from render.synthetic import render_edge_image
-
-SHAPE = (64, 64)
-A_LEVEL, B_CONTRAST = 40.0, 120.0
-NEAR_PX = 1.5  # candidates whose pixel centre lies within 1.5 px of the true edge
-
-
-def make_edge(kind, seed):
-    rng = np.random.default_rng([0xED6E, seed])
-    cx, cy = SHAPE[1] / 2 - 0.5 + rng.uniform(-1, 1), SHAPE[0] / 2 - 0.5 + rng.uniform(-1, 1)
-    if kind == "line":
-        return StraightEdge(cx, cy, rng.uniform(-np.pi, np.pi))
-    return CircleEdge(cx, cy, rng.uniform(12.0, 20.0), seed % 2 == 0)
-
-
-def run_method(method, kind, seeds, blur=1.0, noise_rel=0.0, **opts):
-    """Errors (signed distance to the true edge, px) of the converged points, and the converged fraction."""
-    errs, conv = [], []
-    for seed in seeds:
-        edge = make_edge(kind, seed)
-        img = render_edge_image(SHAPE, edge, A_LEVEL, B_CONTRAST, blur, noise_sigma=noise_rel * B_CONTRAST,
-                                rng=np.random.default_rng([0x401E, seed]))
-        cand = candidates(img)
-        cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= NEAR_PX)
-        pts = refine(img, cand, method, **opts)
-        errs.append(edge.signed_distance(pts.x, pts.y)[pts.converged])
-        conv.append(pts.converged)
-    e = np.concatenate(errs)
-    return e, float(np.concatenate(conv).mean())
-
-
-def stats(e):
-    return abs(float(e.mean())), float(np.sqrt(np.mean(e * e)))
+from tests.support.edge_scenes import (A_LEVEL, B_CONTRAST, SHAPE_64 as SHAPE, make_edge, noise_displacement,
+                                       refine_near_edge, render, run_method, stats)
 
 
 def _unblurred(seed, method_opts):
     edge = make_edge("line", seed)
-    img = render_edge_image(SHAPE, edge, A_LEVEL, B_CONTRAST, 0.0)  # exact area-integrated step
-    cand = candidates(img)
-    cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= NEAR_PX)
-    return edge, cand, refine(img, cand, "pae2013", **method_opts)
+    img = render(SHAPE, edge, 0.0)  # exact area-integrated step
+    return (edge, *refine_near_edge(img, edge, "pae2013", **method_opts))
 
 
 def test_first_order_is_exact_on_an_ideal_straight_step():
@@ -139,21 +104,10 @@ def test_smoothed_variant_at_blur_1():
     assert stats(e)[1] < 0.025
 
 
-def _noise_displacement(noise_rel, seeds, **opts):
-    """Per-point displacement caused by noise alone: the noisy image refined on the
-    noise-free image's candidates (the method reads the image, not cand.smoothed)."""
-    out = []
-    for seed in seeds:
-        edge = make_edge("line", seed)
-        clean = render_edge_image(SHAPE, edge, A_LEVEL, B_CONTRAST, 1.0)
-        noisy = clean + np.random.default_rng([0x401E, seed]).normal(0, noise_rel * B_CONTRAST, SHAPE)
-        cand = candidates(clean)
-        cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= NEAR_PX)
-        p0 = refine(clean, cand, "pae2013", **opts)
-        p1 = refine(noisy, cand, "pae2013", **opts)
-        ok = p0.converged & p1.converged
-        out.append((edge.signed_distance(p1.x, p1.y) - edge.signed_distance(p0.x, p0.y))[ok])
-    return float(np.sqrt(np.mean(np.concatenate(out) ** 2)))
+# Per-point displacement caused by noise alone: the noisy image refined on the
+# noise-free image's candidates (the method reads the image, not cand.smoothed);
+# only points that converge on both images are scored.
+_noise_displacement = partial(noise_displacement, "pae2013", converged_only=True)
 
 
 def test_error_grows_linearly_with_noise():

@@ -6,43 +6,21 @@ blur 1.0 px, 48x48 images, shared Canny candidates (sigma 1 px); the error of
 a point is truth.signed_distance(x, y); only candidates whose pixel centre
 lies within 1.5 px of the true edge are scored.
 """
+from functools import partial
+
 import numpy as np
 from scipy.special import ndtr
 
 import locate
 from locate.methods.ser_cis import cis_one, image_noise_sigma
-from render.edge_truth import CircleEdge, StraightEdge
+from render.edge_truth import StraightEdge
 from render.synthetic import render_edge_image
+from tests.support import edge_scenes
+from tests.support.edge_scenes import (A_LEVEL as A, B_CONTRAST as B, BLUR, SHAPE_48 as SHAPE, circle,
+                                       refine_near_edge, straight)
 
 METHOD = "ser_cis"
-SHAPE = (48, 48)
-A, B, BLUR = 40.0, 120.0, 1.0
-
-
-def straight(seed):
-    r = np.random.default_rng(1000 + seed)
-    return StraightEdge(SHAPE[1] / 2 - 0.5 + r.uniform(-1, 1), SHAPE[0] / 2 - 0.5 + r.uniform(-1, 1),
-                        r.uniform(-np.pi, np.pi))
-
-
-def circle(seed):
-    r = np.random.default_rng(2000 + seed)
-    return CircleEdge(SHAPE[1] / 2 - 0.5 + r.uniform(-1, 1), SHAPE[0] / 2 - 0.5 + r.uniform(-1, 1),
-                      r.uniform(12, 16), bool(seed % 2))
-
-
-def scored(edge, noise_rel=0.0, seed=0, **options):
-    """(image, near candidates, EdgePoints) for one rendered edge."""
-    img = render_edge_image(SHAPE, edge, A, B, BLUR, noise_sigma=noise_rel * B, rng=np.random.default_rng(seed))
-    cand = locate.candidates(img)
-    cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= 1.5)
-    return img, cand, locate.refine(img, cand, METHOD, **options)
-
-
-def errors(edge, **kw):
-    _, _, pts = scored(edge, **kw)
-    assert pts.converged.all()
-    return edge.signed_distance(pts.x, pts.y)
+errors = partial(edge_scenes.errors, METHOD)  # signed errors of the points, all of which must converge
 
 
 def test_registered_as_baseline():
@@ -103,9 +81,7 @@ def test_axis_aligned_edges_in_images():
         for x0 in (23.3, 23.5, 23.81):
             edge = StraightEdge(x0, x0 - 0.4, angle)
             img = render_edge_image(SHAPE, edge, A, B, 0.8)
-            cand = locate.candidates(img)
-            cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= 1.5)
-            pts = locate.refine(img, cand, METHOD)
+            _, pts = refine_near_edge(img, edge, METHOD)
             assert pts.converged.all()
             assert np.abs(edge.signed_distance(pts.x, pts.y)).max() < 0.005
 
@@ -137,10 +113,7 @@ def test_ideal_circles_only_curvature_bias():
     assert np.sqrt(np.mean(e ** 2)) < 0.015
 
 
-def _rmse_at(noise_rel):
-    e = np.concatenate([errors(straight(s), noise_rel=noise_rel, seed=10 * s + rep + 1)
-                        for s in range(4) for rep in range(3)])
-    return np.sqrt(np.mean(e ** 2))
+_rmse_at = partial(edge_scenes.rmse_at, METHOD)  # RMSE over straight edges 0-3, 3 noise draws each
 
 
 def test_error_grows_with_noise():
@@ -160,9 +133,7 @@ def test_no_stable_region_is_not_converged():
     converged=False and keeps its candidate pixel.  So does a ramp."""
     edge = StraightEdge(23.3, 24.1, 0.7)
     img = render_edge_image(SHAPE, edge, A, B, 4.0)
-    cand = locate.candidates(img)
-    cand = cand.subset(np.abs(edge.signed_distance(cand.x, cand.y)) <= 1.5)
-    pts = locate.refine(img, cand, METHOD)
+    cand, pts = refine_near_edge(img, edge, METHOD)
     assert len(cand) > 20 and not pts.converged.any()
     np.testing.assert_array_equal(pts.x, cand.x)
     np.testing.assert_array_equal(pts.y, cand.y)

@@ -1,0 +1,265 @@
+"""Where work runs: a map of a pure task function over argument tuples, in-process, on a
+local process pool, or on a Ray cluster.
+
+    from edgetruth.backends import make_backend
+    with make_backend("local", workers=4) as be:
+        for result in be.map_unordered(fn, [(spec, 0), (spec, 1), ...]):
+            ...   # results arrive as tasks finish (any order)
+
+``fn`` must be a module-level function (it is pickled by reference) and a pure
+function of its arguments; it may keep per-process caches (e.g. loaded Mitsuba
+scenes), because each worker process lives for the whole map.  Results are
+consumed by the *driver* (the calling process), which is therefore the only
+place that should write shared state such as a manifest.
+
+Backends:
+
+- ``local`` with ``workers=1``: runs in the calling process (no pool, no pickling).
+- ``local`` with ``workers>1``: a ``spawn`` process pool (never ``fork``: Dr.Jit and
+  CUDA are not fork-safe).  Workers die with the driver (Linux ``PR_SET_PDEATHSIG``),
+  so a ``kill -9`` of the driver leaves no orphan writing files.
+- ``ray``: an existing cluster (``address``, or ``RAY_ADDRESS``) or a local Ray
+  instance.  Each task asks for ``num_cpus`` CPUs and, when the cluster has GPUs and
+  ``gpu=True``, one GPU.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from typing import Any, Callable, Iterable, Iterator
+
+from edgetruth.errors import InputError
+
+BACKENDS = ("local", "ray")
+RAY_INSTALL_HINT = "Ray is not installed; install it with: pip install 'edgetruth[cluster]'"
+
+
+def default_workers() -> int:
+    """The cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _die_with_parent() -> None:
+    """Linux: deliver SIGKILL to this process when its parent dies."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL("libc.so.6", use_errno=True)
+            PR_SET_PDEATHSIG = 1
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+        except Exception:  # pragma: no cover - best effort
+            pass
+
+
+def _worker_init(parent_pid, initializer, initargs) -> None:
+    _die_with_parent()
+    if os.getppid() != parent_pid:  # the driver died while this worker was starting: nobody to serve
+        os._exit(1)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the driver's to handle
+    if initializer is not None:
+        initializer(*initargs)
+
+
+class Backend:
+    """A context manager with ``map_unordered(fn, args_list) -> iterator of results``."""
+
+    name = "base"
+    concurrency = 1
+    #: Whether tasks run in processes that see this machine's file system.
+    shares_filesystem = True
+
+    _initializer: Callable | None = None
+    _initargs: tuple = ()
+
+    def __enter__(self) -> "Backend":
+        return self
+
+    def __exit__(self, exc_type, *exc) -> None:
+        self.close(abort=exc_type is not None)
+
+    def set_initializer(self, initializer: Callable | None, initargs: tuple = ()) -> None:
+        """``initializer(*initargs)`` runs once in every worker process before its first task
+        (set it before the first ``map_unordered``)."""
+        self._initializer, self._initargs = initializer, tuple(initargs)
+
+    def close(self, abort: bool = False) -> None:
+        """Release the workers; ``abort`` stops running tasks instead of waiting for them."""
+
+    def map_unordered(self, fn: Callable, args_list: Iterable[tuple]) -> Iterator[Any]:
+        raise NotImplementedError
+
+
+class SerialBackend(Backend):
+    name = "local"
+
+    def __init__(self, initializer=None, initargs=()):
+        self.set_initializer(initializer, initargs)
+        self._ran_init = False
+
+    def map_unordered(self, fn, args_list):
+        if self._initializer is not None and not self._ran_init:
+            self._initializer(*self._initargs)
+            self._ran_init = True
+        for args in args_list:
+            yield fn(*args)
+
+
+class PoolBackend(Backend):
+    name = "local"
+
+    def __init__(self, workers: int, initializer=None, initargs=()):
+        self.concurrency = workers
+        self.set_initializer(initializer, initargs)
+        self._pool = None
+
+    def map_unordered(self, fn, args_list):
+        import multiprocessing as mp
+        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+        if self._pool is None:  # created on first use, with the initializer set by then
+            self._pool = ProcessPoolExecutor(max_workers=self.concurrency, mp_context=mp.get_context("spawn"),
+                                             initializer=_worker_init,
+                                             initargs=(os.getpid(), self._initializer, self._initargs))
+        pending = {self._pool.submit(fn, *args) for args in args_list}
+        try:
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    yield fut.result()
+        finally:
+            for fut in pending:
+                fut.cancel()
+
+    def close(self, abort: bool = False) -> None:
+        if self._pool is None:
+            return
+        if abort:
+            for proc in list((getattr(self._pool, "_processes", None) or {}).values()):
+                proc.kill()
+        self._pool.shutdown(wait=not abort, cancel_futures=True)
+        self._pool = None
+
+
+def import_ray():
+    """``ray``, or an InputError saying how to install it."""
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise InputError(RAY_INSTALL_HINT) from None
+    return ray
+
+
+class RayBackend(Backend):
+    name = "ray"
+
+    def __init__(self, address: str | None = None, num_cpus_per_task: float = 1, gpu: bool = True,
+                 initializer=None, initargs=(), local_cpus: int | None = None):
+        ray = import_ray()
+        self._ray = ray
+        self._owns = False
+        if not ray.is_initialized():
+            kw: dict = {"include_dashboard": False, "log_to_driver": True}
+            try:
+                if address:
+                    ray.init(address=address, **kw)
+                elif os.environ.get("RAY_ADDRESS"):
+                    ray.init(**kw)
+                else:
+                    ray.init(num_cpus=local_cpus or default_workers(), **kw)
+            except (ConnectionError, ValueError, RuntimeError) as exc:
+                raise InputError(f"--address {address or os.environ.get('RAY_ADDRESS')}: cannot connect to a "
+                                 f"Ray cluster ({str(exc).splitlines()[0][:160]}); check the address "
+                                 "(ray://HOST:10001 or HOST:6379) or leave it out for a local Ray instance") from None
+            self._owns = True
+        res = ray.cluster_resources()
+        self.n_gpus = float(res.get("GPU", 0) or 0)
+        self.n_cpus = float(res.get("CPU", 1) or 1)
+        self.num_gpus = 1 if (gpu and self.n_gpus) else 0
+        self.num_cpus = num_cpus_per_task
+        self.concurrency = int(self.n_gpus) if self.num_gpus else max(1, int(self.n_cpus // max(num_cpus_per_task, 1e-9)))
+        self._initializer, self._initargs = initializer, initargs
+        # a worker on another node may not see this machine's files
+        self.shares_filesystem = len([n for n in ray.nodes() if n.get("Alive")]) <= 1
+
+    def map_unordered(self, fn, args_list):
+        ray = self._ray
+        remote = ray.remote(num_cpus=self.num_cpus, num_gpus=self.num_gpus, max_retries=2)(_ray_call)
+        refs = [remote.remote(fn, self._initializer, self._initargs, args) for args in args_list]
+        try:
+            while refs:
+                done, refs = ray.wait(refs, num_returns=1)
+                yield ray.get(done[0])
+        finally:
+            for r in refs:
+                ray.cancel(r, force=True)
+
+    def close(self, abort: bool = False) -> None:
+        if self._owns and self._ray.is_initialized():
+            self._ray.shutdown()
+        self._owns = False
+
+
+_initialised: set = set()
+
+
+def _ray_call(fn, initializer, initargs, args):
+    """Run ``initializer(*initargs)`` once per Ray worker process, then ``fn(*args)``."""
+    if initializer is not None:
+        key = (initializer.__module__, initializer.__qualname__, repr(initargs))
+        if key not in _initialised:
+            initializer(*initargs)
+            _initialised.add(key)
+    return fn(*args)
+
+
+def check_backend_args(backend: str = "local", workers: int | None = None, address: str | None = None) -> None:
+    """Validate backend options (and that Ray is importable) without starting anything."""
+    if backend not in BACKENDS:
+        raise InputError(f"--backend {backend!r}: choose one of {', '.join(BACKENDS)}")
+    if workers is not None and (not isinstance(workers, int) or workers < 1):
+        raise InputError(f"--workers {workers}: must be a positive integer (default: {default_workers()} cores)")
+    if address and backend != "ray":
+        raise InputError("--address applies to --backend ray only; add --backend ray or drop --address")
+    if backend == "ray":
+        import_ray()
+        if address:
+            check_reachable(address)
+
+
+def check_reachable(address: str, timeout_s: float = 3.0) -> None:
+    """A TCP connect to a ``HOST:PORT`` or ``ray://HOST:PORT`` address (Ray itself retries for
+    minutes before giving up on a wrong address); ``auto``/``local`` are left to Ray."""
+    import socket
+
+    if address in ("auto", "local"):
+        return
+    hostport = address.split("://", 1)[-1].rstrip("/")
+    host, sep, port = hostport.rpartition(":")
+    if not sep or not port.isdigit() or not host:
+        raise InputError(f"--address {address!r}: expected HOST:PORT (GCS, e.g. head:6379), "
+                         "ray://HOST:PORT (Ray client, e.g. ray://head:10001) or auto")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            pass
+    except OSError as exc:
+        raise InputError(f"--address {address}: nothing answers there ({exc.strerror or exc}); start the cluster "
+                         "(`ray start --head`) or fix the address; leave --address out for a local Ray instance") from None
+
+
+def make_backend(backend: str = "local", workers: int | None = None, address: str | None = None,
+                 gpu: bool = True, initializer: Callable | None = None, initargs: tuple = ()) -> Backend:
+    """A backend by name.  ``workers``: local pool size (default: the cores; 1 = in-process) or,
+    for Ray without ``address``, the CPUs of the local Ray instance.  ``initializer(*initargs)``
+    runs once in every worker process before its first task."""
+    check_backend_args(backend, workers, address)
+    if backend == "ray":
+        return RayBackend(address=address, gpu=gpu, initializer=initializer, initargs=initargs, local_cpus=workers)
+    n = default_workers() if workers is None else int(workers)
+    if n == 1:
+        return SerialBackend(initializer, initargs)
+    return PoolBackend(n, initializer, initargs)
