@@ -8,7 +8,10 @@ method that fails on a candidate answers with the candidate pixel (and the
 failure share is reported), so every method is scored on the same points.
 
 Work is cached per (scenario, block of images) under ``<out>/cache`` and
-written atomically, so an interrupted study resumes where it stopped.
+written atomically, so an interrupted study resumes where it stopped.  Blocks
+are independent pure tasks: ``backend="local"`` with ``workers > 1`` or
+``backend="ray"`` spreads them over processes or a cluster
+(``edgetruth.backends``); only the driver writes the cache.
 """
 from __future__ import annotations
 
@@ -61,6 +64,8 @@ def _warm_up(methods):
 
 
 def _run_block(scenario, start, stop, methods, shape):
+    """One task: images start..stop-1 of ``scenario`` (test split), every method; arrays to cache."""
+    _warm_up(methods)  # numba kernels load from the on-disk cache; keeps the first block's timings clean
     rec = {"errors": {m: [] for m in methods}, "conv": {m: [] for m in methods}, "time": {m: 0.0 for m in methods},
            "image": [], "entropy": [], "crb": [], "off": 0, "w2": [], "w4": []}
     for i in range(start, stop):
@@ -93,14 +98,22 @@ def _run_block(scenario, start, stop, methods, shape):
     return out
 
 
+def _run_block_tagged(*args):
+    """``_run_block`` that also returns its arguments (results of an unordered map arrive in any order)."""
+    return args, _run_block(*args)
+
+
 def _save_npz(path: Path, arrays: dict) -> None:
     tmp = path.with_name(f".{path.name}.tmp.npz")
     np.savez(tmp, **arrays)
     os.replace(tmp, path)
 
 
-def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAPE, progress=True) -> StudyData:
+def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAPE, progress=True,
+            backend: str = "local", workers: int = 1, address: str | None = None) -> StudyData:
     from tqdm import tqdm
+
+    from edgetruth.backends import make_backend
 
     cache = out_dir / "cache"
     cache.mkdir(parents=True, exist_ok=True)
@@ -112,18 +125,16 @@ def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAP
     key_file.write_text(json.dumps(key))
     blocks = [(sc, b, min(b + BLOCK, images_per_scenario)) for sc in SCENARIOS
               for b in range(0, images_per_scenario, BLOCK)]
-    warmed = False
-    parts = []
+    block_file = lambda sc, a, b: cache / f"{sc}_{a:05d}_{b:05d}.npz"
+    todo = [(sc, a, b, methods, tuple(shape)) for sc, a, b in blocks if not block_file(sc, a, b).exists()]
     with tqdm(total=len(SCENARIOS) * images_per_scenario, desc="synthetic study", unit="img", disable=not progress) as bar:
-        for sc, a, b in blocks:
-            f = cache / f"{sc}_{a:05d}_{b:05d}.npz"
-            if not f.exists():
-                if not warmed:
-                    _warm_up(methods)
-                    warmed = True
-                _save_npz(f, _run_block(sc, a, b, methods, shape))
-            parts.append((sc, a, np.load(f)))
-            bar.update(b - a)
+        bar.update(sum(b - a for sc, a, b in blocks) - sum(t[2] - t[1] for t in todo))
+        if todo:
+            with make_backend(backend, workers, address, gpu=False) as be:
+                for args, arrays in be.map_unordered(_run_block_tagged, todo):
+                    _save_npz(block_file(*args[:3]), arrays)
+                    bar.update(args[2] - args[1])
+    parts = [(sc, a, np.load(block_file(sc, a, b))) for sc, a, b in blocks]
     n_img = images_per_scenario
     cat = lambda key: np.concatenate([p[key] for _, _, p in parts])
     scen = np.concatenate([np.full(p["image"].size, SCENARIOS.index(sc)) for sc, _, p in parts])
@@ -372,7 +383,8 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
 
 
 def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: bool = True,
-                        images_per_scenario: int | None = None) -> Path:
+                        images_per_scenario: int | None = None, backend: str = "local", workers: int = 1,
+                        address: str | None = None) -> Path:
     """Run (or resume) the synthetic study into ``out_dir``; returns the path of its report.md."""
     if preset not in PRESETS:
         raise InputError(f"preset {preset!r}: choose one of {', '.join(PRESETS)}")
@@ -388,6 +400,6 @@ def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: 
     except OSError as exc:
         raise InputError(f"{out_dir}: cannot create the output directory ({exc.strerror})") from exc
     t0 = time.perf_counter()
-    d = collect(out_dir, n_per, methods, progress=progress)
+    d = collect(out_dir, n_per, methods, progress=progress, backend=backend, workers=workers, address=address)
     t = build_tables(d)
     return write_report(out_dir, d, t, preset, n_per, time.perf_counter() - t0)

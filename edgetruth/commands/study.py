@@ -14,6 +14,11 @@ def register(sub) -> None:
     p.add_argument("--methods", default=None, help="comma-separated method ids (default: all)")
     p.add_argument("-o", "--output", default=None, help="output directory (default runs/<UTC stamp>-synthetic); "
                    "re-running into the same directory resumes")
+    p.add_argument("--backend", choices=["local", "ray"], default="local",
+                   help="where the image blocks run (default: this process)")
+    p.add_argument("-j", "--workers", type=int, default=1,
+                   help="local worker processes (1 = in-process; timings are cleanest with 1)")
+    p.add_argument("--address", default=None, help="Ray cluster address (default: a local Ray instance)")
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(handler=run)
 
@@ -26,6 +31,7 @@ def run(args) -> int:
         _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d-%H%M%S") + "-synthetic")
     methods = [m.strip() for m in args.methods.split(",")] if args.methods else None
     report = run_synthetic_study(out, args.preset, methods, progress=not args.no_progress,
-                                 images_per_scenario=args.images_per_scenario)
+                                 images_per_scenario=args.images_per_scenario, backend=args.backend,
+                                 workers=args.workers, address=args.address)
     print(f"report: {report}")
     return 0

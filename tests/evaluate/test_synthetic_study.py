@@ -76,3 +76,13 @@ def test_bad_arguments():
         ss.run_synthetic_study("/tmp/x", "medium")
     with pytest.raises(ValueError, match="unknown method"):
         ss.run_synthetic_study("/tmp/x", "quick", ["nope"])
+
+
+def test_process_pool_gives_the_same_numbers(study, tmp_path):
+    """Blocks are pure tasks: two worker processes produce the same errors as the in-process run."""
+    out, _ = study
+    ss.run_synthetic_study(tmp_path, "quick", METHODS, progress=False, images_per_scenario=3, workers=2)
+    a = ss.collect(out, 3, ss.mo.ordered(METHODS), progress=False)
+    b = ss.collect(tmp_path, 3, ss.mo.ordered(METHODS), progress=False)
+    for m in a.methods:
+        assert np.array_equal(a.errors[m], b.errors[m])
