@@ -21,7 +21,7 @@ def test_subpix_window_scales_with_square_size():
 
 
 @pytest.mark.slow
-def test_calibration_spec_recovers_fx_and_principal_point(tmp_path):
+def test_calibration_spec_recovers_fx_and_principal_point(tmp_path, fast_variant):
     """The `calibration` spec (20 boards, 1280x1024, default camera): measured fx +0.015 %,
     principal point (+0.42, +0.03) px; ~65 s of rendering on 2 cores (llvm)."""
     from evaluate.calibration import calibrate_dataset

@@ -15,14 +15,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from render.variants import choose_variant
 
 DISTANCES_M = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
 
 
 @pytest.fixture(scope="module", autouse=True)
-def variant():
-    return choose_variant(announce=lambda s: None)
+def variant(fast_variant):
+    return fast_variant
 
 
 class _Identity:

@@ -28,7 +28,7 @@ def test_bad_limit_is_a_one_line_input_error(capsys, tmp_path):
 
 
 @pytest.mark.slow
-def test_quick_run_end_to_end(tmp_path):
+def test_quick_run_end_to_end(tmp_path, fast_variant):
     """Render quick (1 image per target + 15 boards), calibrate, locate, report (~40 s, llvm)."""
     out = tmp_path / "run"
     assert main(["run", "--limit", "1", "--skip-synthetic", "--no-progress", "-o", str(out)]) == 0
