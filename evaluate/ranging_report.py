@@ -290,7 +290,10 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     for k, v in (header or {}).items():
         L.append(f"- **{k}**: {v}")
     if synthetic_report:
-        L += ["", f"Synthetic study (seed §4.2–4.3): see [{synthetic_report}]({synthetic_report})"]
+        import os
+
+        link = os.path.relpath(Path(synthetic_report).resolve(), out_dir.resolve())  # relative to this report
+        L += ["", f"Synthetic study (seed §4.2–4.3): see [{link}]({link})"]
     L += ["", "## Claim-by-claim verdict against the seed (ranging, §4.4)", ""]
     vs = verdicts(all_rows, methods)
     for k, v in enumerate(vs, 1):
