@@ -229,9 +229,11 @@ def fit_one(model, t, y, n, p0, maxit, tol, out):
         trial[a] = p[a]
     jtj = np.empty((4, 4))
     jtr = np.empty(4)
+    jtj_t = np.empty((4, 4))  # normal equations at the trial point: one pass gives cost and J
+    jtr_t = np.empty(4)
     jrow = np.empty(4)
     m = np.empty((4, 5))
-    lam = 1e-3
+    lam = 1e-4  # as locate.erf_kernels: near Gauss-Newton from a data-driven start
     cost = _normal_eq(model, t, y, n, p, npar, jtj, jtr, jrow)
     status = NOT_CONVERGED
     it = 0
@@ -251,13 +253,16 @@ def fit_one(model, t, y, n, p0, maxit, tol, out):
             trial[a] = p[a] + m[a, npar]
         if trial[imu + 1] < W_MIN:
             trial[imu + 1] = W_MIN
-        new_cost = _cost(model, t, y, n, trial)
+        new_cost = _normal_eq(model, t, y, n, trial, npar, jtj_t, jtr_t, jrow)
         if new_cost <= cost:
             step_mu = abs(trial[imu] - p[imu])
             step_w = abs(trial[imu + 1] - p[imu + 1])
             for a in range(npar):
                 p[a] = trial[a]
-            cost = _normal_eq(model, t, y, n, p, npar, jtj, jtr, jrow)
+                jtr[a] = jtr_t[a]
+                for b in range(npar):
+                    jtj[a, b] = jtj_t[a, b]
+            cost = new_cost
             lam = max(lam * 0.1, 1e-12)
             if step_mu < tol and step_w < tol:
                 status = OK
@@ -335,7 +340,7 @@ def fit_profiles(ys, t, model: int, maxit: int = 100, tol: float = 1e-10, p0=Non
     return out
 
 
-def refine_step_model(image, cand, model: int, maxit: int = 100, tol: float = 1e-9):
+def refine_step_model(image, cand, model: int, maxit: int = 100, tol: float = 1e-7):
     """Fit a step model (ERF, ARCTAN, LOGISTIC) to each candidate's 11-sample normal profile.
 
     Returns ``Refinement`` with the edge at p + mu n where the fit converged

@@ -45,7 +45,7 @@ from locate.registry import register
 from locate.result import Refinement
 
 MAXIT = 100
-TOL_PX = 1e-9
+TOL_PX = 1e-7  # accepted step (px); quadratic convergence leaves far less, as in locate.methods.erf
 VARIANTS = ("lsq", "log3")
 
 
