@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from edgetruth.conventions import principal_point_centred
 from edgetruth.errors import InputError
 from render.analytic import StepProfile, slope_image, step_image, texture_image
 from render.edge_truth import CircleEdge, StraightEdge
@@ -68,12 +69,13 @@ def render_edge_image(shape, edge, A: float, B: float, s_dark: float, s_bright: 
 
 def random_edge(rng: np.random.Generator, shape, kind: str):
     h, w = shape
+    cx, cy = principal_point_centred(w, h)  # the image centre, OpenCV convention
     if kind == "line":
-        return StraightEdge(w / 2 - 0.5 + rng.uniform(-1, 1), h / 2 - 0.5 + rng.uniform(-1, 1),
+        return StraightEdge(cx + rng.uniform(-1, 1), cy + rng.uniform(-1, 1),
                             rng.uniform(-np.pi, np.pi))
     if kind == "circle":
         r = rng.uniform(0.2, 0.35) * min(h, w)
-        return CircleEdge(w / 2 - 0.5 + rng.uniform(-1, 1), h / 2 - 0.5 + rng.uniform(-1, 1), r,
+        return CircleEdge(cx + rng.uniform(-1, 1), cy + rng.uniform(-1, 1), r,
                           bool(rng.integers(0, 2)))
     raise InputError(f"edge kind {kind!r}: choose 'line' or 'circle'")
 
