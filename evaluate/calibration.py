@@ -116,6 +116,35 @@ class Calibration:
                 "per_view_rms_px": self.per_view_rms_px, "used": self.used, "rejected": self.rejected,
                 "corner_detection_error_px": self.corner_error_px, "truth": self.truth, "errors": self.errors()}
 
+    @classmethod
+    def from_dict(cls, d: dict, where: str = "calibration") -> "Calibration":
+        """The inverse of ``to_dict`` (a ``calibration.json`` written by ``edgetruth run``/``evaluate``)."""
+        try:
+            K = np.asarray(d["K"], float)
+            dist = np.asarray(d["dist_coeffs_opencv"], float).ravel()
+            size = tuple(int(v) for v in d["image_size"])
+            if K.shape != (3, 3) or dist.size < 4 or len(size) != 2 or not np.all(np.isfinite(K)):
+                raise ValueError("shapes")
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"{where}: not an edgetruth calibration (needs K 3x3, dist_coeffs_opencv, image_size; "
+                             f"{type(exc).__name__}: {exc}); pass the calibration.json of a run or a dataset of "
+                             "checkerboard renders") from None
+        return cls(K=K, dist=np.pad(dist, (0, max(0, 5 - dist.size)))[:5], image_size=size,
+                   rms_px=float(d.get("reprojection_rms_px", float("nan"))), n_views=int(d.get("n_views", 0)),
+                   per_view_rms_px=list(d.get("per_view_rms_px", [])), used=list(d.get("used", [])),
+                   rejected=list(d.get("rejected", [])), corner_error_px=dict(d.get("corner_detection_error_px", {})),
+                   truth=d.get("truth"))
+
+
+def load_calibration(ref: str | Path, progress: bool = False) -> Calibration:
+    """A calibration from a JSON file (``calibration.json``) or from a dataset of checkerboard renders."""
+    from edgetruth.fileio import read_json
+
+    p = Path(ref)
+    if p.is_dir():
+        return calibrate_dataset(p, progress=progress)
+    return Calibration.from_dict(read_json(p), where=str(p))
+
 
 def _match_order(detected: np.ndarray, true_px: np.ndarray) -> np.ndarray:
     """The detected corners in the true corners' order (OpenCV may start from the opposite end)."""
@@ -174,25 +203,18 @@ def calibrate(views: list[tuple[str, np.ndarray]], pattern_size: tuple[int, int]
 
 
 def calibrate_dataset(out_dir: str | Path, names: list[str] | None = None, progress: bool = False) -> Calibration:
-    """Calibrate from every checkerboard image of a rendered dataset (``render.dataset`` layout)."""
-    from render.dataset import list_images, load_image
+    """Calibrate from every checkerboard image of a rendered dataset (``edgetruth.render.dataset`` layout)."""
+    from edgetruth import console
+    from edgetruth.render.reader import open_dataset
 
-    out_dir = Path(out_dir)
-    names = names if names is not None else list_images(out_dir)
-    views, truths = [], []
-    board = None
-    for n in names:
-        img, gt = load_image(out_dir, n)
-        if gt.get("kind") != "checkerboard":
-            continue
-        board = gt["checkerboard"]
-        views.append((n, img.astype(np.float64)))
-        truths.append(gt)
-    if board is None:
-        raise InputError(f"{out_dir}: no checkerboard images to calibrate from")
-    prog = None
-    if progress:
-        import sys
-        from tqdm import tqdm
-        prog = lambda it: tqdm(it, desc="calibrate", unit="board", file=sys.stderr, dynamic_ncols=True)  # noqa: E731
-    return calibrate(views, tuple(board["pattern_size"]), float(board["square_m"]), truths, progress=prog)
+    ds = open_dataset(out_dir)
+    boards = [s for s in ds.checkerboards() if names is None or s.name in set(names)]
+    if not boards:
+        raise InputError(f"{out_dir}: no checkerboard images to calibrate from; render a spec with a "
+                         "kind = \"checkerboard\" group (e.g. `edgetruth render calibration`)")
+    views = [(s.name, s.image.astype(np.float64)) for s in boards]
+    truths = [s.truth for s in boards]
+    board = truths[0]["checkerboard"]
+
+    return calibrate(views, tuple(board["pattern_size"]), float(board["square_m"]), truths,
+                     progress=lambda it: console.track(it, desc="calibrate", unit="board", enabled=progress))

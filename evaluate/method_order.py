@@ -1,15 +1,34 @@
 """Canonical order and study options of the methods in tables and figures."""
 from __future__ import annotations
 
-import locate
-import locate.registry
+from edgetruth import locate
+from edgetruth.locate import registry as _registry_mod
 
-ORDER = locate.registry.CANONICAL_ORDER
+ORDER = _registry_mod.CANONICAL_ORDER
 
 #: Options the studies pass to a method (documented in every report).
 #: PAE2013: the paper's smoothed variant (its Sec. 5, for noisy images); the study's images are
 #: blurred and noisy, where the first-order case is biased by design.
 STUDY_OPTIONS = {"pae2013": {"variant": "smoothed"}}
+
+
+def study_options(thresholds=None) -> dict:
+    """Per-method options of a study: ``STUDY_OPTIONS``, plus the entropy thresholds of a
+    ``--thresholds FILE`` for the dynamic methods (default: the shipped ones, which they load)."""
+    from edgetruth.locate import thresholds as thr
+
+    out = {m: dict(o) for m, o in STUDY_OPTIONS.items()}
+    if thresholds is not None:
+        for model in thr.MODELS:
+            out.setdefault(f"dynamic_erf_{model}", {})["tau"] = thr.load(model, thresholds)
+    return out
+
+
+def thresholds_in_use(thresholds=None) -> dict:
+    """{'2p': tau, '4p': tau, 'source': path} of the thresholds a study uses."""
+    from edgetruth.locate import thresholds as thr
+
+    return {**{m: thr.load(m, thresholds) for m in thr.MODELS}, "source": str(thr.source(thresholds))}
 
 REFERENCE = "dynamic_erf_4p"
 

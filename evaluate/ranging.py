@@ -2,11 +2,11 @@
 
 Per target image:
 
-1. undistort with the *calibrated* model (``evaluate.undistort``);
-2. find the target and its boundary candidates from the image (``evaluate.target_finding``);
-3. refine the *same* candidates with every method (``locate.refine``);
+1. undistort with the *calibrated* model (``edgetruth.evaluate.undistort``);
+2. find the target and its boundary candidates from the image (``edgetruth.evaluate.target_finding``);
+3. refine the *same* candidates with every method (``edgetruth.locate.refine``);
 4. size: square -> robust side lines, l = left/right distance (the seed's l, with fx);
-   circle -> robust circle fit, l = diameter (``evaluate.size_extraction``);
+   circle -> robust circle fit, l = diameter (``edgetruth.evaluate.size_extraction``);
 5. Z = fx * S / l with the calibrated fx and S = the target's physical size (13 cm).
 
 What the experimenter knows and the pipeline uses: the target's shape and physical size
@@ -19,8 +19,9 @@ with the *true* outline and the *true* fx (tilt and perspective alone).
 from __future__ import annotations
 
 import csv
+import io
+import os
 import json
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth.errors import InputError
-from evaluate.size_extraction import distance_from_size, fit_circle, fit_square
+from edgetruth.evaluate.size_extraction import distance_from_size, fit_circle, fit_square
 
 INTERVALS_CM = ((50, 100), (100, 150), (150, 200), (200, 250), (250, 300))
 REFERENCE_METHOD = "dynamic_erf_4p"
@@ -75,7 +76,7 @@ def true_size_px(gt: dict) -> float:
     pts = np.asarray(gt["outline"]["undistorted_px"])
     if gt["target"]["shape"] == "square":
         tl, tr, br, bl = pts
-        from evaluate.size_extraction import Line, _line_gap
+        from edgetruth.evaluate.size_extraction import Line, _line_gap
 
         def through(a, b):
             t = (b - a) / np.linalg.norm(b - a)
@@ -83,15 +84,15 @@ def true_size_px(gt: dict) -> float:
             return Line(n, float(n @ a), np.ones(2, bool), 0.0)
 
         return _line_gap(through(tl, bl), np.array([tl, bl]), through(tr, br), np.array([tr, br]))
-    from evaluate.size_extraction import circle_taubin
+    from edgetruth.evaluate.size_extraction import circle_taubin
     return 2.0 * circle_taubin(pts[:, 0], pts[:, 1])[2]
 
 
 def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[str], keep_points: bool = False,
-                  name: str = "image") -> ImageResult:
+                  name: str = "image", options: dict | None = None) -> ImageResult:
     """Run steps 1-5 on one image; ``gt`` supplies only the target's shape/size (and the scoring truth)."""
-    import locate
-    from evaluate.target_finding import target_candidates
+    from edgetruth import locate
+    from edgetruth.evaluate.target_finding import target_candidates
 
     shape = gt["target"]["shape"]
     size_m = float(gt["target"]["size_m"])
@@ -122,7 +123,7 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
     for m in methods:
         row = dict(base, method=m, n_points=len(tc.candidates))
         try:
-            pts = locate.refine(tc.crop, tc.candidates, m)
+            pts = locate.refine(tc.crop, tc.candidates, m, **(options or {}).get(m, {}))
             x, y = pts.x + x0, pts.y + y0
             s = size_of(shape, x, y, pts.nx, pts.ny, fx, fy, cy)
             z = distance_from_size(fx, size_m, s["size_px"])
@@ -138,19 +139,21 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
     return res
 
 
-ROW_FIELDS = ("image", "spec", "group", "target", "shape", "true_distance_m", "interval", "method", "status",
+ROW_FIELDS = ("dataset", "image", "spec", "group", "target", "shape", "true_distance_m", "interval", "method", "status",
               "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px", "size_seed_px", "size_error_px",
               "model_floor_cm", "n_points", "n_used", "fit_rms_px", "converged_frac", "time_s")
 
 
 def write_rows(path: Path, rows: list[dict]) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=ROW_FIELDS, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: r.get(k, "") for k in ROW_FIELDS})
-    tmp.replace(path)
+    """``ranging_rows.csv``: one row per (image, method), columns ``ROW_FIELDS`` (docs/formats.md)."""
+    from edgetruth.fileio import atomic_write_text
+
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=ROW_FIELDS, extrasaction="ignore", lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: r.get(k, "") for k in ROW_FIELDS})
+    atomic_write_text(path, buf.getvalue())
 
 
 def read_rows(path: Path) -> list[dict]:
@@ -165,56 +168,93 @@ def read_rows(path: Path) -> list[dict]:
     return out
 
 
+_undistorters: dict = {}
+
+
+def _undistorter(cal):
+    from edgetruth.evaluate.undistort import from_calibration
+
+    key = (cal.K.tobytes(), cal.dist.tobytes(), tuple(cal.image_size))
+    if key not in _undistorters:
+        _undistorters[key] = from_calibration(cal)
+    return _undistorters[key]
+
+
+def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: bool, options: dict):
+    """One task (a pure function of its arguments): range target image ``name`` of ``dataset`` with
+    every method; None for a checkerboard.  Runs in worker processes (``edgetruth.backends``)."""
+    from edgetruth.render.reader import open_dataset
+
+    s = open_dataset(dataset)[name]
+    gt = s.truth
+    if gt.get("kind") != "target":
+        return None
+    size = (int(gt["camera"]["width_px"]), int(gt["camera"]["height_px"]))
+    if size != tuple(cal.image_size):
+        raise InputError(f"{dataset}/{name}: image size {size} differs from the calibrated {tuple(cal.image_size)}; "
+                         "calibrate with boards from the same camera")
+    r = process_image(s.image.astype(np.float64), gt, cal, _undistorter(cal), methods, keep_points, name=name,
+                      options=options)
+    return r
+
+
+def _range_task(i, *args):
+    return i, range_image(*args)
+
+
 def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | None = None,
-                progress: bool = True, names: dict | None = None, figure_examples: int = 2) -> dict:
+                progress: bool = True, names: dict | None = None, figure_examples: int = 2,
+                options: dict | None = None, backend: str = "local", workers: int | None = 1,
+                address: str | None = None) -> dict:
     """Range every target image of ``datasets`` with every method; write ``ranging_rows.csv``.
 
-    Returns {"rows": [...], "examples": [ImageResult with points, ...], "per_image": [...]}.
+    Images are independent tasks on ``backend`` (in-process, local pool or Ray, with the caller's
+    plug-in methods shipped to the workers); rows come back in dataset/index order whatever the
+    backend.  Returns {"rows": [...], "examples": [ImageResult with points, ...], "per_image": [...]}.
     """
-    import locate
-    from render.dataset import list_images, load_image
-    from evaluate.undistort import from_calibration
+    from edgetruth import console, locate
+    from edgetruth.backends import make_backend
+    from edgetruth.locate import plugins
+    from edgetruth.render.reader import open_dataset
 
     methods = list(methods or locate.METHODS)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     jobs = []
     for ds in datasets:
-        for n in (names or {}).get(str(ds)) or list_images(ds):
-            jobs.append((Path(ds), n))
-    undistorters: dict = {}
-    rows, per_image, examples = [], [], []
-    shapes_shown: set = set()
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=len(jobs), desc="ranging", unit="img", file=sys.stderr, dynamic_ncols=True)
+        d = open_dataset(ds)
+        want = (names or {}).get(str(ds))
+        for s in d.targets():
+            if want is None or s.name in set(want):
+                jobs.append((str(ds), s.name, s.truth["target"]["shape"]))
+    # figure examples: the first image of each shape (at most figure_examples)
+    keep, shown = set(), set()
+    for k, (_, _, shape) in enumerate(jobs):
+        if len(keep) < figure_examples and shape not in shown:
+            keep.add(k)
+            shown.add(shape)
+    tasks = [(k, ds, n, cal, methods, k in keep, options or {}) for k, (ds, n, _) in enumerate(jobs)]
+    results: dict = {}
     t0 = time.perf_counter()
-    try:
-        for ds, n in jobs:
-            img, gt = load_image(ds, n)
-            if bar:
-                bar.update(1)
-            if gt.get("kind") != "target":
-                continue
-            size = (int(gt["camera"]["width_px"]), int(gt["camera"]["height_px"]))
-            if size != tuple(cal.image_size):
-                raise InputError(f"{ds}/{n}: image size {size} differs from the calibrated {tuple(cal.image_size)}; "
-                                 "calibrate with boards from the same camera")
-            if size not in undistorters:
-                undistorters[size] = from_calibration(cal)
-            shape = gt["target"]["shape"]
-            keep = len(examples) < figure_examples and shape not in shapes_shown
-            r = process_image(img.astype(np.float64), gt, cal, undistorters[size], methods, keep, name=n)
-            if keep and not r.error:
-                examples.append(r)
-                shapes_shown.add(shape)
-            rows += r.rows
-            per_image.append({"image": n, "dataset": str(ds), "n_candidates": r.n_candidates,
-                              "n_boundary": r.n_boundary, **r.region, "error": r.error})
-    finally:
-        if bar:
-            bar.close()
+    n_workers = 1 if workers is None else int(workers)
+    n_workers = min(n_workers, max(1, len(tasks)))
+    init, initargs = plugins.backend_initializer(backend, n_workers, methods)
+    with make_backend(backend, n_workers, address, gpu=False, initializer=init, initargs=initargs) as be, \
+            console.bar(total=len(tasks), desc="ranging", unit="img", enabled=progress) as bar:
+        for k, r in be.map_unordered(_range_task, tasks):
+            results[k] = r
+            bar.update(1)
+    rows, per_image, examples = [], [], []
+    for k in range(len(tasks)):
+        r = results[k]
+        if r is None:
+            continue
+        if k in keep and not r.error:
+            examples.append(r)
+        rel = os.path.relpath(jobs[k][0], out_dir)
+        rows += [dict(row, dataset=rel) for row in r.rows]
+        per_image.append({"image": r.name, "dataset": jobs[k][0], "n_candidates": r.n_candidates,
+                          "n_boundary": r.n_boundary, **r.region, "error": r.error})
     write_rows(out_dir / "ranging_rows.csv", rows)
     (out_dir / "ranging_images.json").write_text(json.dumps(per_image, indent=1))
     return {"rows": rows, "examples": examples, "per_image": per_image, "wall_s": time.perf_counter() - t0,

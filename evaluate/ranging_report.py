@@ -1,6 +1,6 @@
 """Tables, figures and the claim-by-claim verdict of the ranging study (seed Tables 13-17, Figures 8-12).
 
-Statistics come from ``evaluate.stats`` (one definition for the project): per image the
+Statistics come from ``edgetruth.evaluate.stats`` (one definition for the project): per image the
 signed ranging error e = Z_hat - Z_true (cm); summaries of |e|; mean relative error
 100 |e| / Z_true; Wilcoxon signed-rank on paired per-image |e| against dynamic_erf_4p.
 """
@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from evaluate.ranging import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13
-from evaluate.stats import summary, wilcoxon_paired
+from edgetruth.evaluate.ranging import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13
+from edgetruth.evaluate.stats import summary, wilcoxon_paired
 
 #: Fewer valid images than this: claims are reported as inconclusive.
 MIN_IMAGES_FOR_VERDICT = 20
@@ -25,7 +25,7 @@ SEED_TARGET_WINNER = {"T1": "dynamic_erf_4p", "T2": "ser_cis", "T3": "dynamic_er
 
 
 def _label(m: str) -> str:
-    import locate
+    from edgetruth import locate
     return locate.METHODS[m].label if m in locate.METHODS else m
 
 
@@ -175,8 +175,9 @@ def verdicts(rows, methods) -> list[dict]:
 
 
 def _paired(rows_a, rows_b):
-    a = {r["image"]: abs(r["error_cm"]) for r in _ok(rows_a)}
-    b = {r["image"]: abs(r["error_cm"]) for r in _ok(rows_b)}
+    # pair on (spec, image): two datasets may hold images of the same name
+    a = {(r.get("spec", ""), r["image"]): abs(r["error_cm"]) for r in _ok(rows_a)}
+    b = {(r.get("spec", ""), r["image"]): abs(r["error_cm"]) for r in _ok(rows_b)}
     common = sorted(set(a) & set(b))
     return np.array([a[k] for k in common]), np.array([b[k] for k in common])
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from evaluate import method_order as mo
+from edgetruth.evaluate import method_order as mo
 
 SEED_RMSE = {"canny_pixel": 0.419, "canny_devernay": 0.305, "canny_zernike2020": 0.209, "glm1984": 0.226,
              "pae2013": 0.177, "arctan_fit2016": 0.170, "sigmoid_logistic_fit2023": 0.171, "hagara_aef2011": 0.173,

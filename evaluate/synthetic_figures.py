@@ -9,8 +9,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from evaluate import method_order as mo  # noqa: E402
-from render.synthetic import SCENARIOS  # noqa: E402
+from edgetruth.evaluate import method_order as mo  # noqa: E402
+from edgetruth.render.synthetic import SCENARIOS  # noqa: E402
 
 WINDOWS = (5, 7, 9, 11)
 

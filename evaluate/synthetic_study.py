@@ -3,7 +3,7 @@
 Every method refines the same Canny candidates of the same test-split images
 (seeds disjoint from the threshold calibration split).  Errors are signed
 distances to the true edge along the true normal, for candidates whose
-pixel centre lies within 1.5 px of the edge (``evaluate.matching``); a
+pixel centre lies within 1.5 px of the edge (``edgetruth.evaluate.matching``); a
 method that fails on a candidate answers with the candidate pixel (and the
 failure share is reported), so every method is scored on the same points.
 
@@ -23,14 +23,13 @@ from pathlib import Path
 
 import numpy as np
 
-import locate
+from edgetruth import locate
 from edgetruth.errors import InputError
-from evaluate import method_order as mo
-from evaluate.crb import position_std_bound_many
-from evaluate.matching import MATCH_RADIUS_PX, on_edge
-from evaluate.stats import summary, wilcoxon_paired
-from locate import thresholds as thr
-from render.synthetic import DEFAULT_SHAPE, SCENARIOS, synthetic_image
+from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.crb import position_std_bound_many
+from edgetruth.evaluate.matching import MATCH_RADIUS_PX, on_edge
+from edgetruth.evaluate.stats import summary, wilcoxon_paired
+from edgetruth.render.synthetic import DEFAULT_SHAPE, SCENARIOS, synthetic_image
 
 PRESETS = {
     "quick": {"images_per_scenario": 24},
@@ -54,18 +53,20 @@ class StudyData:
     image_scenario: np.ndarray  # per image
     off_edge: int  # candidates not on the true edge (excluded)
     windows: dict  # "2p"/"4p" -> per-point dynamic window
+    tau: dict = None  # thresholds in use: {"2p": (t1, t2, t3), "4p": ..., "source": path}
+    options: dict = None  # per-method options the study passed
 
 
-def _warm_up(methods):
+def _warm_up(methods, options):
     s = synthetic_image("ideal", 0, split="unit")
     cand = locate.candidates(s.image)
     for m in methods:
-        locate.refine(s.image, cand, m, **mo.STUDY_OPTIONS.get(m, {}))
+        locate.refine(s.image, cand, m, **options.get(m, {}))
 
 
-def _run_block(scenario, start, stop, methods, shape):
+def _run_block(scenario, start, stop, methods, shape, options):
     """One task: images start..stop-1 of ``scenario`` (test split), every method; arrays to cache."""
-    _warm_up(methods)  # numba kernels load from the on-disk cache; keeps the first block's timings clean
+    _warm_up(methods, options)  # numba kernels load from the on-disk cache; keeps the first block's timings clean
     rec = {"errors": {m: [] for m in methods}, "conv": {m: [] for m in methods}, "time": {m: 0.0 for m in methods},
            "image": [], "entropy": [], "crb": [], "off": 0, "w2": [], "w4": []}
     for i in range(start, stop):
@@ -77,7 +78,7 @@ def _run_block(scenario, start, stop, methods, shape):
         n = len(cand)
         rec["image"].append(np.full(n, i))
         for m in methods:
-            pts = locate.refine(s.image, cand, m, **mo.STUDY_OPTIONS.get(m, {}))
+            pts = locate.refine(s.image, cand, m, **options.get(m, {}))
             rec["errors"][m].append(s.errors(pts.x, pts.y))
             rec["conv"][m].append(pts.converged)
             rec["time"][m] += pts.elapsed_s
@@ -109,32 +110,61 @@ def _save_npz(path: Path, arrays: dict) -> None:
     os.replace(tmp, path)
 
 
+def _load_block(path: Path, methods) -> dict | None:
+    """A cached block, or None if it is missing, unreadable or incomplete (then it is recomputed)."""
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path) as z:
+            arrays = {k: z[k] for k in z.files}
+    except Exception:  # a torn or foreign file: recompute the block
+        return None
+    need = {"image", "entropy", "crb", "off", "w2", "w4"} | {f"{p}__{m}" for m in methods for p in ("err", "conv", "time")}
+    return arrays if need <= set(arrays) else None
+
+
 def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAPE, progress=True,
-            backend: str = "local", workers: int = 1, address: str | None = None) -> StudyData:
-    from tqdm import tqdm
-
+            backend: str = "local", workers: int = 1, address: str | None = None,
+            options: dict | None = None, thresholds=None) -> StudyData:
+    from edgetruth import console
     from edgetruth.backends import make_backend
+    from edgetruth.fileio import read_json, write_json
+    from edgetruth.locate import plugins
 
+    options = mo.study_options(thresholds) if options is None else options
     cache = out_dir / "cache"
     cache.mkdir(parents=True, exist_ok=True)
-    key = {"methods": methods, "shape": list(shape), "options": mo.STUDY_OPTIONS,
-           "tau": {m: list(thr.load(m)) for m in ("2p", "4p")}}
+    tau = mo.thresholds_in_use(thresholds)
+    key = {"methods": methods, "shape": list(shape), "options": options,
+           "tau": {m: list(tau[m]) for m in ("2p", "4p")}}
+    key = json.loads(json.dumps(key))
     key_file = cache / "key.json"
-    if key_file.exists() and json.loads(key_file.read_text()) != json.loads(json.dumps(key)):
-        raise InputError(f"{out_dir}: holds a study made with other methods/settings; use a new output directory")
-    key_file.write_text(json.dumps(key))
+    if key_file.exists():
+        try:
+            old = read_json(key_file)
+        except Exception:
+            old = None  # unreadable key: the blocks cannot be trusted
+            for f in cache.glob("*.npz"):
+                f.unlink()
+        if old is not None and old != key:
+            raise InputError(f"{out_dir}: holds a study made with other methods/settings; use a new output directory")
+    write_json(key_file, key)
     blocks = [(sc, b, min(b + BLOCK, images_per_scenario)) for sc in SCENARIOS
               for b in range(0, images_per_scenario, BLOCK)]
     block_file = lambda sc, a, b: cache / f"{sc}_{a:05d}_{b:05d}.npz"
-    todo = [(sc, a, b, methods, tuple(shape)) for sc, a, b in blocks if not block_file(sc, a, b).exists()]
-    with tqdm(total=len(SCENARIOS) * images_per_scenario, desc="synthetic study", unit="img", disable=not progress) as bar:
+    loaded = {blk: _load_block(block_file(*blk), methods) for blk in blocks}
+    todo = [(sc, a, b, methods, tuple(shape), options) for (sc, a, b), arr in loaded.items() if arr is None]
+    with console.bar(total=len(SCENARIOS) * images_per_scenario, desc="synthetic study", unit="img",
+                     enabled=progress) as bar:
         bar.update(sum(b - a for sc, a, b in blocks) - sum(t[2] - t[1] for t in todo))
         if todo:
-            with make_backend(backend, workers, address, gpu=False) as be:
+            init, initargs = plugins.backend_initializer(backend, workers, methods)
+            with make_backend(backend, workers, address, gpu=False, initializer=init, initargs=initargs) as be:
                 for args, arrays in be.map_unordered(_run_block_tagged, todo):
                     _save_npz(block_file(*args[:3]), arrays)
+                    loaded[args[:3]] = arrays
                     bar.update(args[2] - args[1])
-    parts = [(sc, a, np.load(block_file(sc, a, b))) for sc, a, b in blocks]
+    parts = [(sc, a, loaded[(sc, a, b)]) for sc, a, b in blocks]
     n_img = images_per_scenario
     cat = lambda key: np.concatenate([p[key] for _, _, p in parts])
     scen = np.concatenate([np.full(p["image"].size, SCENARIOS.index(sc)) for sc, _, p in parts])
@@ -146,7 +176,7 @@ def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAP
         entropy=cat("entropy") if "dynamic_erf_4p" in methods else np.zeros(0),
         crb_px=cat("crb"), image_scenario=np.repeat(np.arange(len(SCENARIOS)), n_img),
         off_edge=int(sum(int(p["off"]) for _, _, p in parts)),
-        windows={"4p": cat("w4"), "2p": cat("w2")},
+        windows={"4p": cat("w4"), "2p": cat("w2")}, tau=tau, options=options,
     )
 
 
@@ -167,7 +197,7 @@ def window_shares(w: np.ndarray) -> dict:
 
 def sensitivity(d: StudyData, model: str) -> list[dict]:
     """Dynamic ERF with tau + delta: exactly the fixed-window result of the window each point then gets."""
-    tau = np.array(thr.load(model))
+    tau = np.array(d.tau[model])
     errs = np.stack([d.errors[f"erf{model}_fixed{w}"] for w in WINDOWS])
     h = np.where(np.isfinite(d.entropy), d.entropy, 1.0)
     rows = []
@@ -288,9 +318,9 @@ def write_csv(path: Path, rows: list[dict]) -> None:
 # ---------------------------------------------------------------- report
 
 def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, elapsed_s: float) -> Path:
-    from evaluate import synthetic_claims, synthetic_figures as figs
+    from edgetruth.evaluate import synthetic_claims, synthetic_figures as figs
     from edgetruth import __version__
-    from evaluate.threshold_calibration import git_commit
+    from edgetruth.resources import source_commit
 
     tables_dir = out_dir / "tables"
     fig_dir = out_dir / "figures"
@@ -316,7 +346,7 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
 
     claims_md = tabulate([[c["claim"], f"**{c['verdict']}**", c["evidence"]] for c in claims],
                          headers=["seed claim", "verdict", "evidence (this run)"], tablefmt="github")
-    tau = {m: thr.load(m) for m in ("2p", "4p")}
+    tau = d.tau
     lines = [
         f"# Synthetic edge study — preset `{preset}`",
         "",
@@ -324,11 +354,11 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
         f"lines and circles alternating; {d.scenario.size} on-edge candidate points "
         f"(|candidate − true edge| ≤ {MATCH_RADIUS_PX} px), {d.off_edge} off-edge candidates excluded for every method. "
         "Seeds: test split (disjoint from the threshold calibration split). "
-        f"Entropy thresholds: 2P {tau['2p']}, 4P {tau['4p']} (assets/entropy_thresholds.json). "
-        f"Study options: {mo.STUDY_OPTIONS}. Errors are signed distances to the true edge along the true normal; "
+        f"Entropy thresholds: 2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({_thresholds_label(tau['source'])}). "
+        f"Study options: { {m: {k: v for k, v in o.items() if k != 'tau'} for m, o in d.options.items()} }. Errors are signed distances to the true edge along the true normal; "
         "failed refinements count with the candidate pixel (see 'converged %').",
         "",
-        f"edgetruth {__version__}, commit {git_commit()[:12]}; study time {elapsed_s:.0f} s. "
+        f"edgetruth {__version__}, commit {source_commit()[:12]}; study time {elapsed_s:.0f} s. "
         "Times per point are per-image refinement calls (after Canny) and include call overhead; "
         "`make bench` gives batch throughput.",
         "",
@@ -382,9 +412,19 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
     return report
 
 
+def _thresholds_label(source: str) -> str:
+    from edgetruth.resources import shipped_thresholds
+
+    try:
+        shipped = Path(source).resolve() == shipped_thresholds().resolve()
+    except Exception:
+        shipped = False
+    return "shipped: assets/entropy_thresholds.json" if shipped else f"from {Path(source).name}"
+
+
 def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: bool = True,
                         images_per_scenario: int | None = None, backend: str = "local", workers: int = 1,
-                        address: str | None = None) -> Path:
+                        address: str | None = None, thresholds=None) -> Path:
     """Run (or resume) the synthetic study into ``out_dir``; returns the path of its report.md."""
     if preset not in PRESETS:
         raise InputError(f"preset {preset!r}: choose one of {', '.join(PRESETS)}")
@@ -394,12 +434,14 @@ def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: 
     methods = mo.ordered(methods)
     for m in methods:
         locate.get_method(m)
-    out_dir = Path(out_dir)
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"{out_dir}: cannot create the output directory ({exc.strerror})") from exc
+    from edgetruth.backends import check_backend_args
+    from edgetruth.fileio import make_output_dir
+
+    check_backend_args(backend, workers, address)
+    options = mo.study_options(thresholds)
+    out_dir = make_output_dir(out_dir)
     t0 = time.perf_counter()
-    d = collect(out_dir, n_per, methods, progress=progress, backend=backend, workers=workers, address=address)
+    d = collect(out_dir, n_per, methods, progress=progress, backend=backend, workers=workers, address=address,
+                options=options, thresholds=thresholds)
     t = build_tables(d)
     return write_report(out_dir, d, t, preset, n_per, time.perf_counter() - t0)

@@ -18,7 +18,7 @@ Nothing here reads the ground truth: the target is found from the image alone.
    component's own interior level and the board (1.0), so the mask boundary sits
    at the middle of the edge transition for gray targets too; the component is
    re-extracted at that level.
-4. **Candidates.**  ``locate.candidates`` on a crop around the target (the
+4. **Candidates.**  ``edgetruth.locate.candidates`` on a crop around the target (the
    component's box + ``margin_px``); a candidate is kept when it lies within
    ``boundary_tol_px`` of the mask boundary *and* its gradient normal points
    outwards (from the dark target to the bright board).  Highlight edges inside
@@ -174,7 +174,7 @@ class TargetCandidates:
 def target_candidates(image: np.ndarray, valid: np.ndarray | None = None, margin_px: int = 12,
                       boundary_tol_px: float = 2.0, sigma_px: float = 1.0) -> TargetCandidates:
     """Find the target, crop around it, run Canny there and keep the candidates on its boundary."""
-    import locate
+    from edgetruth import locate
 
     img = np.asarray(image, np.float64)
     region = find_target(img, valid)

@@ -1,7 +1,7 @@
 """Calibrate the dynamic window's entropy thresholds tau1 <= tau2 <= tau3 (BRIEF §2).
 
 Data: the ``calibration`` split of the synthetic scenarios (seeds disjoint
-from every test split by construction, see ``render.synthetic``).
+from every test split by construction, see ``edgetruth.render.synthetic``).
 For every on-edge candidate we fit all four fixed windows once and record
 the normalised entropy H of its 11-sample profile; a threshold triple then
 only selects, per point, which of the four stored errors counts.  With the
@@ -17,19 +17,17 @@ the optimal set (stable under tiny perturbations).
 from __future__ import annotations
 
 import datetime as _dt
-import json
-import subprocess
 from dataclasses import dataclass
 
 import numpy as np
 
-import locate
+from edgetruth import locate
 from edgetruth import __version__
 from edgetruth.errors import InputError
-from edgetruth.paths import REPO_ROOT
-from evaluate.matching import on_edge
-from locate.methods.erf import WINDOWS
-from render.synthetic import SCENARIOS, DEFAULT_SHAPE, synthetic_image
+from edgetruth.resources import source_commit
+from edgetruth.evaluate.matching import on_edge
+from edgetruth.locate.methods.erf import WINDOWS
+from edgetruth.render.synthetic import SCENARIOS, DEFAULT_SHAPE, synthetic_image
 
 
 @dataclass
@@ -102,14 +100,6 @@ def window_shares(entropy, tau) -> dict:
     return {int(k): float(np.mean(w == k)) for k in WINDOWS}
 
 
-def git_commit() -> str:
-    try:
-        out = subprocess.run(["git", "-C", str(REPO_ROOT), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5)
-        return out.stdout.strip() or "unknown"
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-
-
 def calibrate(images_per_scenario: int = 100, step: float = 0.01, shape=DEFAULT_SHAPE, progress=None) -> dict:
     """Run the calibration; returns the JSON-ready record (thresholds + provenance)."""
     if images_per_scenario < 1:
@@ -131,12 +121,12 @@ def calibrate(images_per_scenario: int = 100, step: float = 0.01, shape=DEFAULT_
                 "image_shape": list(shape),
                 "seeds": "numpy SeedSequence([1, scenario_index, image_index]); test splits use [2, ...]",
                 "on_edge_points": int(data.entropy.size),
-                "generator": "render.synthetic.synthetic_image (lines and circles alternate)",
+                "generator": "edgetruth.render.synthetic.synthetic_image (lines and circles alternate)",
             },
             "objective": "minimise RMSE (px) of the dynamic-window ERF positions over all on-edge candidates "
                          "(|candidate distance to the true edge| <= 1.5 px), all scenarios pooled",
             "search": f"exhaustive grid, step {step}, 0 <= tau1 <= tau2 <= tau3 <= 1; ties -> the centre of the optimal set",
-            "code_version": {"edgetruth": __version__, "git_commit": git_commit()},
+            "code_version": {"edgetruth": __version__, "git_commit": source_commit()},
             "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
             "command": f"edgetruth calibrate-thresholds --images-per-scenario {images_per_scenario} --step {step}",
         },
@@ -144,9 +134,6 @@ def calibrate(images_per_scenario: int = 100, step: float = 0.01, shape=DEFAULT_
 
 
 def write(record: dict, path) -> None:
-    from pathlib import Path
+    from edgetruth.fileio import write_json
 
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(record, indent=2) + "\n")
-    tmp.replace(path)
+    write_json(path, record, indent=2)

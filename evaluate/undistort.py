@@ -82,7 +82,7 @@ class Undistorter:
 
 
 def from_calibration(cal, interpolation: str = DEFAULT_INTERPOLATION) -> Undistorter:
-    """An ``Undistorter`` for a ``evaluate.calibration.Calibration``."""
+    """An ``Undistorter`` for a ``edgetruth.evaluate.calibration.Calibration``."""
     return Undistorter(cal.K, cal.dist, tuple(cal.image_size), interpolation)
 
 

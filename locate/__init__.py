@@ -1,26 +1,35 @@
-"""locate: subpixel edge localisation on shared Canny candidates.
+"""edgetruth.locate: subpixel edge localisation on shared Canny candidates.
 
-    import locate
+    from edgetruth import locate
     pts = locate.locate(image, method="dynamic_erf_4p")
     cand = locate.candidates(image)          # stage 1, shared by every method
     pts = locate.refine(image, cand, "glm1984")  # stage 2
 
-``locate.METHODS`` maps every method id to its ``Method`` record.  Each
-module in ``locate/methods/`` registers its methods on import.
+``edgetruth.locate.METHODS`` maps every method id to its ``Method`` record.  Each
+module in ``locate/methods/`` registers its methods on import; so do the packages that
+declare an ``edgetruth.methods`` entry point (``edgetruth.locate.plugins``).  A user's
+own method::
+
+    @locate.register("my_method")
+    def my_method(image, cand):
+        return locate.Refinement.from_offset(cand, offsets_px)   # one offset along each normal
 """
 from __future__ import annotations
 
 import importlib as _importlib
 import pkgutil as _pkgutil
 
-from locate.candidates import Candidates, candidates
-from locate.registry import METHODS, Method, get_method, locate, refine, register, sort_registry as _sort
-from locate.result import EdgePoints, Refinement
-from locate import methods as _methods
+from edgetruth.locate.candidates import Candidates, candidates
+from edgetruth.locate.registry import METHODS, Method, get_method, locate, refine, register, sort_registry as _sort
+from edgetruth.locate.result import EdgePoints, Refinement
+from edgetruth.locate import methods as _methods
 
 for _info in sorted(_pkgutil.iter_modules(_methods.__path__), key=lambda m: m.name):
     if not _info.name.startswith("_"):
-        _importlib.import_module(f"locate.methods.{_info.name}")
+        _importlib.import_module(f"edgetruth.locate.methods.{_info.name}")
+from edgetruth.locate.plugins import load_entry_points as _load_entry_points  # noqa: E402
+
+_load_entry_points()
 _sort()
 
 __all__ = ["METHODS", "Method", "Candidates", "EdgePoints", "Refinement", "candidates", "get_method",

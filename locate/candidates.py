@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from edgetruth.errors import InputError
-from locate.image_input import as_float_image
+from edgetruth.locate.image_input import as_float_image
 
 #: Half-length of the normal profile every method may read (t = -5..5).
 PROFILE_HALF = 5

@@ -28,7 +28,7 @@ Initial values (``initial_guess``), from the data only:
     largest sample and its neighbours gives mu, w and a; where it is
     undefined (a non-positive neighbour) mu = t of the largest sample, w = 1.
 
-Levenberg-Marquardt (the style of ``locate.erf_kernels``): Marquardt's diagonal
+Levenberg-Marquardt (the style of ``edgetruth.locate.erf_kernels``): Marquardt's diagonal
 scaling, lambda x0.1 on an accepted step, x10 on a rejected one; converged
 when an accepted step moves mu and w by less than ``tol`` (px), or when no
 step can decrease the cost (lambda > 1e12: a minimum to machine precision).
@@ -46,8 +46,8 @@ import math
 import numba
 import numpy as np
 
-from locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
-from locate.small_linalg import solve_small as _solve
+from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
+from edgetruth.locate.small_linalg import solve_small as _solve
 
 ERF = 0
 ARCTAN = 1
@@ -347,9 +347,9 @@ def refine_step_model(image, cand, model: int, maxit: int = 100, tol: float = 1e
     inside the window (else the candidate pixel, converged=False); extras A,
     B, width (model width w, px), offset, rss, iterations, status, se (standard
     error of mu from the image's pooled residual variance, as in
-    ``locate.methods.erf``).
+    ``edgetruth.locate.methods.erf``).
     """
-    from locate.profiles import profile_offsets, sample_profiles
+    from edgetruth.locate.profiles import profile_offsets, sample_profiles
 
     if model == GAUSS:
         raise ValueError("refine_step_model fits step models only")
@@ -360,7 +360,7 @@ def refine_step_model(image, cand, model: int, maxit: int = 100, tol: float = 1e
 
 
 def finish(cand, out, n_samples: int, npar: int, mu_index: int, width_index: int, amp_names, **extras):
-    from locate.result import Refinement
+    from edgetruth.locate.result import Refinement
 
     status = out[:, 7].astype(np.int64)
     conv = status == OK

@@ -20,7 +20,7 @@ import math
 import numba
 import numpy as np
 
-from locate.profiles import bilinear
+from edgetruth.locate.profiles import bilinear
 
 PROFILE_LEN = 11
 PROFILE_HALF = 5
@@ -29,7 +29,7 @@ _INV_SQRT2PI = 1.0 / math.sqrt(2.0 * math.pi)
 _LN_M = math.log(PROFILE_LEN - 1)
 S_MIN = 0.05  # blur scale floor (px): below it the model is a step, mu is undetermined within a pixel
 
-from locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW  # noqa: E402
+from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW  # noqa: E402
 
 
 @numba.njit(cache=True, inline="always")

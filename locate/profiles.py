@@ -11,7 +11,7 @@ import math
 import numba
 import numpy as np
 
-from locate.candidates import PROFILE_HALF
+from edgetruth.locate.candidates import PROFILE_HALF
 
 
 @numba.njit(cache=True, inline="always")

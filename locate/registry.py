@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import inspect
+import re
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -9,19 +10,26 @@ from typing import Callable
 import numpy as np
 
 from edgetruth.errors import InputError
-from locate.candidates import Candidates, candidates as _candidates
-from locate.image_input import as_float_image
-from locate.result import EdgePoints, Refinement
+from edgetruth.locate.candidates import Candidates, candidates as _candidates
+from edgetruth.locate.image_input import as_float_image
+from edgetruth.locate.result import EdgePoints, Refinement
 
 
 @dataclass(frozen=True)
 class Method:
     id: str
-    label: str  # the seed study's name
-    family: str  # "proposed", "erf-fixed" or "baseline"
+    label: str  # the seed study's name (the id for user methods without one)
+    family: str  # "proposed", "erf-fixed", "baseline" or "user"
     fn: Callable[..., Refinement]
     summary: str = ""
 
+    @property
+    def builtin(self) -> bool:
+        """Shipped with edgetruth (registered by ``edgetruth.locate.methods``)."""
+        return getattr(self.fn, "__module__", "").startswith("edgetruth.locate.methods.")
+
+
+_ID = re.compile(r"^[a-z][a-z0-9_]{0,63}$")
 
 #: Every method id -> Method.  ``list(METHODS)`` gives the ids, in ``CANONICAL_ORDER``.
 METHODS: dict[str, Method] = {}
@@ -43,13 +51,27 @@ def sort_registry() -> None:
     METHODS.update(items)
 
 
-def register(method_id: str, label: str, family: str = "baseline", summary: str = ""):
-    """Decorator: register ``fn(image_f64, cand, **options) -> Refinement`` under ``method_id``."""
+def register(method_id: str, label: str | None = None, family: str = "user", summary: str = ""):
+    """Decorator: register ``fn(image, cand, **options) -> Refinement`` under ``method_id``.
+
+    ``image`` is the float64 (H, W) image, ``cand`` the shared ``Candidates``; return one
+    ``Refinement`` entry per candidate (``Refinement.from_offset(cand, mu_px)`` for an offset
+    along each normal).  Keyword options after ``cand`` become the method's options.
+    Registering the same function again under its id is a no-op (a module imported twice);
+    another function under a taken id is an error."""
+    if not (isinstance(method_id, str) and _ID.match(method_id)):
+        raise InputError(f"method id {method_id!r}: use 1-64 lowercase letters, digits and '_', starting with a letter")
 
     def deco(fn):
-        if method_id in METHODS:
-            raise RuntimeError(f"method {method_id!r} registered twice")
-        METHODS[method_id] = Method(method_id, label, family, fn, summary or (fn.__doc__ or "").strip().split("\n")[0])
+        old = METHODS.get(method_id)
+        if old is not None:
+            if (getattr(old.fn, "__module__", None), getattr(old.fn, "__qualname__", None)) == (
+                    getattr(fn, "__module__", None), getattr(fn, "__qualname__", None)):
+                return fn
+            raise InputError(f"method {method_id!r} is registered twice (by {old.fn.__module__} and "
+                             f"{getattr(fn, '__module__', '?')}); give the new one another id")
+        doc = (fn.__doc__ or "").strip().split("\n")[0]
+        METHODS[method_id] = Method(method_id, label or method_id, family, fn, summary or doc)
         return fn
 
     return deco

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -70,18 +71,18 @@ class EdgePoints:
         return cols
 
     def to_csv(self, path) -> None:
-        """Write one row per point with a header; written to a temp file then renamed."""
-        path = Path(path)
+        """Write one row per point with a header (columns: docs/formats.md), atomically."""
+        from edgetruth.fileio import atomic_write_text
+
         cols = self.columns()
         names = list(cols)
-        tmp = path.with_name(f".{path.name}.tmp")
-        with open(tmp, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(names)
-            data = [np.asarray(cols[n]) for n in names]
-            for i in range(len(self)):
-                w.writerow([_fmt(d[i]) for d in data])
-        tmp.replace(path)
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(names)
+        data = [np.asarray(cols[n]) for n in names]
+        for i in range(len(self)):
+            w.writerow([_fmt(d[i]) for d in data])
+        atomic_write_text(Path(path), buf.getvalue())
 
 
 def _fmt(v) -> str:

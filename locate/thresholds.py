@@ -11,11 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth.errors import InputError
-from edgetruth.paths import ASSETS_DIR
+from edgetruth.fileio import check_input_file
+from edgetruth.resources import shipped_thresholds
 
-THRESHOLDS_FILE = ASSETS_DIR / "entropy_thresholds.json"
-#: Used only if the asset file is missing (a broken install); the calibrated file overrides.
-FALLBACK = (0.55, 0.65, 0.75)
+MODELS = ("2p", "4p")
 
 
 def validate(tau) -> tuple[float, float, float]:
@@ -25,16 +24,23 @@ def validate(tau) -> tuple[float, float, float]:
     return t  # type: ignore[return-value]
 
 
-def load(model: str = "4p", path: str | Path | None = None) -> tuple[float, float, float]:
-    """Calibrated thresholds for ERF ``model`` ('2p' or '4p')."""
-    p = Path(path) if path is not None else THRESHOLDS_FILE
+def source(path: str | Path | None = None) -> Path:
+    """The thresholds file in use: ``path``, else the shipped ``assets/entropy_thresholds.json``
+    (an error if the install lacks it: a missing asset is never replaced by a silent default)."""
+    if path is None:
+        return shipped_thresholds()
+    p = Path(path)
     if not p.exists():
-        if path is not None:
-            raise InputError(f"thresholds file {p} does not exist; run `edgetruth calibrate-thresholds -o {p}`")
-        return FALLBACK
+        raise InputError(f"thresholds file {p} does not exist; run `edgetruth calibrate-thresholds -o {p}`")
+    return check_input_file(p, "thresholds JSON")
+
+
+def load(model: str = "4p", path: str | Path | None = None) -> tuple[float, float, float]:
+    """Calibrated thresholds for ERF ``model`` ('2p' or '4p'), from ``path`` or the shipped file."""
+    p = source(path)
     try:
         data = json.loads(p.read_text())
         return validate(data["models"][model]["tau"])
     except (KeyError, ValueError, TypeError) as exc:
         raise InputError(f"thresholds file {p}: no valid models.{model}.tau entry ({exc}); "
-                         "re-run `edgetruth calibrate-thresholds`") from exc
+                         "re-run `edgetruth calibrate-thresholds`") from None

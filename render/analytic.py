@@ -33,7 +33,7 @@ import numpy as np
 from scipy.special import ndtr
 
 from edgetruth.conventions import pixel_centres
-from render.edge_truth import CircleEdge, StraightEdge
+from edgetruth.render.edge_truth import CircleEdge, StraightEdge
 
 _INV_SQRT2PI = 1.0 / np.sqrt(2.0 * np.pi)
 S_FLOOR_PX = 1e-6  # blur 0 is rendered as this (a step to double precision)

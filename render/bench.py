@@ -15,18 +15,18 @@ BENCH_WINDOW = (96, 80)  # px; the other variants (scalar: one Python call per s
 
 def _window_throughput(variant: str, spec) -> tuple[float, float]:
     """(seconds per window, samples per second) for one target image window on ``variant``."""
-    from render.dataset import get_rig, job_pose, spec_camera, spec_settings
-    from render.ground_truth import target_outline_local
-    from render.variants import choose_variant
+    from edgetruth.render.dataset import get_rig, job_pose
+    from edgetruth.render.ground_truth import target_outline_local
+    from edgetruth.render.variants import choose_variant
 
     choose_variant(variant, announce=lambda s: None)
-    job = next(j for j in spec.jobs if j["kind"] == "target")
-    camera, settings = spec_camera(spec), spec_settings(spec)
-    pose = job_pose(job, camera, target_outline_local("square", 0.13))
+    job = next(j for j in spec.jobs if j.kind == "target")
+    camera, settings = job.camera, spec.render
+    pose = job_pose(job, camera, target_outline_local("square", spec.target_size_m))
     w, h = BENCH_WINDOW
     crop = ((camera.width_px - w) // 2, (camera.height_px - h) // 2, w, h)
-    rig = get_rig("target", camera, settings, 0.13, crop)
-    rig.set_state(job["target"], pose, job["irradiance_w_m2"])
+    rig = get_rig("target", camera, settings, spec.target_size_m, crop)
+    rig.set_state(job.target, pose, job.irradiance_w_m2)
     rig.render(1)  # warm-up (JIT compilation)
     t0 = time.perf_counter()
     rig.render(2)
@@ -36,9 +36,9 @@ def _window_throughput(variant: str, spec) -> tuple[float, float]:
 
 def run_bench(spec_name: str = "quick") -> list[str]:
     """Printable lines: quick-spec images/s and wall/render ratio on the best variant; per-variant throughput."""
-    from render.dataset import render_spec
-    from render.spec import load_spec
-    from render.variants import ORDER, choose_variant, probe
+    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.spec import load_spec
+    from edgetruth.render.variants import ORDER, choose_variant, probe
 
     spec = load_spec(spec_name)
     lines: list[str] = []
@@ -71,17 +71,11 @@ def run_bench(spec_name: str = "quick") -> list[str]:
 
 
 def _pixels(spec) -> int:
-    from render.dataset import spec_camera
-
-    c = spec_camera(spec)
-    return c.width_px * c.height_px
+    return spec.camera.width_px * spec.camera.height_px
 
 
 def spec_camera_desc(spec) -> str:
-    from render.dataset import spec_camera, spec_settings
-
-    c, s = spec_camera(spec), spec_settings(spec)
-    return f"{c.width_px}x{c.height_px}, {s.spp} spp"
+    return f"{spec.camera.width_px}x{spec.camera.height_px}, {spec.render.spp} spp"
 
 
 if __name__ == "__main__":  # pragma: no cover

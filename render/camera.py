@@ -15,9 +15,9 @@ import numpy as np
 
 from edgetruth.conventions import focal_length_px, principal_point_centred
 from edgetruth.errors import InputError, require
-from edgetruth.paths import ASSETS_DIR
-from render.distortion import distort_normalized, undistort_normalized
-from render.spec import load_toml
+from edgetruth.fileio import read_toml
+from edgetruth.render.distortion import distort_normalized, undistort_normalized
+from edgetruth.render.schema import Key, parse_table
 
 DEFAULT_CAMERA = "default"
 
@@ -142,30 +142,70 @@ class Camera:
         }
 
 
-def camera_from_dict(d: dict, name: str = "custom") -> Camera:
-    """Build a camera from a spec table (as in ``assets/cameras/*.toml``)."""
-    known = {"width_px", "height_px", "pitch_um", "focal_length_mm", "f_number", "focus_distance_m", "distortion", "name"}
-    unknown = set(d) - known
-    require(not unknown, f"camera {name}: unknown keys {sorted(unknown)} (known: {sorted(known)})")
-    kw = dict(d)
-    dist = kw.pop("distortion", {})
-    if isinstance(dist, dict):
-        bad = set(dist) - {"k1", "k2", "p1", "p2", "k3"}
-        require(not bad, f"camera {name}: unknown distortion keys {sorted(bad)}")
-        dist = tuple(float(dist.get(k, 0.0)) for k in ("k1", "k2", "p1", "p2", "k3"))
-    kw["distortion"] = tuple(float(v) for v in dist)
-    kw.setdefault("name", name)
+_D = Camera()
+#: The ``[camera]`` table of a camera TOML.  ``per_group``: a spec's [[group]] may override it
+#: (``camera = { f_number = 2.8 }``) to sweep it; the others fix the intrinsics of the whole spec.
+CAMERA_KEYS = [
+    Key("width_px", "int", _D.width_px, "px", "image width", 8, 16384),
+    Key("height_px", "int", _D.height_px, "px", "image height", 8, 16384),
+    Key("pitch_um", "float", _D.pitch_um, "um", "pixel pitch (square pixels, 100 % fill factor)", 0.1, 1000.0),
+    Key("focal_length_mm", "float", _D.focal_length_mm, "mm", "focal length f; fx = fy = f / pitch", 0.1, 10000.0),
+    Key("f_number", "float", _D.f_number, "", "f-number N; thin-lens aperture radius R = f / (2N); 0 = pinhole",
+        0.0, 1000.0, per_group=True, check=lambda v: None if v == 0 or v >= 0.5 else "use 0 (pinhole) or >= 0.5"),
+    Key("focus_distance_m", "float", _D.focus_distance_m, "m", "distance of the plane in focus", 1e-3, 1e6,
+        per_group=True),
+    Key("distortion", "table", {}, "", "Brown-Conrady coefficients {k1, k2, p1, p2, k3} (OpenCV order, "
+        "normalised coordinates); missing ones are 0"),
+]
+DISTORTION_KEYS = [Key(k, "float", 0.0, "", f"distortion coefficient {k}", -10.0, 10.0)
+                   for k in ("k1", "k2", "p1", "p2", "k3")]
+MAX_PIXELS = 1 << 27  # the largest image edgetruth reads back (``edgetruth.image_io.MAX_IMAGE_PIXELS``)
+
+
+def camera_from_dict(d: dict, name: str = "custom", where: str | None = None) -> Camera:
+    """A camera from a ``[camera]`` table (as in ``assets/cameras/*.toml``), every value checked."""
+    where = where or f"camera {name}"
+    v = parse_table(d, CAMERA_KEYS, where)
+    dist = parse_table(v.pop("distortion"), DISTORTION_KEYS, f"{where} distortion")
+    if v["width_px"] * v["height_px"] > MAX_PIXELS:
+        raise InputError(f"{where}: {v['width_px']} x {v['height_px']} px exceeds {MAX_PIXELS:,} pixels; "
+                         "use a smaller resolution (or camera_scale)")
+    return Camera(**v, distortion=tuple(dist[k] for k in ("k1", "k2", "p1", "p2", "k3")), name=name)
+
+
+def camera_overrides(d: dict, where: str) -> dict:
+    """Checked per-group camera overrides (only keys marked ``per_group``)."""
+    allowed = [k for k in CAMERA_KEYS if k.per_group]
     try:
-        return Camera(**kw)
-    except TypeError as exc:  # wrong value types
-        raise InputError(f"camera {name}: {exc}") from None
+        return parse_table(d, allowed, where, defaults=False)
+    except InputError as exc:
+        fixed = sorted(set(d) & {k.name for k in CAMERA_KEYS if not k.per_group})
+        if fixed:
+            raise InputError(f"{where}: {', '.join(fixed)} fix the intrinsics of the whole spec and cannot be "
+                             f"overridden per group (a group may override {', '.join(k.name for k in allowed)}); "
+                             "use another spec for another camera") from None
+        raise exc
 
 
-def load_camera(name_or_path: str | Path = DEFAULT_CAMERA) -> Camera:
-    """A camera from ``assets/cameras/<name>.toml`` or a TOML file path."""
-    path = Path(name_or_path)
-    if not path.suffix:
-        path = ASSETS_DIR / "cameras" / f"{name_or_path}.toml"
-    require(path.is_file(), f"camera spec {name_or_path!r} not found (looked for {path})")
-    data = load_toml(path)
-    return camera_from_dict(data.get("camera", data), name=path.stem)
+def resolve_camera_path(ref: str, base_dir: Path | None = None) -> Path:
+    """A camera reference: a shipped name (``default``) or a TOML path (relative to ``base_dir``,
+    the folder of the spec that names it)."""
+    from edgetruth.resources import shipped_camera
+
+    if not ref.endswith(".toml") and "/" not in ref and "\\" not in ref:
+        return shipped_camera(ref)
+    p = Path(ref).expanduser()
+    if not p.is_absolute() and base_dir is not None:
+        p = base_dir / p
+    return p
+
+
+def load_camera(ref: str | Path = DEFAULT_CAMERA, base_dir: Path | None = None) -> Camera:
+    """A camera from a shipped name or a TOML file (``[camera]`` table, or the keys at top level)."""
+    path = resolve_camera_path(str(ref), base_dir)
+    if not path.exists():
+        raise InputError(f"camera file {path} not found (a relative path is relative to the spec's folder); "
+                         "fix the path or use a shipped camera name")
+    data = read_toml(path)
+    table = data.get("camera", data) if isinstance(data, dict) else data
+    return camera_from_dict(table, name=path.stem, where=f"{path} [camera]")

@@ -11,46 +11,31 @@ import hashlib
 import json
 import os
 import platform
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from edgetruth import __version__
-from edgetruth.errors import InputError, require
-from render.camera import Camera, load_camera
-from render.files import (atomic_write_bytes, read_exr, read_json, read_png16, sha256_file, write_exr,
-                          write_json)
-from render.ground_truth import checker_ground_truth, outline_in_view, target_ground_truth, target_outline_local
-from render.mitsuba_scene import TARGETS, CheckerRig, Checkerboard, RenderSettings, TargetRig
-from render.pose import Pose
-from render.sensor import SensorModel, make_rng, sensor_from_dict
-from render.spec import Spec, load_spec
+from edgetruth import __version__, console
+from edgetruth.errors import InputError
+from edgetruth.fileio import atomic_write_bytes, is_temporary, make_output_dir, read_json, sha256_file, write_json
+from edgetruth.render.camera import Camera
+from edgetruth.render.files import encode_exr, encode_png16
+from edgetruth.render.ground_truth import checker_ground_truth, outline_in_view, target_ground_truth, target_outline_local
+from edgetruth.render.mitsuba_scene import CheckerRig, RenderSettings, TargetRig
+from edgetruth.render.pose import Pose
+from edgetruth.render.reader import MANIFEST
+from edgetruth.render.sensor import make_rng
+from edgetruth.render.spec import Job, Spec, load_spec
+from edgetruth.render.targets import TARGETS
 
-MANIFEST = "manifest.json"
 FORMAT_VERSION = 1
 POSE_STREAM, SENSOR_STREAM = 1, 2
 VIEW_MARGIN_PX = 12.0  # full-size frames; small test frames use 2 % of their width
 _rigs: dict = {}
 
 
-# --- spec -> scene objects ----------------------------------------------------------
-def spec_camera(spec: Spec) -> Camera:
-    cam = load_camera(spec.settings.get("camera", "default"))
-    scale = int(spec.settings.get("camera_scale", 1))
-    return cam.scaled(scale) if scale != 1 else cam
-
-
-def spec_settings(spec: Spec) -> RenderSettings:
-    return RenderSettings(spp=int(spec.settings.get("spp", RenderSettings.spp)),
-                          sampler=str(spec.settings.get("sampler", RenderSettings.sampler)))
-
-
-def spec_checkerboard(spec: Spec) -> Checkerboard:
-    return Checkerboard(**spec.settings.get("checkerboard", {}))
-
-
+# --- scene objects ----------------------------------------------------------------
 def get_rig(kind: str, camera: Camera, settings: RenderSettings, extra=None, crop=None):
     """The process-wide scene for (kind, camera, settings, ...): loaded once, re-posed per image."""
     import mitsuba as mi
@@ -68,23 +53,23 @@ def _half_view_m(camera: Camera, distance_m: float) -> np.ndarray:
     return np.array([camera.width_px, camera.height_px]) / 2.0 / camera.fx_px * distance_m
 
 
-def job_pose(job: dict, camera: Camera, outline_local: np.ndarray) -> Pose:
+def job_pose(job: Job, camera: Camera, outline_local: np.ndarray) -> Pose:
     """The pose of a job: distance from the spec, lateral offset and tilts drawn from the job seed,
     redrawn (deterministically) until the outline lies inside the image."""
-    rng = make_rng(job["seed"], POSE_STREAM)
-    d = job["distance_cm"] / 100.0
+    rng = make_rng(job.seed, POSE_STREAM)
+    d = job.distance_cm / 100.0
     extent = float(np.max(np.abs(outline_local[:, :2])))
     for attempt in range(200):
         shrink = 1.0 if attempt < 100 else 0.0  # after 100 misses: centred
         room = np.maximum(_half_view_m(camera, d) - extent * 1.2, 0.0)
-        ox, oy = job["lateral_fraction"] * shrink * room * rng.uniform(-1, 1, 2)
-        tx, ty = job["tilt_max_deg"] * shrink * rng.uniform(-1, 1, 2)
-        roll = job["roll_max_deg"] * shrink * rng.uniform(-1, 1)
+        ox, oy = job.lateral_fraction * shrink * room * rng.uniform(-1, 1, 2)
+        tx, ty = job.tilt_max_deg * shrink * rng.uniform(-1, 1, 2)
+        roll = job.roll_max_deg * shrink * rng.uniform(-1, 1)
         pose = Pose(d, float(ox), float(oy), float(tx), float(ty), float(roll))
         margin = min(VIEW_MARGIN_PX, max(1.0, 0.02 * camera.width_px))
         if outline_in_view(camera, pose.to_camera(outline_local), margin):
             return pose
-    raise InputError(f"image {job['name']}: the board does not fit in the image at {d:.2f} m; "
+    raise InputError(f"image {job.name}: the board does not fit in the image at {d:.2f} m; "
                      "move it further away or use a smaller board")
 
 
@@ -99,46 +84,42 @@ def versions(variant: str) -> dict:
 
 
 # --- one image ----------------------------------------------------------------------
-def render_job(spec: Spec, job: dict, crop=None, timings: dict | None = None):
+def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
     """Render one job -> (radiance float32 (H, W), DN uint16 (H, W), ground-truth dict)."""
     import mitsuba as mi
 
-    camera = spec_camera(spec)
-    settings = spec_settings(spec)
-    sensor = sensor_from_dict(job["sensor"])
-    if job["kind"] == "target":
-        size_m = float(spec.settings.get("target_size_m", 0.13))
-        require(job["target"] in TARGETS, f"spec {spec.name}: unknown target {job['target']!r} (have {sorted(TARGETS)})")
-        pose = job_pose(job, camera, target_outline_local(TARGETS[job["target"]]["shape"], size_m))
+    camera = job.camera
+    settings = spec.render
+    sensor = job.sensor
+    if job.kind == "target":
+        size_m = spec.target_size_m
+        pose = job_pose(job, camera, target_outline_local(TARGETS[job.target]["shape"], size_m))
         rig = get_rig("target", camera, settings, size_m, crop)
-        le = rig.set_state(job["target"], pose, job["irradiance_w_m2"])
-        gt = target_ground_truth(camera, pose, job["target"], size_m)
+        le = rig.set_state(job.target, pose, job.irradiance_w_m2)
+        gt = target_ground_truth(camera, pose, job.target, size_m)
     else:
-        board = spec_checkerboard(spec)
-        b = board
-        corners = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]) * [b.cols * b.square_m / 2 + b.margin_m,
-                                                                               b.rows * b.square_m / 2 + b.margin_m, 0]
-        pose = job_pose(job, camera, corners)
+        board = spec.checkerboard
+        pose = job_pose(job, camera, board.plate_corners_local())
         rig = get_rig("checkerboard", camera, settings, board, crop)
-        le = rig.set_state(pose, job["irradiance_w_m2"])
+        le = rig.set_state(pose, job.irradiance_w_m2)
         gt = checker_ground_truth(camera, pose, board)
     t0 = time.perf_counter()
-    radiance = rig.render(job["seed"])
+    radiance = rig.render(job.seed)
     if timings is not None:
         timings["render_s"] = timings.get("render_s", 0.0) + time.perf_counter() - t0
-    dn = sensor.expose(radiance, camera.f_number, camera.pitch_um, make_rng(job["seed"], SENSOR_STREAM))
+    dn = sensor.expose(radiance, camera.f_number, camera.pitch_um, make_rng(job.seed, SENSOR_STREAM))
     full = {
         "format": FORMAT_VERSION,
-        "name": job["name"], "index": job["index"], "spec": spec.name, "group": job["group"], "kind": job["kind"],
-        "seed": job["seed"],
-        "seeds": {"mitsuba": job["seed"], "pose_rng": [job["seed"], POSE_STREAM], "sensor_rng": [job["seed"], SENSOR_STREAM],
+        "name": job.name, "index": job.index, "spec": spec.name, "group": job.group, "kind": job.kind,
+        "seed": job.seed,
+        "seeds": {"mitsuba": job.seed, "pose_rng": [job.seed, POSE_STREAM], "sensor_rng": [job.seed, SENSOR_STREAM],
                   "rng": "numpy PCG64 seeded with [seed, stream]"},
         "conventions": "pixel coordinates: OpenCV (pixel (r, c) centre at x=c, y=r); lengths in metres; "
                        "camera frame x right, y down, z forward",
         "camera": camera.ground_truth(),
         "pose": pose.to_dict(),
         **gt,
-        "illumination": rig.light_ground_truth(pose, le, job["irradiance_w_m2"]),
+        "illumination": rig.light_ground_truth(pose, le, job.irradiance_w_m2),
         "sensor": sensor.to_dict(),
         "photons_per_radiance": sensor.photons_per_radiance(camera.f_number, camera.pitch_um),
         "render": {**settings.to_dict(), "integrator": "direct (emitter sampling only)", "rfilter": "box",
@@ -161,27 +142,8 @@ def _entry_complete(out_dir: Path, entry: dict | None) -> bool:
 
 
 def _new_manifest(spec: Spec) -> dict:
-    return {"format": FORMAT_VERSION, "spec": spec.name, "spec_path": str(spec.path),
-            "spec_sha256": spec.text_sha256, "n_images": len(spec.jobs), "images": {}}
-
-
-def _encode_exr(radiance: np.ndarray) -> bytes:
-    """The bytes ``write_exr`` would write (one-channel ZIP EXR), via a private temporary file."""
-    import tempfile
-
-    with tempfile.TemporaryDirectory(prefix="edgetruth-exr-") as d:
-        tmp = Path(d) / "r.exr"
-        write_exr(tmp, radiance)
-        return tmp.read_bytes()
-
-
-def _encode_png16(image_dn: np.ndarray) -> bytes:
-    import cv2
-
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(image_dn, dtype=np.uint16))
-    if not ok:  # pragma: no cover
-        raise OSError("cv2 could not encode a 16-bit PNG")
-    return buf.tobytes()
+    return {"format": FORMAT_VERSION, "spec": spec.name, "spec_sha256": spec.identity_sha256,
+            "n_images": spec.n_images, "images": {}}
 
 
 def _encode_json(obj) -> bytes:
@@ -190,7 +152,7 @@ def _encode_json(obj) -> bytes:
 
 def init_worker(variant: str, threads: int | None = None) -> None:
     """Once per worker process: activate ``variant`` and share the cores among the workers."""
-    import render.variants  # noqa: F401  (points Dr.Jit at the pip libLLVM before it is imported)
+    import edgetruth.render.variants  # noqa: F401  (points Dr.Jit at the pip libLLVM before it is imported)
     import mitsuba as mi
 
     if mi.variant() != variant:
@@ -211,16 +173,15 @@ def render_task(spec: Spec, index: int, variant: str, out_dir: str | None) -> di
     if mi.variant() != variant:
         init_worker(variant)
     job = spec.jobs[index]
-    assert job["index"] == index, (job["index"], index)
     timings: dict = {}
     radiance, dn, gt = render_job(spec, job, timings=timings)
-    name = job["name"]
+    name = job.name
     gt["files"] = {"exr": f"{name}.exr", "png": f"{name}.png"}
-    data = {"exr": _encode_exr(radiance), "png": _encode_png16(dn), "json": _encode_json(gt)}
+    data = {"exr": encode_exr(radiance), "png": encode_png16(dn), "json": _encode_json(gt)}
     if out_dir is not None:
         _write_files(Path(out_dir), name, data)
     entry = {
-        "index": index, "kind": job["kind"], "group": job["group"], "seed": job["seed"],
+        "index": index, "kind": job.kind, "group": job.group, "seed": job.seed,
         "variant": variant, "complete": True,
         "files": {k: {"path": f"{name}.{k}", "sha256": hashlib.sha256(b).hexdigest()} for k, b in data.items()},
     }
@@ -232,11 +193,6 @@ def _write_files(out_dir: Path, name: str, data: dict) -> None:
     # the JSON (which names the other two) last; each file appears whole or not at all
     for ext in ("exr", "png", "json"):
         atomic_write_bytes(out_dir / f"{name}.{ext}", data[ext])
-
-
-def is_temporary(p: Path) -> bool:
-    """A writer's temporary file (``.tmp-PID-NAME.EXT``), left behind only by a killed run."""
-    return p.name.startswith(".tmp-")
 
 
 class _DirLock:
@@ -258,18 +214,6 @@ class _DirLock:
         os.close(self.fd)  # closing the descriptor drops the flock
 
 
-def _prepare_out_dir(out_dir: Path) -> None:
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"-o {out_dir}: is a file, not a directory; choose a directory path")
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"-o {out_dir}: cannot create the output directory ({exc.strerror}); "
-                         "choose a writable location") from None
-    if not os.access(out_dir, os.W_OK | os.X_OK):
-        raise InputError(f"-o {out_dir}: directory is not writable; fix its permissions or choose another")
-
-
 def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | None = None, progress: bool = True,
                 only: list[int] | None = None, timings: dict | None = None, announce=print,
                 backend: str = "local", workers: int | None = 1, address: str | None = None) -> dict:
@@ -284,9 +228,7 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
     image), and an interrupted run -- even ``kill -9`` -- resumes where it stopped.
     """
     from edgetruth.backends import check_backend_args, default_workers, make_backend
-    from render.variants import choose_variant
-
-    from render.spec_checks import check_spec, load_checked_spec
+    from edgetruth.render.variants import choose_variant
 
     check_backend_args(backend, workers, address)  # before anything is written
     if variant:
@@ -295,15 +237,13 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
         if variant not in mi.variants():
             raise InputError(f"--variant {variant}: not in this Mitsuba build (have: {', '.join(mi.variants())})")
     if not isinstance(spec, Spec):
-        spec = load_checked_spec(spec)
-    else:
-        check_spec(spec)
+        spec = load_spec(spec)
     out_dir = Path(out_dir)
     if only is not None:
-        bad = sorted(set(only) - set(range(len(spec.jobs))))
+        bad = sorted(i for i in set(only) if not 0 <= i < spec.n_images)
         if bad:
-            raise InputError(f"--only: index {bad[0]} out of range; {spec.name!r} has images 0-{len(spec.jobs) - 1}")
-    _prepare_out_dir(out_dir)
+            raise InputError(f"--only: index {bad[0]} out of range; {spec.name!r} has images 0-{spec.n_images - 1}")
+    make_output_dir(out_dir)
     lock = _DirLock(out_dir)
     try:
         return _render_locked(spec, out_dir, variant, progress, only, timings, announce, backend, workers,
@@ -318,14 +258,14 @@ def _render_locked(spec, out_dir, variant, progress, only, timings, announce, ba
     manifest = read_json(mpath) if mpath.is_file() else _new_manifest(spec)
     if not isinstance(manifest, dict) or not isinstance(manifest.get("images"), dict):
         raise InputError(f"{mpath}: not an edgetruth manifest; choose a new output directory or delete it")
-    if manifest.get("spec") != spec.name or manifest.get("spec_sha256") != spec.text_sha256:
+    if manifest.get("spec") != spec.name or manifest.get("spec_sha256") != spec.identity_sha256:
         raise InputError(f"{out_dir} holds renders of another spec (or another version of {spec.name!r}); "
                          "choose a new output directory or delete it")
     for p in out_dir.iterdir():  # temporaries of a killed run (we hold the lock: no writer is alive)
         if is_temporary(p) and p.is_file():
             p.unlink()
-    jobs = [j for j in spec.jobs if only is None or j["index"] in only]
-    todo = [j for j in jobs if not _entry_complete(out_dir, manifest["images"].get(j["name"]))]
+    jobs = list(spec.jobs) if only is None else [spec.jobs[i] for i in sorted(set(only))]
+    todo = [j for j in jobs if not _entry_complete(out_dir, manifest["images"].get(j.name))]
     stats = timings if timings is not None else {}
     t_start = time.perf_counter()
     if not todo:
@@ -345,12 +285,10 @@ def _render_locked(spec, out_dir, variant, progress, only, timings, announce, ba
             used = choose_variant(variant, announce=announce)
         threads = max(1, default_workers() // max(1, be.concurrency)) if be.concurrency > 1 else None
         be.set_initializer(init_worker, (used, threads))
-        if progress:
-            from tqdm import tqdm
-            bar = tqdm(total=len(jobs), initial=len(jobs) - len(todo), unit="img", desc=f"render {spec.name}",
-                       file=sys.stderr, dynamic_ncols=True)
+        bar = console.bar(total=len(jobs), initial=len(jobs) - len(todo), unit="img", desc=f"render {spec.name}",
+                          enabled=progress)
         worker_dir = str(out_dir.resolve()) if be.shares_filesystem else None
-        tasks = [(spec, j["index"], used, worker_dir) for j in todo]
+        tasks = [(spec, j.index, used, worker_dir) for j in todo]
         for res in be.map_unordered(render_task, tasks):
             name = res["name"]
             if res["payload"] is not None:
@@ -360,32 +298,20 @@ def _render_locked(spec, out_dir, variant, progress, only, timings, announce, ba
             write_json(mpath, manifest)
             stats["render_s"] = stats.get("render_s", 0.0) + res["render_s"]
             stats["n_rendered"] = stats.get("n_rendered", 0) + 1
-            if bar:
-                bar.update(1)
+            bar.update(1)
     except BaseException:
         be.close(abort=True)
         raise
     finally:
-        if bar:
+        if bar is not None:
             bar.close()
     be.close()
     stats["wall_s"] = stats.get("wall_s", 0.0) + time.perf_counter() - t_start
     return manifest
 
 
-def load_image(out_dir: str | Path, name: str) -> tuple[np.ndarray, dict]:
-    """(sensor image uint16 (H, W), ground truth dict) of image ``name`` in a dataset."""
-    out_dir = Path(out_dir)
-    require((out_dir / f"{name}.json").is_file(), f"{out_dir}: no image named {name!r}")
-    return read_png16(out_dir / f"{name}.png"), read_json(out_dir / f"{name}.json")
-
-
-def load_radiance(out_dir: str | Path, name: str) -> np.ndarray:
-    """The linear radiance (float32, W m⁻² sr⁻¹) of image ``name``."""
-    return read_exr(Path(out_dir) / f"{name}.exr")
-
-
 def list_images(out_dir: str | Path) -> list[str]:
-    """Names of the complete images of a dataset, in index order."""
-    m = read_json(Path(out_dir) / MANIFEST)
-    return [n for n, e in m["images"].items() if e.get("complete")]
+    """Names of the complete images of a dataset, in index order (see ``edgetruth.render.reader``)."""
+    from edgetruth.render.reader import open_dataset
+
+    return open_dataset(out_dir).names()

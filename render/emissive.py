@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from render.camera import Camera
-from render.lens_sensor import sensor_dict
-from render.pose import Pose
+from edgetruth.render.camera import Camera
+from edgetruth.render.lens_sensor import sensor_dict
+from edgetruth.render.pose import Pose
 
 
 def _facing_camera(local_scale: tuple[float, float], pose: Pose) -> np.ndarray:

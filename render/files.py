@@ -1,89 +1,73 @@
-"""Atomic, deterministic file output: EXR (float32, OpenEXR package), 16-bit PNG, JSON; SHA-256.
+"""Image files of a dataset: EXR (float32 radiance, OpenEXR package) and 16-bit PNG (raw DN).
 
-Every writer writes a temporary file in the destination directory and renames it
-into place with ``os.replace``, so an interrupted run never leaves a truncated file
-under a final name.
+Encoders return bytes (hashed and written atomically by the dataset writer); readers
+raise ``InputError`` naming the file.  Generic atomic writes, JSON and hashes live in
+``edgetruth.fileio``.
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.fileio import atomic_write_bytes, check_input_file
+
+EXR_CHANNEL = "Y"
 
 
-def _tmp_path(path: Path) -> Path:
-    # keep the suffix: some writers pick the format from it
-    return path.with_name(f".tmp-{os.getpid()}-{path.stem}{path.suffix}")
-
-
-def atomic_write_bytes(path: str | Path, data: bytes) -> None:
-    path = Path(path)
-    tmp = _tmp_path(path)
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
-
-
-def write_json(path: str | Path, obj) -> None:
-    atomic_write_bytes(path, (json.dumps(obj, indent=1, sort_keys=False) + "\n").encode())
-
-
-def read_json(path: str | Path) -> dict:
-    try:
-        return json.loads(Path(path).read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read JSON: {exc}") from None
-
-
-def write_png16(path: str | Path, image_dn: np.ndarray) -> None:
-    """A 2-D uint16 image as a 16-bit grayscale PNG (values are raw DN, not rescaled)."""
+def encode_png16(image_dn: np.ndarray) -> bytes:
+    """A 2-D uint16 image as 16-bit grayscale PNG bytes (values are raw DN, not rescaled)."""
     import cv2
 
     ok, buf = cv2.imencode(".png", np.ascontiguousarray(image_dn, dtype=np.uint16))
     if not ok:  # pragma: no cover
-        raise OSError(f"cv2 could not encode {path}")
-    atomic_write_bytes(path, buf.tobytes())
+        raise OSError("cv2 could not encode a 16-bit PNG")
+    return buf.tobytes()
+
+
+def write_png16(path: str | Path, image_dn: np.ndarray) -> None:
+    atomic_write_bytes(path, encode_png16(image_dn))
 
 
 def read_png16(path: str | Path) -> np.ndarray:
-    import cv2
+    from edgetruth.image_io import read_gray
 
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise InputError(f"{path}: not a readable PNG")
-    return img
+    return read_gray(path)
 
 
-def write_exr(path: str | Path, radiance: np.ndarray, channel: str = "Y") -> None:
-    """A 2-D float32 radiance image as a one-channel ZIP-compressed EXR."""
+def encode_exr(radiance: np.ndarray, channel: str = EXR_CHANNEL) -> bytes:
+    """A 2-D float32 image as one-channel ZIP-compressed EXR bytes (via a private temporary file:
+    the OpenEXR package writes to paths only)."""
     import OpenEXR
 
-    path = Path(path)
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     channels = {channel: np.ascontiguousarray(radiance, dtype=np.float32)}
-    tmp = _tmp_path(path)
-    with OpenEXR.File(header, channels) as f:
-        f.write(str(tmp))
-    os.replace(tmp, path)
+    fd, tmp = tempfile.mkstemp(prefix="edgetruth-exr-", suffix=".exr")
+    os.close(fd)
+    try:
+        with OpenEXR.File(header, channels) as f:
+            f.write(tmp)
+        return Path(tmp).read_bytes()
+    finally:
+        os.unlink(tmp)
 
 
-def read_exr(path: str | Path, channel: str = "Y") -> np.ndarray:
+def write_exr(path: str | Path, radiance: np.ndarray, channel: str = EXR_CHANNEL) -> None:
+    atomic_write_bytes(path, encode_exr(radiance, channel))
+
+
+def read_exr(path: str | Path, channel: str = EXR_CHANNEL) -> np.ndarray:
+    from edgetruth.image_io import quiet_stderr
+
     import OpenEXR
 
-    with OpenEXR.File(str(path)) as f:
-        return np.array(f.channels()[channel].pixels, dtype=np.float32)
-
-
-def sha256_file(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+    p = check_input_file(path, "EXR file")
+    try:
+        with quiet_stderr(), OpenEXR.File(str(p)) as f:
+            return np.array(f.channels()[channel].pixels, dtype=np.float32)
+    except Exception as exc:
+        raise InputError(f"{p}: not a readable EXR with channel {channel!r} ({exc.__class__.__name__}); "
+                         "re-render the image") from None

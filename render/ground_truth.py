@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from render.camera import Camera
-from render.mitsuba_scene import TARGET_STANDOFF_M, TARGETS, Checkerboard
-from render.pose import Pose
+from edgetruth.render.camera import Camera
+from edgetruth.render.targets import TARGET_STANDOFF_M, TARGETS, Checkerboard
+from edgetruth.render.pose import Pose
 
 CIRCLE_OUTLINE_POINTS = 720
 

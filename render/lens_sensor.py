@@ -15,7 +15,7 @@ runs once per wavefront on the JIT variants (fast) but once per *sample* on
 from __future__ import annotations
 
 from edgetruth.conventions import MITSUBA_TO_CV_OFFSET_PX
-from render.distortion import undistort_normalized, is_zero
+from edgetruth.render.distortion import undistort_normalized, is_zero
 
 PLUGIN_NAME = "edgetruth_lens"
 _registered: set[str] = set()
@@ -86,7 +86,7 @@ def register() -> str:
 
 
 def sensor_dict(camera, sampler: dict, crop: tuple[int, int, int, int] | None = None) -> dict:
-    """The scene-dict entry of the sensor for ``camera`` (a ``render.camera.Camera``).
+    """The scene-dict entry of the sensor for ``camera`` (a ``edgetruth.render.camera.Camera``).
 
     ``crop`` = (x0, y0, width, height) in pixels renders only that window of the full film.
     """

@@ -15,7 +15,7 @@ Light: one square area light beside the camera (behind its image plane, so never
 in view), aimed at the board centre; its radiance is set so that the board's
 irradiance at its centre equals the requested ``irradiance_w_m2`` whatever the
 distance (one light: emitter selection adds no Monte-Carlo noise).
-The world frame is the OpenCV camera frame (see ``render.pose``).
+The world frame is the OpenCV camera frame (see ``edgetruth.render.pose``).
 """
 from __future__ import annotations
 
@@ -23,21 +23,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from render.camera import Camera
-from render.lens_sensor import sensor_dict
-from render.pose import Pose
+from edgetruth.render.camera import Camera
+from edgetruth.render.lens_sensor import sensor_dict
+from edgetruth.render.pose import Pose
+from edgetruth.render.targets import BOARD_HALF_SIZE_M, BOARD_REFLECTANCE, TARGET_STANDOFF_M, TARGETS, Checkerboard
 
-TARGET_STANDOFF_M = 10e-6
-BOARD_HALF_SIZE_M = (1.8, 1.5)  # fills the frame at 3 m with room for lateral offsets
-BOARD_REFLECTANCE = 0.8
-
-#: Target ids -> (shape, material).  Reflectances are Lambertian albedos.
-TARGETS = {
-    "T1": {"shape": "square", "material": "black_matte", "reflectance": 0.04},
-    "T2": {"shape": "circle", "material": "black_matte", "reflectance": 0.04},
-    "T3": {"shape": "square", "material": "gray_matte", "reflectance": 0.25},
-    "T4": {"shape": "square", "material": "glossy_black", "reflectance": 0.03, "alpha": 0.15, "eta": 1.5},
-}
 #: One shape per target, each with a fixed BSDF (the loader merges identical BSDFs, so their
 #: parameters cannot be changed independently through ``traverse``).
 _SHAPE_KEY = {"T1": "square_black", "T2": "disk_black", "T3": "square_gray", "T4": "square_glossy"}
@@ -177,46 +167,6 @@ class TargetRig(_Rig):
         le = self._set_light(pose, irradiance_w_m2)
         self.params.update()
         return le
-
-
-# --- checkerboards ------------------------------------------------------------
-
-@dataclass(frozen=True)
-class Checkerboard:
-    """``cols`` × ``rows`` squares of ``square_m``; inner corners (cols-1) × (rows-1)."""
-
-    cols: int = 10
-    rows: int = 7
-    square_m: float = 0.03
-    margin_m: float = 0.03
-
-    @property
-    def pattern_size(self) -> tuple[int, int]:
-        """OpenCV's patternSize (inner corners per row, per column)."""
-        return self.cols - 1, self.rows - 1
-
-    def inner_corners_local(self, z_m: float = 0.0) -> np.ndarray:
-        """Inner corners, row-major (x fastest) like ``cv2.findChessboardCorners``; board centre at 0."""
-        xs = (np.arange(1, self.cols) - self.cols / 2) * self.square_m
-        ys = (np.arange(1, self.rows) - self.rows / 2) * self.square_m
-        gx, gy = np.meshgrid(xs, ys)
-        return np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, z_m)], axis=1)
-
-    def black_quads_local(self, z_m: float) -> np.ndarray:
-        """(n, 4, 3) corners of the black squares ((i + j) even is black)."""
-        quads = []
-        for j in range(self.rows):
-            for i in range(self.cols):
-                if (i + j) % 2 == 0:
-                    x0 = (i - self.cols / 2) * self.square_m
-                    y0 = (j - self.rows / 2) * self.square_m
-                    s = self.square_m
-                    quads.append([[x0, y0, z_m], [x0 + s, y0, z_m], [x0 + s, y0 + s, z_m], [x0, y0 + s, z_m]])
-        return np.asarray(quads, dtype=np.float64)
-
-    def to_dict(self) -> dict:
-        return {"cols": self.cols, "rows": self.rows, "square_m": self.square_m, "margin_m": self.margin_m,
-                "pattern_size": list(self.pattern_size), "black_square": "(col + row) even, col 0 row 0 at top-left"}
 
 
 class CheckerRig(_Rig):

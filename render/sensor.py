@@ -15,7 +15,8 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
-from edgetruth.errors import InputError, require
+from edgetruth.errors import require
+from edgetruth.render.schema import Key, parse_table
 
 PLANCK_J_S = 6.62607015e-34
 SPEED_OF_LIGHT_M_S = 299792458.0
@@ -97,13 +98,25 @@ class SensorModel:
         return d
 
 
-def sensor_from_dict(d: dict, base: SensorModel | None = None) -> SensorModel:
-    """A ``SensorModel`` from a spec table; unknown keys are an ``InputError``."""
-    known = {f.name for f in fields(SensorModel)}
-    unknown = set(d) - known
-    if unknown:
-        raise InputError(f"sensor: unknown keys {sorted(unknown)} (known: {sorted(known)})")
-    return replace(base or SensorModel(), **d)
+_D = SensorModel()
+#: The ``[sensor]`` table of a spec (and a group's ``sensor = {...}`` overrides).
+SENSOR_KEYS = [
+    Key("qe", "float", _D.qe, "", "quantum efficiency eta at the wavelength", 1e-6, 1.0),
+    Key("exposure_s", "float", _D.exposure_s, "s", "exposure time", 1e-9, 3600.0),
+    Key("wavelength_nm", "float", _D.wavelength_nm, "nm", "wavelength of the (monochromatic) light", 100.0, 2000.0),
+    Key("dark_noise_e", "float", _D.dark_noise_e, "e-", "dark (read) noise sigma_d", 0.0, 1e4),
+    Key("full_well_e", "float", _D.full_well_e, "e-", "full-well capacity (electrons clip here)", 1.0, 1e8),
+    Key("k0_dn_per_e", "float", _D.k0_dn_per_e, "DN/e-", "system gain K0 at 0 dB", 1e-6, 1e3),
+    Key("gain_db", "float", _D.gain_db, "dB", "analog gain G: K = K0 * 10^(G/20)", -40.0, 60.0),
+    Key("bits", "int", _D.bits, "bit", "ADC resolution (stored in a 16-bit PNG)", 1, 16),
+    Key("dark_offset_dn", "float", _D.dark_offset_dn, "DN", "black level added before the ADC", 0.0, 65535.0),
+]
+assert [k.name for k in SENSOR_KEYS] == [f.name for f in fields(SensorModel)]
+
+
+def sensor_from_dict(d: dict, base: SensorModel | None = None, where: str = "sensor") -> SensorModel:
+    """A ``SensorModel`` from a spec table (values checked against ``SENSOR_KEYS``), over ``base``."""
+    return replace(base or SensorModel(), **parse_table(d, SENSOR_KEYS, where, defaults=False))
 
 
 def make_rng(seed: int, stream: int) -> np.random.Generator:

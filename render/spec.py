@@ -1,34 +1,75 @@
-"""Render specs: TOML files in ``scenes/`` expanded into a list of image jobs.
+"""Render specs: a TOML file -> one typed, validated ``Spec`` whose images are pure functions of (spec, index).
 
-A spec has a ``[spec]`` table (name, kind defaults, camera, render settings) and
-one or more ``[[group]]`` tables; each group expands into images.  An image job
-is a plain dict, and an image is a pure function of (spec name, index): its seed
-is derived from a hash of both (``image_seed``).
+A spec has a ``[spec]`` table (name, camera, render settings), an optional
+``[sensor]`` table and one or more ``[[group]]`` tables.  ``load_spec`` parses and
+validates it in one pass against the key tables (``SPEC_KEYS``, ``GROUP_KEYS``,
+``edgetruth.render.sensor.SENSOR_KEYS``, ``edgetruth.render.camera.CAMERA_KEYS``;
+documented in ``docs/spec.md``): every problem is one ``InputError`` naming the file,
+the table, the key and the fix, before anything renders.
+
+The camera is a shipped name (``assets/cameras/NAME.toml``) or a TOML path relative to
+the spec's own folder; a group may override the keys marked per-group (f-number,
+focus distance, ...) and any sensor key, so one spec can sweep them.
+
+Image ``index`` is the pure function of (spec, index): its seed is
+``image_seed(spec.name, index)``; ``spec.jobs[index]`` computes the job on demand,
+so a spec of a million images costs nothing to load.
 """
 from __future__ import annotations
 
+import bisect
 import hashlib
-import sys
+import json
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - python 3.10
-    import tomli as tomllib
+import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.fileio import read_toml
+from edgetruth.render.camera import DEFAULT_CAMERA, Camera, camera_overrides, load_camera
+from edgetruth.render.mitsuba_scene import RenderSettings
+from edgetruth.render.schema import REQUIRED, Key, parse_table
+from edgetruth.render.sensor import SensorModel, sensor_from_dict
+from edgetruth.render.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard
 
+KINDS = ("target", "checkerboard")
+SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
+MAX_SPP = 1 << 16
+MAX_IMAGES = 10_000_000
+DEFAULT_IRRADIANCE_W_M2 = 1.75  # the white board at ~80 % of full well at 0 dB (default camera and sensor)
 
-def load_toml(path: str | Path) -> dict:
-    """Parse a TOML file; a syntax error becomes an ``InputError`` naming the file."""
-    path = Path(path)
-    try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: invalid TOML: {exc}") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+SPEC_KEYS = [
+    Key("name", "name", None, "", "spec name (names the output directory and seeds every image); "
+        "default: the file name"),
+    Key("description", "str", "", "", "free text"),
+    Key("camera", "str", DEFAULT_CAMERA, "", "a shipped camera name or a camera TOML path (relative to the spec's "
+        "folder)"),
+    Key("camera_scale", "int", 1, "", "binning: the camera with camera_scale x fewer pixels per side (same field "
+        "of view, pitch x camera_scale)", 1, 64),
+    Key("spp", "int", RenderSettings.spp, "samples/px", "Monte-Carlo samples per pixel", 1, MAX_SPP),
+    Key("sampler", "str", RenderSettings.sampler, "", "Mitsuba sampler", choices=SAMPLERS),
+    Key("target_size_m", "float", 0.13, "m", "target side (square) or diameter (circle)", 1e-3, 10.0),
+    Key("checkerboard", "table", {}, "", "the calibration board {cols, rows, square_m, margin_m}"),
+]
+GROUP_KEYS = [
+    Key("name", "name", REQUIRED, "", "group name (unique in the spec; part of every image name)"),
+    Key("kind", "str", "target", "", "what the images show", choices=KINDS),
+    Key("target", "str", "T1", "", "target id (kind = target)", choices=tuple(TARGETS)),
+    Key("count", "int", 1, "images", "images over distance_range_cm (one per equal sub-interval)", 1, MAX_IMAGES),
+    Key("distance_range_cm", "range2", (150.0, 150.0), "cm", "[near, far] distance of the board centre", 1.0, 1e5),
+    Key("distance_intervals_cm", "ranges", None, "cm", "[[near, far], ...]: count_per_interval images per "
+        "interval (replaces count and distance_range_cm)", 1.0, 1e5),
+    Key("count_per_interval", "int", 10, "images", "images per distance interval", 1, MAX_IMAGES),
+    Key("lateral_fraction", "float", 0.0, "", "lateral offset, as a fraction of the room left in the field of view",
+        0.0, 1.0),
+    Key("tilt_max_deg", "float", 0.0, "deg", "tilts about the board's x and y axes drawn from U(-t, t)", 0.0, 80.0),
+    Key("roll_max_deg", "float", 0.0, "deg", "roll about the optical axis drawn from U(-r, r)", 0.0, 180.0),
+    Key("irradiance_w_m2", "float", DEFAULT_IRRADIANCE_W_M2, "W/m^2", "irradiance at the board centre "
+        "(sets the light's power)", 1e-9, 1e6),
+    Key("sensor", "table", {}, "", "sensor overrides for this group (any [sensor] key)"),
+    Key("camera", "table", {}, "", "camera overrides for this group (per-group camera keys only)"),
+]
 
 
 def image_seed(spec_name: str, index: int) -> int:
@@ -37,113 +78,213 @@ def image_seed(spec_name: str, index: int) -> int:
     return int.from_bytes(digest[:4], "little") & 0x7FFFFFFF
 
 
-# --- specs ----------------------------------------------------------------------
-import math
-from dataclasses import dataclass, field
-
-import numpy as np
-
-from edgetruth.errors import require
-from edgetruth.paths import SCENES_DIR
-
-GROUP_KEYS = {
-    "name", "kind", "target", "count", "count_per_interval", "distance_intervals_cm", "distance_range_cm",
-    "lateral_fraction", "tilt_max_deg", "roll_max_deg", "irradiance_w_m2", "sensor",
-}
-SPEC_KEYS = {"name", "description", "camera", "camera_scale", "spp", "sampler", "target_size_m", "checkerboard"}
-KINDS = ("target", "checkerboard")
-
-
-@dataclass
-class Spec:
-    """A parsed spec: global settings plus groups (raw tables, validated)."""
+@dataclass(frozen=True)
+class Group:
+    """One ``[[group]]``: its images share kind, target, pose ranges, light, sensor and camera."""
 
     name: str
+    kind: str
+    target: str | None
+    first_index: int
+    distances_cm: tuple  # one per image, stratified (see ``_distances_cm``)
+    lateral_fraction: float
+    tilt_max_deg: float
+    roll_max_deg: float
+    irradiance_w_m2: float
+    sensor: SensorModel
+    camera: Camera
+    camera_overrides: dict = field(default_factory=dict)
+    sensor_overrides: dict = field(default_factory=dict)
+
+    @property
+    def count(self) -> int:
+        return len(self.distances_cm)
+
+
+@dataclass(frozen=True)
+class Job:
+    """Image ``index`` of a spec: what to render (a pure function of the spec and the index)."""
+
+    index: int
+    name: str
+    group: str
+    kind: str
+    seed: int
+    distance_cm: float
+    target: str | None
+    lateral_fraction: float
+    tilt_max_deg: float
+    roll_max_deg: float
+    irradiance_w_m2: float
+    sensor: SensorModel
+    camera: Camera
+
+
+class Jobs:
+    """``spec.jobs``: a read-only sequence of ``Job`` computed on demand (``len``, index, iterate)."""
+
+    def __init__(self, spec: "Spec"):
+        self._spec = spec
+        self._starts = [g.first_index for g in spec.groups]
+
+    def __len__(self) -> int:
+        return self._spec.n_images
+
+    def __getitem__(self, index: int) -> Job:
+        n = len(self)
+        if not isinstance(index, (int, np.integer)):
+            raise TypeError("spec.jobs takes an integer index")
+        index = int(index)
+        if index < 0:
+            index += n
+        if not 0 <= index < n:
+            raise IndexError(f"image {index} out of range: {self._spec.name!r} has images 0-{n - 1}")
+        g = self._spec.groups[bisect.bisect_right(self._starts, index) - 1]
+        k = index - g.first_index
+        return Job(index=index, name=f"{index:04d}_{g.name}", group=g.name, kind=g.kind,
+                   seed=image_seed(self._spec.name, index), distance_cm=float(g.distances_cm[k]), target=g.target,
+                   lateral_fraction=g.lateral_fraction, tilt_max_deg=g.tilt_max_deg, roll_max_deg=g.roll_max_deg,
+                   irradiance_w_m2=g.irradiance_w_m2, sensor=g.sensor, camera=g.camera)
+
+    def __iter__(self):
+        for i in range(len(self)):
+            yield self[i]
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A parsed, validated spec."""
+
+    name: str
+    description: str
     path: Path | None
-    settings: dict
-    sensor: dict
-    groups: list[dict]
+    camera: Camera  # the spec's camera (binned by camera_scale); groups may override per-group keys
+    camera_ref: str
+    camera_scale: int
+    render: RenderSettings
+    target_size_m: float
+    checkerboard: Checkerboard
+    sensor: SensorModel
+    groups: tuple
     text_sha256: str = ""
-    jobs: list[dict] = field(default_factory=list)
+
+    @property
+    def n_images(self) -> int:
+        g = self.groups[-1]
+        return g.first_index + g.count
+
+    @property
+    def jobs(self) -> Jobs:
+        return Jobs(self)
+
+    def group(self, name: str) -> Group:
+        for g in self.groups:
+            if g.name == name:
+                return g
+        raise KeyError(name)
+
+    def resolved(self) -> dict:
+        """Every value that determines the images (no paths): what ``identity_sha256`` hashes."""
+        return {"name": self.name, "camera": self.camera.to_dict(), "camera_scale": self.camera_scale,
+                "render": self.render.to_dict(), "target_size_m": self.target_size_m,
+                "checkerboard": asdict(self.checkerboard), "sensor": asdict(self.sensor),
+                "groups": [{"name": g.name, "kind": g.kind, "target": g.target, "count": g.count,
+                            "distances_cm": list(g.distances_cm), "lateral_fraction": g.lateral_fraction,
+                            "tilt_max_deg": g.tilt_max_deg, "roll_max_deg": g.roll_max_deg,
+                            "irradiance_w_m2": g.irradiance_w_m2, "sensor": asdict(g.sensor),
+                            "camera": g.camera.to_dict()} for g in self.groups]}
+
+    @property
+    def identity_sha256(self) -> str:
+        """SHA-256 of the resolved spec: equal for any two specs that render the same images."""
+        text = json.dumps(self.resolved(), sort_keys=True, default=float)
+        return hashlib.sha256(text.encode()).hexdigest()
 
 
 def resolve_spec_path(name_or_path: str | Path) -> Path:
-    """``standard`` -> ``scenes/standard.toml``; anything with a suffix or a slash is a path."""
+    """``standard`` -> the shipped ``scenes/standard.toml``; anything with a suffix or a slash is a path."""
+    from edgetruth.resources import shipped_spec
+
     s = str(name_or_path)
-    path = Path(s)
-    if path.suffix != ".toml" and "/" not in s:
-        path = SCENES_DIR / f"{s}.toml"
-    if not path.is_file():
-        names = sorted(p.stem for p in SCENES_DIR.glob("*.toml"))
-        raise InputError(f"spec {s!r} not found (looked for {path}); shipped specs: {', '.join(names)}")
-    return path
+    if Path(s).suffix != ".toml" and "/" not in s and "\\" not in s:
+        return shipped_spec(s)
+    return Path(s).expanduser()
+
+
+def _distances_cm(spec_name: str, first_index: int, g: dict) -> tuple:
+    """Stratified distances: one per equal sub-interval, uniform inside it, from a group-level stream
+    (seeded by the group's first image index) so the list is stable."""
+    rng = np.random.Generator(np.random.PCG64(image_seed(spec_name, -1 - first_index)))
+    if g.get("distance_intervals_cm") is not None:
+        n = g["count_per_interval"]
+        out = []
+        for a, b in g["distance_intervals_cm"]:
+            out.append(a + (np.arange(n) + rng.uniform(size=n)) * (b - a) / n)
+        return tuple(float(v) for v in np.concatenate(out))
+    a, b = g["distance_range_cm"]
+    n = g["count"]
+    return tuple(float(v) for v in a + (np.arange(n) + rng.uniform(size=n)) * (b - a) / n)
+
+
+def _n_images(g: dict) -> int:
+    if g.get("distance_intervals_cm") is not None:
+        return len(g["distance_intervals_cm"]) * g["count_per_interval"]
+    return g["count"]
 
 
 def load_spec(name_or_path: str | Path) -> Spec:
-    """Load and validate a spec, and expand it into image jobs (``spec.jobs``)."""
+    """Parse and validate a spec (a shipped name or a TOML path) into a ``Spec``, in one pass."""
     path = resolve_spec_path(name_or_path)
-    raw = path.read_bytes()
-    data = load_toml(path)
-    bad = set(data) - {"spec", "sensor", "group"}
-    require(not bad, f"{path}: unknown tables {sorted(bad)} (allowed: spec, sensor, group)")
-    settings = dict(data.get("spec", {}))
-    bad = set(settings) - SPEC_KEYS
-    require(not bad, f"{path}: [spec] has unknown keys {sorted(bad)} (known: {sorted(SPEC_KEYS)})")
-    settings.setdefault("name", path.stem)
-    groups = data.get("group", [])
-    require(isinstance(groups, list) and groups, f"{path}: needs at least one [[group]]")
-    for g in groups:
-        bad = set(g) - GROUP_KEYS
-        require(not bad, f"{path}: group {g.get('name', '?')!r} has unknown keys {sorted(bad)} (known: {sorted(GROUP_KEYS)})")
-        require(g.get("kind", "target") in KINDS, f"{path}: group kind must be one of {KINDS}")
-        require("name" in g, f"{path}: every [[group]] needs a name")
-    spec = Spec(name=settings["name"], path=path, settings=settings, sensor=dict(data.get("sensor", {})),
-                groups=groups, text_sha256=hashlib.sha256(raw).hexdigest())
-    from render.spec_checks import check_spec  # values (types, ranges, camera) before expanding jobs
+    data = read_toml(path)
+    src = str(path)
+    unknown = sorted(set(data) - {"spec", "sensor", "group"})
+    if unknown:
+        raise InputError(f"{src}: unknown table(s) {', '.join(unknown)}; a spec has [spec], [sensor] and [[group]]")
+    s = parse_table(data.get("spec", {}), SPEC_KEYS, f"{src} [spec]")
+    name = s["name"] or path.stem
+    from edgetruth.render.schema import check_value
 
-    check_spec(spec)
-    spec.jobs = expand(spec)
-    return spec
-
-
-def _distances_cm(g: dict, rng: np.random.Generator) -> list[float]:
-    """Stratified distances: ``count_per_interval`` per interval, one per equal sub-interval."""
-    if "distance_intervals_cm" in g:
-        out = []
-        for a, b in g["distance_intervals_cm"]:
-            n = int(g.get("count_per_interval", 10))
-            out += [a + (k + rng.uniform()) * (b - a) / n for k in range(n)]
-        return out
-    a, b = g.get("distance_range_cm", (150.0, 150.0))
-    n = int(g.get("count", 1))
-    return [a + (k + rng.uniform()) * (b - a) / n for k in range(n)]
-
-
-def expand(spec: Spec) -> list[dict]:
-    """Image jobs of a spec.  Pose randomness is drawn from the job seed, so a job is a pure
-    function of (spec name, index) and the spec text."""
-    jobs: list[dict] = []
-    for g in spec.groups:
-        kind = g.get("kind", "target")
-        # draw distances from a group-level stream so the list is stable
-        grng = np.random.Generator(np.random.PCG64(image_seed(spec.name, -1 - len(jobs))))
-        dists = _distances_cm(g, grng)
-        for k, d_cm in enumerate(dists):
-            index = len(jobs)
-            job = {
-                "index": index,
-                "name": f"{index:04d}_{g['name']}",
-                "group": g["name"],
-                "kind": kind,
-                "seed": image_seed(spec.name, index),
-                "distance_cm": float(d_cm),
-                "lateral_fraction": float(g.get("lateral_fraction", 0.0)),
-                "tilt_max_deg": float(g.get("tilt_max_deg", 0.0)),
-                "roll_max_deg": float(g.get("roll_max_deg", 0.0)),
-                "irradiance_w_m2": float(g.get("irradiance_w_m2", 1.75)),
-                "sensor": dict(spec.sensor, **g.get("sensor", {})),
-            }
-            if kind == "target":
-                job["target"] = g.get("target", "T1")
-            jobs.append(job)
-    return jobs
+    check_value(SPEC_KEYS[0], name, f"{src} [spec] (default name from the file name)")
+    board = Checkerboard(**parse_table(s["checkerboard"], CHECKERBOARD_KEYS, f"{src} [spec] checkerboard"))
+    try:
+        base_camera = load_camera(s["camera"], base_dir=path.parent)
+    except InputError as exc:
+        raise InputError(f"{src} [spec] camera = {s['camera']!r}: {exc}") from None
+    if s["camera_scale"] != 1:
+        c = base_camera
+        if c.width_px % s["camera_scale"] or c.height_px % s["camera_scale"]:
+            raise InputError(f"{src} [spec] camera_scale = {s['camera_scale']}: {c.width_px} x {c.height_px} px is "
+                             "not divisible by it; choose a divisor of both")
+        base_camera = base_camera.scaled(s["camera_scale"])
+    base_sensor = sensor_from_dict(data.get("sensor", {}), where=f"{src} [sensor]")
+    groups_raw = data.get("group")
+    if not (isinstance(groups_raw, list) and groups_raw and all(isinstance(g, dict) for g in groups_raw)):
+        raise InputError(f"{src}: needs at least one [[group]] table (see docs/spec.md)")
+    groups, names, first = [], set(), 0
+    for i, raw in enumerate(groups_raw):
+        where = f"{src} group {raw.get('name', i)!r}"
+        g = parse_table(raw, GROUP_KEYS, where)
+        if g["name"] in names:
+            raise InputError(f"{where}: name = {g['name']!r}: group names must be unique")
+        names.add(g["name"])
+        if g["kind"] == "checkerboard" and "target" in raw:
+            raise InputError(f"{where}: target = {raw['target']!r}: a checkerboard group has no target; remove it")
+        if g.get("distance_intervals_cm") is not None and ("count" in raw or "distance_range_cm" in raw):
+            raise InputError(f"{where}: give either distance_intervals_cm (+ count_per_interval) or "
+                             "distance_range_cm (+ count), not both")
+        n = _n_images(g)
+        if first + n > MAX_IMAGES:
+            raise InputError(f"{src}: more than {MAX_IMAGES:,} images; split the spec")
+        sensor = sensor_from_dict(g["sensor"], base_sensor, where=f"{where} sensor")
+        cam_over = camera_overrides(g["camera"], f"{where} camera")
+        camera = replace(base_camera, **cam_over) if cam_over else base_camera
+        groups.append(Group(name=g["name"], kind=g["kind"], target=g["target"] if g["kind"] == "target" else None,
+                            first_index=first, distances_cm=_distances_cm(name, first, g),
+                            lateral_fraction=g["lateral_fraction"], tilt_max_deg=g["tilt_max_deg"],
+                            roll_max_deg=g["roll_max_deg"], irradiance_w_m2=g["irradiance_w_m2"], sensor=sensor,
+                            camera=camera, camera_overrides=cam_over, sensor_overrides=dict(g["sensor"])))
+        first += n
+    return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
+                camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"]),
+                target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
+                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest())

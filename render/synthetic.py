@@ -2,7 +2,7 @@
 
 Each image holds one edge (straight, or a circle) with random orientation,
 subpixel position, blur, contrast and noise, and comes with its exact ground
-truth (``render.edge_truth``).  Images are pure functions of (split, index):
+truth (``edgetruth.render.edge_truth``).  Images are pure functions of (split, index):
 the seed is ``SeedSequence([SPLIT_ID[split], scenario_id, index])``, so the
 calibration split never shares a random stream with the test split.
 
@@ -22,8 +22,8 @@ import numpy as np
 
 from edgetruth.conventions import principal_point_centred
 from edgetruth.errors import InputError
-from render.analytic import StepProfile, slope_image, step_image, texture_image
-from render.edge_truth import CircleEdge, StraightEdge
+from edgetruth.render.analytic import StepProfile, slope_image, step_image, texture_image
+from edgetruth.render.edge_truth import CircleEdge, StraightEdge
 
 SCENARIOS = ("ideal", "slope", "texture", "asymmetric")
 SPLIT_ID = {"calibration": 1, "test": 2, "bench": 3, "unit": 4}

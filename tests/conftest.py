@@ -8,8 +8,8 @@ import pytest
 def fast_variant() -> str:
     """The Mitsuba variant for tests that render full frames; skips them on scalar_rgb, where the
     Python distortion sensor runs once per sample (hours for these tests).  `make` installs the pip
-    libLLVM that enables llvm_ad_rgb; `render.variants` says how when it is missing."""
-    from render.variants import choose_variant
+    libLLVM that enables llvm_ad_rgb; `edgetruth.render.variants` says how when it is missing."""
+    from edgetruth.render.variants import choose_variant
 
     v = choose_variant(announce=lambda s: None)
     if v.startswith("scalar"):

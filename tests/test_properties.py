@@ -7,7 +7,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import locate
+from edgetruth import locate
 
 METHOD_IDS = sorted(locate.METHODS)
 SETTINGS = settings(max_examples=25, deadline=None, derandomize=True,

@@ -1,1 +1,1 @@
-"""One module per method (or method family); each registers itself via ``locate.registry.register``."""
+"""One module per method (or method family); each registers itself via ``edgetruth.locate.registry.register``."""

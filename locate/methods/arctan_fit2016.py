@@ -10,7 +10,7 @@ same 11-sample normal profile p + t n, t = -5..5):
     I(t) = A + B * (1/2 + atan((t - mu) / w) / pi)
 
 4-parameter least squares (A, B, mu, w) over the 11 samples by
-Levenberg-Marquardt (``locate.curve_fit_kernels``, model code ARCTAN).  The
+Levenberg-Marquardt (``edgetruth.locate.curve_fit_kernels``, model code ARCTAN).  The
 model is point-symmetric about (mu, A + B/2), so a symmetric blurred step
 gives mu at its 50 % crossing; its heavy (Cauchy) tails do not match a
 Gaussian-blurred edge, which costs precision, not bias, on symmetric edges.
@@ -26,8 +26,8 @@ Extras: A, B, width (w, px), offset, rss, iterations, status, se.
 """
 from __future__ import annotations
 
-from locate import curve_fit_kernels as CF
-from locate.registry import register
+from edgetruth.locate import curve_fit_kernels as CF
+from edgetruth.locate.registry import register
 
 MAXIT = 100
 TOL_PX = 1e-7  # accepted step (px); quadratic convergence leaves far less, as in locate.methods.erf

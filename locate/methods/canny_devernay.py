@@ -53,8 +53,8 @@ import math
 import numba
 import numpy as np
 
-from locate.registry import register
-from locate.result import Refinement
+from edgetruth.locate.registry import register
+from edgetruth.locate.result import Refinement
 
 #: IPOL's tolerance in ``greater(a, b)``: a - b must exceed 1000 * DBL_EPSILON.
 GREATER_TOL = 1000.0 * np.finfo(np.float64).eps

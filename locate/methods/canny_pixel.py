@@ -1,6 +1,6 @@
 """CannyPixel: the candidate pixel centre itself (no subpixel refinement).
 
-The study's lower baseline.  Every shared Canny candidate (``locate.candidates``)
+The study's lower baseline.  Every shared Canny candidate (``edgetruth.locate.candidates``)
 is returned unchanged: x = column, y = row of the candidate pixel (OpenCV
 convention, pixel centres at integers), normal = the candidate's smoothed
 gradient direction.  Always ``converged``.
@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from locate.registry import register
-from locate.result import Refinement
+from edgetruth.locate.registry import register
+from edgetruth.locate.result import Refinement
 
 
 @register("canny_pixel", "CannyPixel", family="baseline")

@@ -55,8 +55,8 @@ import numba
 import numpy as np
 
 from edgetruth.errors import InputError
-from locate.registry import register
-from locate.result import Refinement
+from edgetruth.locate.registry import register
+from edgetruth.locate.result import Refinement
 
 MASK_SIZE = 7
 _NODES_PER_PX = 4000

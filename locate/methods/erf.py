@@ -1,7 +1,7 @@
 """The study's ERF family: fixed-window 2P/4P fits and the entropy-guided dynamic window.
 
 Ids: erf2p_fixed5|7|9|11, erf4p_fixed5|7|9|11, dynamic_erf_2p, dynamic_erf_4p.
-Definitions in BRIEF §2; kernels in ``locate.erf_kernels``.
+Definitions in BRIEF §2; kernels in ``edgetruth.locate.erf_kernels``.
 
 Extras per point: A, B, s (blur scale, px), offset (mu, px along n),
 window (samples used), entropy (normalised gradient entropy of the
@@ -17,10 +17,10 @@ from __future__ import annotations
 import numpy as np
 
 from edgetruth.errors import InputError
-from locate import erf_kernels as K
-from locate import thresholds as _thr
-from locate.registry import register
-from locate.result import Refinement
+from edgetruth.locate import erf_kernels as K
+from edgetruth.locate import thresholds as _thr
+from edgetruth.locate.registry import register
+from edgetruth.locate.result import Refinement
 
 WINDOWS = (5, 7, 9, 11)
 MAXIT = 50

@@ -15,7 +15,7 @@ same 11-sample normal profile I_k = I(p + t_k n), t_k = -5..5):
     a symmetric blurred step it is a symmetric bump centred on the edge.)
   * model, constant-free:  g(t) = a exp(-(t - mu)^2 / (2 w^2)).
   * variant "lsq" (default): least squares over all 10 differences,
-    Levenberg-Marquardt in ``locate.curve_fit_kernels`` (model code GAUSS),
+    Levenberg-Marquardt in ``edgetruth.locate.curve_fit_kernels`` (model code GAUSS),
     started from the log-parabola estimate below.
   * variant "log3": the classic closed form -- the parabola through
     ln g at the largest difference and its two neighbours,
@@ -39,10 +39,10 @@ from __future__ import annotations
 import numpy as np
 
 from edgetruth.errors import InputError
-from locate import curve_fit_kernels as CF
-from locate.profiles import profile_offsets, sample_profiles
-from locate.registry import register
-from locate.result import Refinement
+from edgetruth.locate import curve_fit_kernels as CF
+from edgetruth.locate.profiles import profile_offsets, sample_profiles
+from edgetruth.locate.registry import register
+from edgetruth.locate.result import Refinement
 
 MAXIT = 100
 TOL_PX = 1e-7  # accepted step (px); quadratic convergence leaves far less, as in locate.methods.erf

@@ -7,7 +7,7 @@ The operator fits an ideal step -- n1 samples at level h1, n2 = n - n1 at
 level h2 -- that preserves the first three sample moments of the data.
 Here the data are the gray-level profile along the candidate's normal
 (the shared bilinear profile I(t) at p + t n, t = -w .. w, n = 2w + 1 samples,
-``locate.profiles.sample_profiles`` on the *unsmoothed* image):
+``edgetruth.locate.profiles.sample_profiles`` on the *unsmoothed* image):
 
     m_k = (1/n) sum_i I_i^k,  k = 1, 2, 3
     sigma^2 = m2 - m1^2,   skewness  s = (m3 - 3 m1 m2 + 2 m1^3) / sigma^3
@@ -43,9 +43,9 @@ import numba
 import numpy as np
 
 from edgetruth.errors import InputError
-from locate.profiles import bilinear
-from locate.registry import register
-from locate.result import Refinement
+from edgetruth.locate.profiles import bilinear
+from edgetruth.locate.registry import register
+from edgetruth.locate.result import Refinement
 
 DEFAULT_HALF = 5
 

@@ -15,7 +15,7 @@ the same 11-sample normal profile p + t n, t = -5..5, as every method):
 
 least squares over ALL 11 samples (the fixed long window; the seed's
 "fixed-window ERF" also uses 11), all four parameters free,
-Levenberg-Marquardt in ``locate.curve_fit_kernels`` (model code ERF).
+Levenberg-Marquardt in ``edgetruth.locate.curve_fit_kernels`` (model code ERF).
 The edge point is p + mu n.
 
 Choices the paper leaves open here:
@@ -37,8 +37,8 @@ rss, iterations, status, se.
 """
 from __future__ import annotations
 
-from locate import curve_fit_kernels as CF
-from locate.registry import register
+from edgetruth.locate import curve_fit_kernels as CF
+from edgetruth.locate.registry import register
 
 MAXIT = 100
 TOL_PX = 1e-7  # accepted step (px); quadratic convergence leaves far less, as in locate.methods.erf

@@ -74,8 +74,8 @@ import numba
 import numpy as np
 
 from edgetruth.errors import InputError
-from locate.registry import register
-from locate.result import Refinement
+from edgetruth.locate.registry import register
+from edgetruth.locate.result import Refinement
 
 VARIANTS = ("first_order", "smoothed")
 A01_DEFAULT = 0.125

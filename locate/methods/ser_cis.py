@@ -69,10 +69,10 @@ import numba
 import numpy as np
 
 from edgetruth.errors import InputError
-from locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
-from locate.profiles import sample_profiles
-from locate.registry import register
-from locate.result import Refinement
+from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
+from edgetruth.locate.profiles import sample_profiles
+from edgetruth.locate.registry import register
+from edgetruth.locate.result import Refinement
 
 PROFILE_HALF = 5
 H_MIN = 4

@@ -88,7 +88,7 @@ LOCATE_FILES = [
     ("3d.npy", "2-D"), ("1d.npy", "2-D"), ("0d.npy", "2-D"), ("zero.npy", "too small"), ("str.npy", "not numeric"),
     ("complex.npy", "complex"), ("object.npy", ".npy"), ("2x2.npy", "too small"), ("bad.npy", ".npy"),
     ("colour.png", "colour"), ("1x1.png", "too small"), ("image.txt", "cannot be decoded"),
-    ("adir", "is a directory"), ("missing.png", "no such file"),
+    ("adir", "is a directory"), ("missing.png", "no such image"),
 ]
 CASES = [(f"locate-{f}", ["locate", "{B}/" + f, "-o", "{O}/points.csv"], msg) for f, msg in LOCATE_FILES]
 CASES += [
@@ -130,7 +130,7 @@ CASES += [
     ("render-out-unwritable", ["render", "{SPEC}", "-o", "/proc/edgetruth-out"], "cannot create"),
     ("render-other-spec", ["render", "{OTHER}", "-o", "{O}"], "another spec"),
     ("render-spec-missing", ["render", "no-such-spec", "-o", "{O}"], "not found"),
-    ("render-spec-dir", ["render", "{B}/adir/", "-o", "{O}"], "not found"),
+    ("render-spec-dir", ["render", "{B}/adir/", "-o", "{O}"], "is a directory"),
     # verify
     ("verify-missing", ["verify", "{B}/no-such-dir"], "no such directory"),
     ("verify-file", ["verify", "{B}/good.png"], "not a directory"),
@@ -140,7 +140,7 @@ CASES += [
     ("verify-bad-sha", ["verify", "{BADMAN}/sha"], "not an edgetruth manifest"),
     # others
     ("methods-extra-arg", ["methods", "extra"], "unrecognized"),
-    ("study-negative", ["study", "synthetic", "--images-per-scenario", "-3", "-o", "{O}/s"], "images per scenario"),
+    ("study-negative", ["study", "synthetic", "--images-per-scenario", "-3", "-o", "{O}/s"], "must be at least 1"),
     ("study-method", ["study", "synthetic", "--methods", "nope", "-o", "{O}/s"], "unknown method"),
     ("study-which", ["study", "nosuch"], "invalid choice"),
     ("calib-step-0", ["calibrate-thresholds", "--step", "0", "-o", "{O}/t.json"], "--step"),
@@ -167,21 +167,21 @@ SPEC_CASES = [
     ("irradiance-nan", ("irradiance_w_m2 = 0.0044\n\n", "irradiance_w_m2 = nan\n\n"), "irradiance"),
     ("tilt", ("tilt_max_deg = 5", "tilt_max_deg = 95"), "tilt_max_deg"),
     ("lateral", ("lateral_fraction = 0.5", "lateral_fraction = 3"), "lateral_fraction"),
-    ("camera-missing", ("tiny_cam.toml", "nope_cam.toml"), "not found"),
-    ("unknown-key", ("count = 2", 'count = 2\ncolour = "red"'), "unknown keys"),
+    ("camera-missing", ("tiny_cam.toml", "nope_cam.toml"), "camera file"),
+    ("unknown-key", ("count = 2", 'count = 2\ncolour = "red"'), "unknown key(s)"),
     ("no-group-name", ('name = "T2"\n', ""), "name"),
     ("duplicate-group", ('name = "cal"', 'name = "T2"'), "unique"),
     ("toml-syntax", ("[[group]]\nname = \"cal\"", "[[[group]]\nname = \"cal\""), "invalid TOML"),
     ("spec-name", ('name = "tiny"', 'name = "../evil"'), "name"),
     ("sensor-bits", ("[[group]]\nname = \"T2\"", "[sensor]\nbits = -3\n[[group]]\nname = \"T2\""), "bits"),
-    ("sensor-key", ("[[group]]\nname = \"T2\"", "[sensor]\nfoo = 3\n[[group]]\nname = \"T2\""), "unknown keys"),
+    ("sensor-key", ("[[group]]\nname = \"T2\"", "[sensor]\nfoo = 3\n[[group]]\nname = \"T2\""), "unknown key(s)"),
     ("sensor-qe", ("[[group]]\nname = \"T2\"", "[sensor]\nqe = 7\n[[group]]\nname = \"T2\""), "qe"),
     ("camera-scale", ("spp = 8", "spp = 8\ncamera_scale = 0"), "camera_scale"),
     ("target-size", ("spp = 8", "spp = 8\ntarget_size_m = -0.1"), "target_size_m"),
-    ("checker-cols", ("cols = 6", "cols = 0"), "checkerboard.cols"),
-    ("checker-key", ("cols = 6", "colz = 6"), "unknown keys"),
+    ("checker-cols", ("cols = 6", "cols = 0"), "checkerboard: cols"),
+    ("checker-key", ("cols = 6", "colz = 6"), "unknown key(s)"),
     ("no-groups", (None, None), "group"),
-    ("unknown-table", ("[[group]]\nname = \"T2\"", "[lights]\nn = 2\n[[group]]\nname = \"T2\""), "unknown tables"),
+    ("unknown-table", ("[[group]]\nname = \"T2\"", "[lights]\nn = 2\n[[group]]\nname = \"T2\""), "unknown table(s)"),
 ]
 
 
@@ -264,42 +264,13 @@ def test_render_bad_spec_values(case, sub, expect, env, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("case, sub, expect", SPEC_CASES, ids=[c[0] for c in SPEC_CASES])
-def test_load_checked_spec_raises_value_error(case, sub, expect, tiny_dataset, tmp_path):
-    from render.spec_checks import load_checked_spec
+def test_load_spec_raises_one_line_value_error(case, sub, expect, tiny_dataset, tmp_path):
+    from edgetruth.render.spec import load_spec
 
     spec = _spec_variant(tiny_dataset[0], tmp_path, case, *sub)
-    with pytest.raises(ValueError, match=None) as info:
-        load_checked_spec(spec)
-    assert expect in str(info.value) and "\n" not in str(info.value)
-
-
-# cases load_spec itself rejects today; the value checks live in render.spec_checks
-_LOAD_SPEC_OK = {"kind", "unknown-key", "no-group-name", "toml-syntax", "no-groups", "unknown-table",
-                 "count-text", "dist-short", "dist-text"}
-
-
-@pytest.mark.parametrize("case, sub, expect", [c for c in SPEC_CASES if c[0] in _LOAD_SPEC_OK],
-                         ids=[c[0] for c in SPEC_CASES if c[0] in _LOAD_SPEC_OK])
-def test_load_spec_api_raises_value_error(case, sub, expect, tiny_dataset, tmp_path):
-    from render.spec import load_spec
-
-    spec = _spec_variant(tiny_dataset[0], tmp_path, case, *sub)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError) as info:
         load_spec(spec)
-
-
-def test_load_spec_api_checks_values_too(tiny_dataset, tmp_path):
-    from render.spec import load_spec
-
-    accepted = []
-    for case, sub, _ in SPEC_CASES:
-        if case not in _LOAD_SPEC_OK:
-            try:
-                load_spec(_spec_variant(tiny_dataset[0], tmp_path, case, *sub))
-                accepted.append(case)
-            except ValueError:
-                pass
-    assert not accepted, f"load_spec accepts: {accepted}"
+    assert expect in str(info.value) and "\n" not in str(info.value)
 
 
 def test_every_command_rejects_an_unknown_option(capsys):
@@ -389,7 +360,7 @@ API_CASES += [
 
 @pytest.mark.parametrize("case, call, expect", API_CASES, ids=[c[0] for c in API_CASES])
 def test_locate_api_bad_input_is_value_error(case, call, expect):
-    import locate
+    from edgetruth import locate
 
     with pytest.raises(ValueError) as info:
         call(locate)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from evaluate.calibration import object_points, subpix_window
+from edgetruth.evaluate.calibration import object_points, subpix_window
 
 
 def test_object_points_are_opencv_order():
@@ -24,8 +24,8 @@ def test_subpix_window_scales_with_square_size():
 def test_calibration_spec_recovers_fx_and_principal_point(tmp_path, fast_variant):
     """The `calibration` spec (20 boards, 1280x1024, default camera): measured fx +0.015 %,
     principal point (+0.42, +0.03) px; ~65 s of rendering on 2 cores (llvm)."""
-    from evaluate.calibration import calibrate_dataset
-    from render.dataset import render_spec
+    from edgetruth.evaluate.calibration import calibrate_dataset
+    from edgetruth.render.dataset import render_spec
 
     render_spec("calibration", tmp_path / "cal", progress=False, announce=lambda s: None)
     cal = calibrate_dataset(tmp_path / "cal")

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from evaluate.crb import continuous_mu_only_bound, position_std_bound, position_std_bound_many
+from edgetruth.evaluate.crb import continuous_mu_only_bound, position_std_bound, position_std_bound_many
 
 # BRIEF §6, in units of sigma_n / B, edge centred in the window (mu = 0)
 TABLE = {0.5: (1.39, 1.53, 1.64), 1.0: (1.92, 2.36, 2.79), 2.0: (2.68, 4.48, 7.67)}

@@ -7,23 +7,24 @@ from edgetruth.cli import main
 
 
 def test_select_jobs_spreads_the_limit_over_each_group():
-    from edgetruth.commands.run import select_jobs
-    from render.spec import load_spec
+    from edgetruth.evaluate.pipeline import select_jobs
+    from edgetruth.render.spec import load_spec
 
     spec = load_spec("snr")
     sel = select_jobs(spec, 2, "target")
     assert len(sel) == 8  # 2 per group G1..G4
     by_group = {}
     for j in spec.jobs:
-        if j["index"] in sel:
-            by_group.setdefault(j["group"], []).append(j["distance_cm"])
+        if j.index in sel:
+            by_group.setdefault(j.group, []).append(j.distance_cm)
     assert all(min(v) < 100 and max(v) > 250 for v in by_group.values())
-    assert select_jobs(spec, None, "target") == [j["index"] for j in spec.jobs]
+    assert select_jobs(spec, None, "target") == [j.index for j in spec.jobs]
 
 
 def test_bad_limit_is_a_one_line_input_error(capsys, tmp_path):
-    assert main(["run", "--limit", "0", "-o", str(tmp_path)]) == 2
-    assert "--limit" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:
+        main(["run", "--limit", "0", "-o", str(tmp_path)])
+    assert info.value.code == 2 and "--limit" in capsys.readouterr().err
     assert main(["run", "--methods", "nope", "-o", str(tmp_path)]) == 2
 
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from evaluate.stats import relative_errors_pct, summary, wilcoxon_paired
+from edgetruth.evaluate.stats import relative_errors_pct, summary, wilcoxon_paired
 
 
 def test_summary_of_known_errors():

@@ -4,9 +4,9 @@ import json
 import numpy as np
 import pytest
 
-import locate
-from evaluate import threshold_calibration as tc
-from locate import thresholds as thr
+from edgetruth import locate
+from edgetruth.evaluate import threshold_calibration as tc
+from edgetruth.locate import thresholds as thr
 
 
 @pytest.fixture(scope="module")
@@ -26,8 +26,8 @@ def test_grid_optimum_is_no_worse_than_any_fixed_window(data):
 def test_grid_rmse_equals_running_the_dynamic_method(data):
     """The prefix-sum shortcut must give exactly what dynamic_erf_4p gives with those thresholds."""
     tau, rmse, _ = tc.grid_search(data.entropy, data.errors["4p"], step=0.05)
-    from evaluate.matching import on_edge
-    from render.synthetic import SCENARIOS, synthetic_image
+    from edgetruth.evaluate.matching import on_edge
+    from edgetruth.render.synthetic import SCENARIOS, synthetic_image
 
     errs = []
     for scenario in SCENARIOS:
@@ -53,7 +53,7 @@ def test_brute_force_agrees_on_a_small_grid():
 
 
 def test_shipped_thresholds_have_provenance_and_load():
-    rec = json.loads(thr.THRESHOLDS_FILE.read_text())
+    rec = json.loads(thr.source().read_text())
     prov = rec["provenance"]
     assert prov["data"]["split"] == "calibration"
     assert {"objective", "search", "code_version", "command"} <= set(prov)

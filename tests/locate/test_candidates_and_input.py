@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-import locate
-from locate.candidates import PROFILE_HALF, MASK_MARGIN_PX
-from render.edge_truth import CircleEdge, StraightEdge
-from render.synthetic import render_edge_image
+from edgetruth import locate
+from edgetruth.locate.candidates import PROFILE_HALF, MASK_MARGIN_PX
+from edgetruth.render.edge_truth import CircleEdge, StraightEdge
+from edgetruth.render.synthetic import render_edge_image
 
 
 def circle_image(dtype=np.float64, scale=1.0):
@@ -92,7 +92,7 @@ def test_bad_options_are_value_errors():
     with pytest.raises(ValueError, match="thresholds"):
         locate.locate(circle_image(), "dynamic_erf_4p", tau=(0.9, 0.5, 0.1))
     with pytest.raises(ValueError, match="window"):
-        from locate.methods.erf import erf_refine
+        from edgetruth.locate.methods.erf import erf_refine
         erf_refine(circle_image(), locate.candidates(circle_image()), True, window=6)
 
 

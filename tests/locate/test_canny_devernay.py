@@ -16,9 +16,9 @@ import math
 
 import numpy as np
 
-from locate import refine
-from locate.candidates import candidates
-from render.synthetic import render_edge_image
+from edgetruth.locate import refine
+from edgetruth.locate.candidates import candidates
+from edgetruth.render.synthetic import render_edge_image
 from tests.support.edge_scenes import A_LEVEL, B_CONTRAST, SHAPE_64 as SHAPE, make_edge, run_method, stats
 
 

@@ -11,7 +11,7 @@ from functools import partial
 
 import numpy as np
 
-from locate.methods.canny_zernike2020 import zernike_masks
+from edgetruth.locate.methods.canny_zernike2020 import zernike_masks
 from tests.support.edge_scenes import (SHAPE_64 as SHAPE, make_edge, noise_displacement, refine_near_edge, render,
                                        run_method, stats)
 

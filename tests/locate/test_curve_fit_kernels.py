@@ -10,7 +10,7 @@ import pytest
 from scipy.optimize import least_squares
 from scipy.special import ndtr
 
-from locate import curve_fit_kernels as CF
+from edgetruth.locate import curve_fit_kernels as CF
 
 T11 = np.arange(-5.0, 6.0)
 T10 = np.arange(-4.5, 5.0)

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from locate.methods.glm1984 import glm1984
+from edgetruth.locate.methods.glm1984 import glm1984
 from tests.support.edge_scenes import run_method, stats
 
 

@@ -11,7 +11,7 @@ from functools import partial
 import numpy as np
 from scipy.special import erf
 
-import locate
+from edgetruth import locate
 from tests.support import edge_scenes
 from tests.support.edge_scenes import assert_flat_region_not_converged, circle, lm_reference_fits, straight
 

@@ -16,7 +16,7 @@ from functools import partial
 
 import numpy as np
 
-from render.analytic import StepProfile
+from edgetruth.render.analytic import StepProfile
 from tests.support.edge_scenes import (A_LEVEL, B_CONTRAST, SHAPE_64 as SHAPE, make_edge, noise_displacement,
                                        refine_near_edge, render, run_method, stats)
 

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from edgetruth.conventions import pixel_centres
-from render.analytic import StepProfile, gauss_legendre_pixel_mean, step_image, texture_image
-from render.edge_truth import CircleEdge, StraightEdge
+from edgetruth.render.analytic import StepProfile, gauss_legendre_pixel_mean, step_image, texture_image
+from edgetruth.render.edge_truth import CircleEdge, StraightEdge
 
 
 def supersampled(shape, fn, n=64):

@@ -6,7 +6,7 @@ import math
 import pytest
 
 from edgetruth.errors import InputError
-from render.camera import camera_from_dict, load_camera
+from edgetruth.render.camera import camera_from_dict, load_camera
 
 
 def test_default_camera_intrinsics():
@@ -38,7 +38,7 @@ def test_scaled_keeps_field_of_view():
 
 
 def test_bad_camera_specs_are_input_errors(tmp_path):
-    with pytest.raises(InputError, match="unknown keys"):
+    with pytest.raises(InputError, match="unknown key"):
         camera_from_dict({"focal_mm": 8})
     with pytest.raises(InputError, match="not found"):
         load_camera(tmp_path / "missing.toml")

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from render.variants import probe
+from edgetruth.render.variants import probe
 
-from render.testing import write_tiny_spec as _spec
+from edgetruth.render.testing import write_tiny_spec as _spec
 
 
 def _bytes(d: Path) -> dict:
@@ -21,7 +21,7 @@ VARIANTS = ["llvm_ad_rgb", "scalar_rgb"]
 
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_same_spec_and_seed_give_identical_bytes(tmp_path, variant):
-    from render.dataset import render_spec
+    from edgetruth.render.dataset import render_spec
 
     if not probe(variant)[0]:
         pytest.skip(f"{variant} does not work here: {probe(variant)[1]}")
@@ -33,8 +33,8 @@ def test_same_spec_and_seed_give_identical_bytes(tmp_path, variant):
 
 
 def test_resume_skips_complete_and_rerenders_damaged(tmp_path):
-    from render.dataset import MANIFEST, render_spec
-    from render.files import sha256_file
+    from edgetruth.fileio import sha256_file
+    from edgetruth.render.dataset import MANIFEST, render_spec
 
     spec = _spec(tmp_path)
     out = tmp_path / "out"
@@ -59,7 +59,7 @@ def test_resume_skips_complete_and_rerenders_damaged(tmp_path):
 
 def test_other_spec_in_same_dir_is_input_error(tmp_path):
     from edgetruth.errors import InputError
-    from render.dataset import render_spec
+    from edgetruth.render.dataset import render_spec
 
     spec = _spec(tmp_path)
     render_spec(spec, tmp_path / "o", progress=False, only=[0], announce=lambda s: None)
@@ -71,15 +71,19 @@ def test_other_spec_in_same_dir_is_input_error(tmp_path):
 def test_ground_truth_content(tmp_path):
     import cv2
 
-    from render.dataset import list_images, load_image, load_radiance, render_spec
+    from edgetruth.render import open_dataset
+    from edgetruth.render.dataset import render_spec
 
     spec = _spec(tmp_path)
     out = tmp_path / "gt"
     render_spec(spec, out, progress=False, announce=lambda s: None)
-    names = list_images(out)
-    img, gt = load_image(out, names[0])
+    ds = open_dataset(out)
+    assert len(ds) == ds.n_declared == 3 and ds.spec_name == "tiny"
+    assert [s.kind for s in ds] == ["target", "target", "checkerboard"]
+    assert [s.name for s in ds.targets()] == ds.names()[:2] and ds[0] is ds[ds.names()[0]]
+    img, gt = ds[0].image, ds[0].truth
     assert img.dtype == np.uint16 and img.shape == (48, 64)
-    assert load_radiance(out, names[0]).dtype == np.float32
+    assert ds[0].radiance.dtype == np.float32 and ds[0].radiance.shape == (48, 64)
     K = np.array(gt["camera"]["K"])
     assert K[0, 2] == pytest.approx(31.5) and K[1, 2] == pytest.approx(23.5)  # W/2 - 0.5, H/2 - 0.5
     assert gt["target"]["shape"] == "circle" and len(gt["outline"]["distorted_px"]) == 720
@@ -94,12 +98,12 @@ def test_ground_truth_content(tmp_path):
     for key in ("seed", "sensor", "versions", "true_distance_m", "illumination", "defocus_radius_px"):
         assert key in gt
     assert gt["versions"]["variant"] and gt["versions"]["mitsuba"]
-    _, cal = load_image(out, names[-1])
+    cal = ds.checkerboards()[0].truth
     assert len(cal["corners"]["distorted_px"]) == 5 * 4
 
 
 def test_seed_is_pure_function_of_spec_and_index():
-    from render.spec import image_seed
+    from edgetruth.render.spec import image_seed
 
     assert image_seed("standard", 3) == image_seed("standard", 3)
     assert len({image_seed("standard", i) for i in range(1000)}) == 1000

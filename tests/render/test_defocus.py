@@ -6,14 +6,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from render.camera import load_camera
-from render.variants import choose_variant
+from edgetruth.render.camera import load_camera
+from edgetruth.render.variants import choose_variant
 
 
 @pytest.mark.parametrize("distance_m", [0.5, 0.8, 3.0])
 def test_blur_radius(distance_m):
-    from render.emissive import render_emissive, second_moments
-    from render.pose import Pose
+    from edgetruth.render.emissive import render_emissive, second_moments
+    from edgetruth.render.pose import Pose
 
     choose_variant(announce=lambda s: None)
     # default optics opened to f/1.4 for blur of several pixels; no distortion (isolates defocus)

@@ -7,8 +7,8 @@ import cv2
 import numpy as np
 import pytest
 
-from render.camera import load_camera
-from render.distortion import distort_normalized, undistort_normalized
+from edgetruth.render.camera import load_camera
+from edgetruth.render.distortion import distort_normalized, undistort_normalized
 
 COEFFS = (-0.08, 0.03, 0.0002, -0.0001, 0.0)
 
@@ -40,9 +40,9 @@ def test_camera_project_matches_opencv():
 
 def test_rendered_dot_grid_matches_project_points():
     """Centroids of emissive dots across the whole frame vs cv2.projectPoints (same K, distortion): 0.02 px."""
-    from render.emissive import centroid, render_emissive
-    from render.pose import Pose
-    from render.variants import choose_variant
+    from edgetruth.render.emissive import centroid, render_emissive
+    from edgetruth.render.pose import Pose
+    from edgetruth.render.variants import choose_variant
 
     variant = choose_variant(announce=lambda s: None)
     if variant == "scalar_rgb":

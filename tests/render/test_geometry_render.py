@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from render.variants import choose_variant
+from edgetruth.render.variants import choose_variant
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -16,9 +16,9 @@ def variant():
 
 @pytest.mark.parametrize("distance_m", [0.5, 1.5, 3.0])
 def test_square_width_and_centroid(distance_m):
-    from render.camera import load_camera
-    from render.emissive import centroid, render_emissive
-    from render.pose import Pose
+    from edgetruth.render.camera import load_camera
+    from edgetruth.render.emissive import centroid, render_emissive
+    from edgetruth.render.pose import Pose
 
     # default optics at 1/4 resolution (320x256, same field of view), pinhole
     cam = load_camera().scaled(4)
@@ -36,9 +36,9 @@ def test_square_width_and_centroid(distance_m):
 
 def test_crop_window_matches_full_frame():
     """A cropped render is the same window of the full film (the sensor honours crop offsets)."""
-    from render.camera import load_camera
-    from render.emissive import centroid, render_emissive
-    from render.pose import Pose
+    from edgetruth.render.camera import load_camera
+    from edgetruth.render.emissive import centroid, render_emissive
+    from edgetruth.render.pose import Pose
 
     cam = load_camera().scaled(4)
     pose = Pose(1.0, 0.05, 0.03)

@@ -10,16 +10,16 @@ import cv2
 import numpy as np
 import pytest
 
-from render.camera import load_camera
-from render.variants import choose_variant
+from edgetruth.render.camera import load_camera
+from edgetruth.render.variants import choose_variant
 
 
 @pytest.mark.parametrize("target,distance_m", [("T1", 1.2), ("T4", 0.55), ("T4", 1.2)])
 def test_mc_noise_below_quarter_dark_noise(target, distance_m):
-    from render.ground_truth import target_ground_truth
-    from render.mitsuba_scene import RenderSettings, TargetRig
-    from render.pose import Pose
-    from render.sensor import SensorModel
+    from edgetruth.render.ground_truth import target_ground_truth
+    from edgetruth.render.mitsuba_scene import RenderSettings, TargetRig
+    from edgetruth.render.pose import Pose
+    from edgetruth.render.sensor import SensorModel
 
     choose_variant(announce=lambda s: None)
     cam = load_camera()

@@ -5,7 +5,7 @@ import json
 
 from edgetruth.cli import main
 
-from render.testing import write_tiny_spec as _spec
+from edgetruth.render.testing import write_tiny_spec as _spec
 
 
 def test_unknown_spec_exits_2(capsys):

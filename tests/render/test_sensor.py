@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from edgetruth.errors import InputError
-from render.sensor import SensorModel, make_rng, sensor_from_dict
+from edgetruth.render.sensor import SensorModel, make_rng, sensor_from_dict
 
 FLAT = (256, 256)
 
@@ -70,5 +70,5 @@ def test_photometry():
 
 
 def test_unknown_sensor_key_is_input_error():
-    with pytest.raises(InputError, match="unknown keys"):
+    with pytest.raises(InputError, match="unknown key"):
         sensor_from_dict({"gain": 3})

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from render.edge_truth import CircleEdge, StraightEdge
-from render.synthetic import SCENARIOS, SPLIT_ID, seed_sequence, synthetic_image
+from edgetruth.render.edge_truth import CircleEdge, StraightEdge
+from edgetruth.render.synthetic import SCENARIOS, SPLIT_ID, seed_sequence, synthetic_image
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS)

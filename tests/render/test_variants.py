@@ -7,7 +7,7 @@ import os
 import pytest
 
 from edgetruth.errors import InputError
-from render import variants
+from edgetruth.render import variants
 
 
 def test_choice_is_working_and_announced():

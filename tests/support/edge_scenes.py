@@ -21,11 +21,11 @@ docstrings stay true:
 import numpy as np
 from scipy.optimize import least_squares
 
-from locate import refine
-from locate.candidates import candidates
-from locate.profiles import profile_offsets, sample_profiles
-from render.edge_truth import CircleEdge, StraightEdge
-from render.synthetic import render_edge_image
+from edgetruth.locate import refine
+from edgetruth.locate.candidates import candidates
+from edgetruth.locate.profiles import profile_offsets, sample_profiles
+from edgetruth.render.edge_truth import CircleEdge, StraightEdge
+from edgetruth.render.synthetic import render_edge_image
 
 A_LEVEL, B_CONTRAST = 40.0, 120.0
 BLUR = 1.0

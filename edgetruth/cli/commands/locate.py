@@ -2,16 +2,16 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
-
-from edgetruth.errors import InputError
 
 
 def register(sub) -> None:
+    from edgetruth.cli import add_plugin_option
+
     p = sub.add_parser("locate", help="subpixel edge points of an image -> CSV",
                        description="Canny candidates refined by METHOD; one CSV row per point "
-                                   "(x, y in OpenCV pixel coordinates: pixel centres at integers).")
-    p.add_argument("image", help="image file (PNG/TIFF 8/16-bit, EXR, .npy), gray")
+                                   "(x, y in OpenCV pixel coordinates: pixel centres at integers; columns in "
+                                   "docs/formats.md).")
+    p.add_argument("image", help="image file (PNG/TIFF/JPEG 8/16-bit, EXR, .npy), gray")
     p.add_argument("--method", "-m", default="dynamic_erf_4p", help="method id (see `edgetruth methods`)")
     p.add_argument("-o", "--output", required=True, help="CSV file to write (written atomically)")
     p.add_argument("--sigma", type=float, default=1.0, help="Gaussian smoothing for candidates/normals, px")
@@ -19,26 +19,26 @@ def register(sub) -> None:
     p.add_argument("--high", type=float, default=None, help="Canny high threshold, gray levels/px")
     p.add_argument("--thresholds", default=None,
                    help="entropy-thresholds JSON (from `edgetruth calibrate-thresholds`) for dynamic_erf_*")
+    add_plugin_option(p)
     p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    import locate
-    from edgetruth.io_images import read_gray
-    from locate import thresholds as thr
+    from edgetruth import console, locate
+    from edgetruth.errors import InputError
+    from edgetruth.fileio import check_input_file, check_output_file
+    from edgetruth.image_io import read_gray
+    from edgetruth.locate import thresholds as thr
 
     locate.get_method(args.method)
-    out = Path(args.output)
-    if out.exists() and out.is_dir():
-        raise InputError(f"-o {out}: is a directory; give a file name such as {out / 'points.csv'}")
-    if not out.parent.exists():
-        raise InputError(f"-o {out}: directory {out.parent} does not exist; create it first")
-    img = read_gray(args.image)
+    check_input_file(args.image, "image")
+    out = check_output_file(args.output, "-o", inputs=[args.image])
     options = {}
     if args.thresholds is not None:
         if not args.method.startswith("dynamic_erf_"):
             raise InputError(f"--thresholds applies to dynamic_erf_2p/4p only, not {args.method}")
         options["tau"] = thr.load(args.method[-2:], args.thresholds)
+    img = read_gray(args.image)
     try:
         pts = locate.locate(img, args.method, sigma_px=args.sigma, low=args.low, high=args.high, **options)
     except InputError as exc:
@@ -47,5 +47,5 @@ def run(args: argparse.Namespace) -> int:
         pts.to_csv(out)
     except OSError as exc:
         raise InputError(f"-o {out}: cannot write ({exc.strerror}); choose a writable location") from exc
-    print(f"{len(pts)} points ({int(pts.converged.sum())} converged) -> {out}")
+    console.say(f"{len(pts)} points ({int(pts.converged.sum())} converged) -> {out}")
     return 0

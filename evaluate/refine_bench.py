@@ -15,10 +15,10 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.special import ndtr
 
-import locate
-from locate import erf_kernels as K
-from render.edge_truth import CircleEdge
-from render.synthetic import render_edge_image
+from edgetruth import locate
+from edgetruth.locate import erf_kernels as K
+from edgetruth.render.edge_truth import CircleEdge
+from edgetruth.render.synthetic import render_edge_image
 
 BENCH_SHAPE = (1024, 1280)
 
@@ -90,7 +90,7 @@ def run_bench(repeats: int = 7, scipy_points: int = 400, methods=None) -> list[s
         if m not in rates:
             continue
         pts = locate.refine(img, cand, m)
-        from locate.profiles import sample_profiles
+        from edgetruth.locate.profiles import sample_profiles
         profiles = sample_profiles(img, cand)
         sel = np.linspace(0, n - 1, min(scipy_points, n)).astype(int)
         t0 = time.perf_counter()

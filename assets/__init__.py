@@ -1,0 +1,1 @@
+"""Shipped data with provenance: entropy thresholds, camera specs (see ``edgetruth.resources``)."""

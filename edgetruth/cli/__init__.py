@@ -1,0 +1,107 @@
+"""``edgetruth`` command line: the roof of the house, a thin layer over the packages' functions.
+
+Subcommands live in ``edgetruth/cli/commands/<name>.py`` (one module each, with a
+``register(subparsers)`` function), so adding one touches no other file.  This is the
+only package that imports the commands.
+
+Conventions every command follows: bad input is one line on stderr naming the input
+and the fix, exit code 2, with nothing already written touched; ``-q`` silences
+everything but errors; progress bars draw only on a terminal.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+from edgetruth import __version__, console
+from edgetruth.errors import InputError
+
+
+def add_plugin_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plugin", action="append", default=[], metavar="MODULE",
+                   help="import MODULE (a module name or a .py file) first: its @edgetruth.locate.register "
+                        "methods join the built-in ones (repeatable; entry points in the 'edgetruth.methods' "
+                        "group load by themselves)")
+
+
+def add_progress_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--no-progress", action="store_true", help="no progress bars (they only draw on a terminal anyway)")
+
+
+def add_backend_options(p: argparse.ArgumentParser, workers_help: str) -> None:
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="where the work runs: local processes (default) or a Ray cluster (docs/cluster.md)")
+    p.add_argument("-j", "--workers", type=positive_int, default=None, metavar="N", help=workers_help)
+    p.add_argument("--address", default=None, metavar="ADDR",
+                   help="Ray cluster to join (ray://HOST:10001, HOST:6379 or auto; default: $RAY_ADDRESS, "
+                        "else a local Ray instance)")
+
+
+def positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{n} must be at least 1")
+    return n
+
+
+def method_list(text: str | None) -> list[str] | None:
+    """``--methods a,b`` -> ['a', 'b'] (checked against the registry), None for all."""
+    if not text:
+        return None
+    from edgetruth import locate
+
+    ids = [m.strip() for m in text.split(",") if m.strip()]
+    if not ids:
+        raise InputError(f"--methods {text!r}: give comma-separated method ids (see `edgetruth methods`)")
+    for m in ids:
+        locate.get_method(m)
+    return ids
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from edgetruth.cli import commands
+
+    parser = argparse.ArgumentParser(
+        prog="edgetruth",
+        description="Physically-based ground truth for subpixel edge localisation and monocular ranging.",
+    )
+    parser.add_argument("--version", action="version", version=f"edgetruth {__version__}",
+                        help="print the version and exit")
+    parser.add_argument("-q", "--quiet", action="store_true", help="print errors only (no progress, no summaries)")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+        module = importlib.import_module(f"edgetruth.cli.commands.{info.name}")
+        if hasattr(module, "register"):
+            module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)  # argparse itself exits 2 on bad usage
+    if not getattr(args, "handler", None):
+        parser.print_help()
+        return 2
+    console.set_quiet(args.quiet)
+    console.set_progress(not getattr(args, "no_progress", False))
+    try:
+        if getattr(args, "plugin", None):
+            from edgetruth.locate.plugins import load_plugins
+
+            load_plugins(args.plugin)
+        return int(args.handler(args) or 0)
+    except InputError as exc:
+        print(f"edgetruth {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"edgetruth {args.command}: interrupted; re-run the same command to resume", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

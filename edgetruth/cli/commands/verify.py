@@ -1,0 +1,40 @@
+"""``edgetruth verify DIR``: check a rendered dataset against its manifest.
+
+Exit 0: every image the manifest lists is complete and every file hashes to its
+recorded SHA-256.  Exit 1: problems, one line each (missing file, hash mismatch,
+temporary file of an interrupted run, files the manifest does not list, images
+not yet rendered).  Exit 2: DIR is not a dataset.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub) -> None:
+    p = sub.add_parser("verify", help="check a dataset's files against its manifest (hashes)",
+                       description="Check every file of a dataset rendered by `edgetruth render` against the "
+                                   "SHA-256 hashes in its manifest.json.  Exit 0 if all is well, 1 if "
+                                   "anything is missing, damaged, left over or not yet rendered, 2 if DIR "
+                                   "is not a dataset.")
+    p.add_argument("dir", metavar="DIR", type=Path, help="dataset directory (holds manifest.json)")
+    p.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from edgetruth import console
+    from edgetruth.render.reader import check_dataset
+
+    d: Path = args.dir
+    problems, info = check_dataset(d)
+    for line in problems:
+        print(line)
+    m = info["manifest"]
+    if problems:
+        print(f"verify: {d}: {len(problems)} problem(s); {info['complete']}/{info['n_images']} images of "
+              f"{m.get('spec')!r} intact.  Re-run `edgetruth render` with the same spec and -o to repair "
+              "(it re-renders only what is missing or damaged)")
+        return 1
+    console.say(f"verify: {d}: OK, {info['complete']}/{info['n_images']} images of {m.get('spec')!r}, "
+                "every file matches its SHA-256")
+    return 0

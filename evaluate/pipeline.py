@@ -1,0 +1,185 @@
+"""The main job and the evaluation of rendered datasets, as functions (the CLI's ``run`` and ``evaluate``).
+
+``run_main_job``: render (specs) -> calibrate (Zhang) -> undistort -> find targets -> every
+method -> ranging statistics -> ``report.md``, plus the synthetic study's quick preset linked
+from the report.  ``evaluate_datasets``: the same evaluation of datasets a user rendered
+with their own specs, with a calibration from a ``calibration.json`` or from checkerboard
+renders.
+
+A run directory holds ``run.json`` (what made it); a directory that exists, is not empty
+and has no ``run.json`` is refused, so a run never writes report files into a dataset or
+any other folder of the user's.
+"""
+from __future__ import annotations
+
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+from edgetruth import __version__, console
+from edgetruth.errors import InputError
+from edgetruth.fileio import check_output_dir, read_json, write_json
+
+RUN_MARKER = "run.json"
+STUDIES = {
+    "quick": {"calibration": "quick", "targets": ["quick"]},
+    "full": {"calibration": "calibration", "targets": ["standard", "snr", "targets"]},
+}
+
+
+def utc_stamp() -> str:
+    return datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+
+
+def prepare_run_dir(out: str | Path, kind: str, settings: dict, option: str = "-o") -> Path:
+    """Create (or re-open, to resume) a run directory; refuse a file or a foreign non-empty directory."""
+    out = check_output_dir(out, option)
+    marker = out / RUN_MARKER
+    if out.is_dir() and any(out.iterdir()):
+        if not marker.is_file():
+            raise InputError(f"{option} {out}: exists, is not empty and is not an edgetruth run directory (no "
+                             f"{RUN_MARKER}); choose a new directory, or an earlier run's to resume it")
+        try:
+            old = read_json(marker)
+        except InputError:
+            raise InputError(f"{marker}: unreadable; choose a new run directory") from None
+        if old.get("kind") != kind:
+            raise InputError(f"{option} {out}: holds an `edgetruth {old.get('kind')}` run, not `{kind}`; "
+                             "choose a new directory")
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(marker, {"kind": kind, "edgetruth": __version__, "settings": settings, "updated_utc": utc_stamp()})
+    return out
+
+
+def select_jobs(spec, limit: int | None, kind: str) -> list[int]:
+    """Indices of the jobs of ``kind`` to render: all, or ``limit`` per group spread over distance."""
+    out = []
+    for g in spec.groups:
+        if g.kind != kind:
+            continue
+        order = sorted(range(g.count), key=lambda k: g.distances_cm[k])
+        if limit is None or limit >= g.count:
+            pick = range(g.count)
+        else:
+            pick = sorted({order[int(round(k))] for k in
+                           ([0.0] if limit == 1 else [i * (g.count - 1) / (limit - 1) for i in range(limit)])})
+        out += [g.first_index + k for k in pick]
+    return sorted(out)
+
+
+def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None, thresholds=None,
+                      progress: bool = True, names: dict | None = None, backend: str = "local",
+                      workers: int | None = 1, address: str | None = None, header: dict | None = None,
+                      synthetic_report: Path | None = None) -> Path:
+    """Range every target image of ``datasets`` with every method and write ``report.md`` into ``out``."""
+    from edgetruth.evaluate import method_order as mo
+    from edgetruth.evaluate.ranging import run_ranging
+    from edgetruth.evaluate.ranging_report import write_report
+
+    options = mo.study_options(thresholds)
+    tau = mo.thresholds_in_use(thresholds)
+    result = run_ranging(datasets, calibration, out, methods=methods, progress=progress, names=names,
+                         options=options, backend=backend, workers=workers, address=address)
+    head = dict(header or {})
+    head.setdefault("target images", len({(r.get("spec"), r["image"]) for r in result["rows"]}))
+    head.setdefault("methods", len(result["methods"]))
+    head["entropy thresholds"] = f"2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} from {tau['source']}"
+    return write_report(out, result["rows"], result["methods"], calibration, result["examples"], head,
+                        str(synthetic_report) if synthetic_report else None)
+
+
+def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int | None = None,
+                 calib_limit: int | None = None, methods=None, variant: str | None = None,
+                 skip_synthetic: bool = False, progress: bool = True, thresholds=None,
+                 workers: int | None = None) -> tuple[Path, int]:
+    """The whole study in one call (``edgetruth run``); returns (report path, exit code)."""
+    from edgetruth.backends import default_workers
+    from edgetruth.evaluate import method_order as mo
+    from edgetruth.evaluate.calibration import calibrate_dataset
+    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.spec import load_spec
+    from edgetruth.resources import default_runs_dir
+
+    if study not in STUDIES:
+        raise InputError(f"--study {study!r}: choose one of {', '.join(STUDIES)}")
+    if limit is not None and limit < 1:
+        raise InputError(f"--limit {limit}: must be >= 1")
+    if calib_limit is not None and calib_limit < 4:
+        raise InputError(f"--calib-limit {calib_limit}: Zhang's method needs >= 4 boards here")
+    mo.thresholds_in_use(thresholds)  # a bad --thresholds file fails now, not after the renders
+    plan = STUDIES[study]
+    cal_spec = load_spec(plan["calibration"])
+    target_specs = [load_spec(n) for n in plan["targets"]]
+    out = prepare_run_dir(out or default_runs_dir() / utc_stamp(), "run",
+                          {"study": study, "limit": limit, "calib_limit": calib_limit, "methods": methods,
+                           "thresholds": str(thresholds) if thresholds else None})
+    workers = default_workers() if workers is None else workers
+    t0 = time.perf_counter()
+    timing: dict = {}
+    console.say(f"run: study {study!r} -> {out}")
+
+    # 1. render
+    render_dir = out / "render"
+    t = time.perf_counter()
+    variants: list[str] = []
+    cal_only = select_jobs(cal_spec, None, "checkerboard")
+    if calib_limit is not None:
+        cal_only = cal_only[:calib_limit]
+    target_sets = []
+    for spec in target_specs:
+        only = select_jobs(spec, limit, "target")
+        if spec.name == cal_spec.name:
+            only = sorted(set(only) | set(cal_only))
+        target_sets.append((spec, only))
+    if cal_spec.name not in plan["targets"]:
+        target_sets.insert(0, (cal_spec, cal_only))
+    for spec, only in target_sets:
+        render_spec(spec, render_dir / spec.name, variant=variant, progress=progress, only=only,
+                    announce=lambda s: (variants.append(s), console.say(s)))
+    timing["render_s"] = time.perf_counter() - t
+
+    # 2. calibrate
+    t = time.perf_counter()
+    cal_names = [cal_spec.jobs[i].name for i in cal_only]
+    cal = calibrate_dataset(render_dir / cal_spec.name, names=cal_names, progress=progress)
+    write_json(out / "calibration.json", cal.to_dict())
+    e = cal.errors()
+    console.say(f"calibrate: {cal.n_views} boards, RMS {cal.rms_px:.3f} px, fx {cal.fx:.2f} px "
+                f"({e.get('fx_rel_pct', float('nan')):+.3f} % vs truth), principal point error "
+                f"({e.get('cx_px', float('nan')):+.2f}, {e.get('cy_px', float('nan')):+.2f}) px")
+    timing["calibrate_s"] = time.perf_counter() - t
+
+    # 3. synthetic study (quick preset), linked from the report
+    synthetic_report, synthetic_failed = None, False
+    if not skip_synthetic:
+        from edgetruth.evaluate.synthetic_study import run_synthetic_study
+
+        t = time.perf_counter()
+        try:
+            synthetic_report = Path(run_synthetic_study(out / "synthetic", preset="quick", methods=methods,
+                                                        progress=progress, thresholds=thresholds,
+                                                        workers=workers))
+        except InputError:
+            raise
+        except Exception as exc:  # keep the ranging results; say what failed
+            synthetic_failed = True
+            console.say(f"run: synthetic study failed: {type(exc).__name__}: {exc}")
+        timing["synthetic_s"] = time.perf_counter() - t
+
+    # 4. locate + evaluate + report
+    t = time.perf_counter()
+    datasets = [render_dir / s.name for s, _ in target_sets if s.name in plan["targets"]]
+    names = {str(render_dir / s.name): [s.jobs[i].name for i in only]
+             for s, only in target_sets if s.name in plan["targets"]}
+    header = {"study": study, "UTC": utc_stamp(), "specs": ", ".join(s.name for s, _ in target_sets),
+              "Mitsuba": "; ".join(variants) or "renders reused (already complete)",
+              "interpolation for undistortion": "bilinear (see edgetruth/evaluate/undistort.py)"}
+    header["timings so far (s)"] = ", ".join(f"{k} {v:.1f}" for k, v in timing.items())
+    if synthetic_failed:
+        header["synthetic study"] = "FAILED (see the console)"
+    report = evaluate_datasets(datasets, cal, out, methods=methods, thresholds=thresholds, progress=progress,
+                               names=names, workers=workers, header=header, synthetic_report=synthetic_report)
+    timing["ranging_s"] = time.perf_counter() - t
+    console.say(f"run: report {report} ({time.perf_counter() - t0:.1f} s in all: "
+                + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + ")")
+    return report, 1 if synthetic_failed else 0

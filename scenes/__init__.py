@@ -1,0 +1,1 @@
+"""Shipped render specs (``*.toml``), read with ``importlib.resources`` (see ``edgetruth.resources``)."""
