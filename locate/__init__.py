@@ -16,17 +16,10 @@ own method::
 """
 from __future__ import annotations
 
-import importlib as _importlib
-import pkgutil as _pkgutil
-
 from edgetruth.locate.candidates import Candidates, candidates
 from edgetruth.locate.registry import METHODS, Method, get_method, locate, refine, register, sort_registry as _sort
 from edgetruth.locate.result import EdgePoints, Refinement
-from edgetruth.locate import methods as _methods
-
-for _info in sorted(_pkgutil.iter_modules(_methods.__path__), key=lambda m: m.name):
-    if not _info.name.startswith("_"):
-        _importlib.import_module(f"edgetruth.locate.methods.{_info.name}")
+from edgetruth.locate import methods as _methods  # noqa: F401  (registers the built-in methods)
 from edgetruth.locate.plugins import load_entry_points as _load_entry_points  # noqa: E402
 
 _load_entry_points()

@@ -105,7 +105,7 @@ def init_worker(plugin_refs: tuple = (), shipped: bytes = b"") -> None:
     """In a worker process: import the plugins, then register the methods shipped by value."""
     import pickle
 
-    from edgetruth import locate  # noqa: F401  (the built-in methods)
+    import edgetruth.locate.methods  # noqa: F401  (the built-in methods)
 
     load_plugins(plugin_refs)
     if shipped:

@@ -1,0 +1,109 @@
+"""``docs/spec.md``, generated from the key tables the loader checks against (so the two cannot drift).
+
+    python -m edgetruth.render.spec_doc > docs/spec.md     # tests/render/test_spec.py checks it is current
+"""
+from __future__ import annotations
+
+from edgetruth.render.camera import CAMERA_KEYS, DISTORTION_KEYS
+from edgetruth.render.schema import REQUIRED, Key
+from edgetruth.render.sensor import SENSOR_KEYS
+from edgetruth.render.spec import GROUP_KEYS, SPEC_KEYS
+from edgetruth.render.targets import CHECKERBOARD_KEYS, TARGETS
+
+INTRO = """# Render specs and cameras
+
+A **spec** (TOML) declares a dataset: `edgetruth render SPEC -o DIR` renders every image
+of it, each a pure function of (spec, index).  `SPEC` is a shipped name (`quick`,
+`standard`, `snr`, `targets`, `calibration`) or a path.  A spec has a `[spec]` table, an
+optional `[sensor]` table and one or more `[[group]]` tables; a **camera** is a TOML file
+with a `[camera]` table, named by `[spec] camera` (a shipped name, or a path relative to
+the spec's own folder).  Every key is checked when the spec loads (type, range, choices,
+unknown keys): a bad value is one error line naming the file, the table, the key and the
+fix, before anything renders.
+
+```toml
+[spec]
+name = "mine"
+camera = "my_camera.toml"       # next to this file; or "default"
+spp = 64
+
+[sensor]
+gain_db = 6.0
+
+[[group]]
+name = "near"
+target = "T2"
+distance_range_cm = [60, 120]
+count = 10
+camera = { f_number = 2.8 }     # per-group camera override (keys marked "per group")
+sensor = { exposure_s = 0.02 }  # per-group sensor override (any [sensor] key)
+
+[[group]]
+name = "boards"
+kind = "checkerboard"
+distance_range_cm = [55, 110]
+count = 15
+tilt_max_deg = 35
+```
+
+Units are in the key names or the tables below; lengths are metres unless a name says
+otherwise; image coordinates follow OpenCV (pixel centres at integers).
+This file is generated from the loader's key tables by `python -m edgetruth.render.spec_doc`.
+"""
+
+
+def _default(k: Key) -> str:
+    if k.default is REQUIRED:
+        return "required"
+    if k.default is None:
+        return "—"
+    if isinstance(k.default, dict) and not k.default:
+        return "{}"
+    if isinstance(k.default, tuple):
+        return "[" + ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in k.default) + "]"
+    if isinstance(k.default, str):
+        return f'"{k.default}"' if k.default else '""'
+    if isinstance(k.default, bool):
+        return str(k.default).lower()
+    if isinstance(k.default, float):
+        return f"{k.default:g}"
+    return str(k.default)
+
+
+def table(keys: list[Key], per_group_column: bool = False) -> str:
+    head = ["key", "type", "unit", "default", "range / choices", "meaning"] + (["per group"] if per_group_column else [])
+    rows = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
+    for k in keys:
+        cells = [f"`{k.name}`", k.type, k.unit or "", _default(k), k.describe_range(), k.meaning]
+        if per_group_column:
+            cells.append("yes" if k.per_group else "")
+        rows.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return "\n".join(rows)
+
+
+def spec_markdown() -> str:
+    targets = "\n".join(f"| `{t}` | {d['shape']} | {d['material'].replace('_', ' ')} | {d['reflectance']} |"
+                        for t, d in TARGETS.items())
+    parts = [INTRO,
+             "## `[spec]`", "", table(SPEC_KEYS), "",
+             "### `[spec] checkerboard = {...}`", "", table(CHECKERBOARD_KEYS), "",
+             "## `[[group]]`", "",
+             "A group's images are spread over its distances (one per equal sub-interval, uniform inside it); "
+             "lateral offset, tilts and roll are drawn per image from the image's seed, and redrawn "
+             "(deterministically) until the board's outline lies inside the image.", "",
+             table(GROUP_KEYS), "",
+             "Targets (`target`):", "", "| id | shape | material | Lambertian albedo |", "|---|---|---|---|", targets, "",
+             "## `[sensor]` (and a group's `sensor = {...}`)", "",
+             "EMVA 1288 linear model: electrons = QE x photons (Poisson), + dark noise, clipped at the full "
+             "well, x gain K = K0 10^(G/20) DN/e-, + black level, rounded and clipped to 2^bits - 1.", "",
+             table(SENSOR_KEYS), "",
+             "## Camera TOML: `[camera]`", "",
+             "Keys marked *per group* may be overridden by a group's `camera = {...}`; the others fix the "
+             "intrinsics of the whole spec (one calibration).", "",
+             table(CAMERA_KEYS, per_group_column=True), "",
+             "### `[camera.distortion]`", "", table(DISTORTION_KEYS), ""]
+    return "\n".join(parts)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    print(spec_markdown(), end="")

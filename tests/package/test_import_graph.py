@@ -1,0 +1,133 @@
+"""The house: one direction of imports, no cycles.
+
+Ground floor (conventions, errors, file and image I/O, resources, console, backends) ->
+``render`` and ``locate`` (independent of each other) -> ``evaluate`` -> the CLI on top,
+the only package that imports the commands.  Imports inside functions count too: a lazy
+import is still a dependency.
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+#: source folder -> package it installs as (pyproject's package-dir)
+SOURCES = {"edgetruth": "edgetruth", "render": "edgetruth.render", "locate": "edgetruth.locate",
+           "evaluate": "edgetruth.evaluate"}
+GROUND = ("edgetruth.conventions", "edgetruth.errors", "edgetruth.fileio", "edgetruth.image_io",
+          "edgetruth.resources", "edgetruth.console", "edgetruth.backends", "edgetruth")
+
+
+def modules() -> dict[str, Path]:
+    out = {}
+    for folder, pkg in SOURCES.items():
+        for f in sorted((ROOT / folder).rglob("*.py")):
+            rel = f.relative_to(ROOT / folder).with_suffix("")
+            parts = [p for p in rel.parts if p != "__init__"]
+            out[".".join([pkg, *parts])] = f
+    return out
+
+
+def imports(name: str, path: Path, known: set) -> set:
+    tree = ast.parse(path.read_text(), str(path))
+    is_pkg = path.name == "__init__.py"
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                pkg = name.split(".") if is_pkg else name.split(".")[:-1]
+                pkg = pkg[:len(pkg) - node.level + 1]
+                base = ".".join(pkg + ([base] if base else []))
+            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names]
+        else:
+            continue
+        for t in targets:
+            while t and t not in known:  # a name inside a module: the module
+                t = t.rpartition(".")[0]
+            if t and t != name:
+                out.add(t)
+    return out
+
+
+@pytest.fixture(scope="module")
+def graph() -> dict[str, set]:
+    mods = modules()
+    known = set(mods)
+    return {m: imports(m, p, known) for m, p in mods.items()}
+
+
+def _layer(m: str) -> str:
+    if m == "edgetruth.__main__":  # ``python -m edgetruth``: the command line
+        return "cli"
+    if m in GROUND:
+        return "ground"
+    for layer in ("render", "locate", "evaluate", "cli"):
+        if m == f"edgetruth.{layer}" or m.startswith(f"edgetruth.{layer}."):
+            return layer
+    return "ground"
+
+
+ALLOWED = {"ground": {"ground"}, "render": {"ground", "render"}, "locate": {"ground", "locate"},
+           "evaluate": {"ground", "render", "locate", "evaluate"},
+           "cli": {"ground", "render", "locate", "evaluate", "cli"}}
+
+
+def test_every_source_folder_is_found(graph):
+    assert {"edgetruth.render.spec", "edgetruth.locate.registry", "edgetruth.evaluate.pipeline",
+            "edgetruth.cli.commands.run"} <= set(graph)
+
+
+def test_imports_go_one_way(graph):
+    bad = [f"{m} ({_layer(m)}) imports {t} ({_layer(t)})" for m, ts in graph.items() for t in sorted(ts)
+           if _layer(t) not in ALLOWED[_layer(m)]]
+    assert not bad, "\n".join(bad)
+
+
+def test_only_the_cli_imports_the_commands(graph):
+    bad = [f"{m} imports {t}" for m, ts in graph.items() for t in ts
+           if t.startswith("edgetruth.cli.commands") and not m.startswith("edgetruth.cli")]
+    assert not bad, bad
+
+
+def test_no_import_cycles(graph):
+    """Tarjan's strongly connected components; a package importing its own submodules (to re-export
+    them) is not a cycle unless a submodule imports the package back."""
+    index, low, stack, on, sccs, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                sccs.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    assert not sccs, "import cycles:\n" + "\n".join(" <-> ".join(c) for c in sccs)
+
+
+def test_the_graph_check_finds_a_cycle():
+    """The check itself can fail: a two-module cycle is reported."""
+    with pytest.raises(AssertionError, match="a <-> b"):
+        test_no_import_cycles({"a": {"b"}, "b": {"a"}, "c": {"a"}})
