@@ -29,6 +29,12 @@ def say(message: str) -> None:
         print(message, flush=True)
 
 
+def warn(message: str) -> None:
+    """A one-line warning on stderr (silenced by ``-q``)."""
+    if not _state["quiet"]:
+        print(f"warning: {message}", file=sys.stderr, flush=True)
+
+
 def bars_enabled(requested: bool = True) -> bool:
     return bool(requested) and _state["progress"] and not _state["quiet"] and sys.stderr.isatty()
 

@@ -1,4 +1,5 @@
-"""The camera: intrinsics, thin-lens aperture and Brown–Conrady distortion from a spec.
+"""The camera: intrinsics, thin-lens aperture, Brown–Conrady distortion, lens PSF, relative
+illumination and camera motion from a spec.
 
 All image coordinates are OpenCV's (see ``edgetruth.conventions``); points in
 camera space are in the OpenCV camera frame (x right, y down, z forward), metres.
@@ -17,6 +18,7 @@ from edgetruth.conventions import focal_length_px, principal_point_centred
 from edgetruth.errors import InputError, require
 from edgetruth.fileio import read_toml
 from edgetruth.render.distortion import distort_normalized, undistort_normalized
+from edgetruth.render.optics import optics_ground_truth
 from edgetruth.render.schema import Key, parse_table
 
 DEFAULT_CAMERA = "default"
@@ -34,6 +36,21 @@ class Camera:
     focus_distance_m: float = 1.5
     #: OpenCV order (k1, k2, p1, p2, k3).
     distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    #: Lens PSF (``edgetruth.render.psf``): Airy diffraction at this wavelength and the f-number
+    #: (0: none), a Gaussian aberration sigma(h) = sigma * (1 + growth * h^2) at field height h
+    #: (0 centre, 1 image corner), and a 4-dot birefringent low-pass filter of this split.
+    diffraction_wavelength_nm: float = 550.0
+    aberration_sigma_um: float = 0.0
+    aberration_sigma_growth: float = 0.0
+    olpf_split_um: float = 0.0
+    #: Relative illumination: the thin lens's exact natural falloff (cos^4 per ray) times
+    #: 1 + a2 h^2 + a4 h^4 (lens shading).
+    natural_vignetting: bool = True
+    shading_a2: float = 0.0
+    shading_a4: float = 0.0
+    #: Camera motion during the exposure (camera frame at mid-exposure): linear and angular velocity.
+    velocity_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    angular_velocity_deg_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
     name: str = field(default="custom", compare=False)
 
     def __post_init__(self) -> None:
@@ -42,6 +59,12 @@ class Camera:
         require(self.f_number >= 0, f"camera {self.name}: f_number must be >= 0 (0 = pinhole)")
         require(self.focus_distance_m > 0, f"camera {self.name}: focus_distance_m must be positive")
         require(len(self.distortion) == 5, f"camera {self.name}: distortion needs 5 coefficients (k1, k2, p1, p2, k3)")
+        require(self.diffraction_wavelength_nm >= 0 and self.aberration_sigma_um >= 0 and self.olpf_split_um >= 0,
+                f"camera {self.name}: PSF parameters must be >= 0")
+        require(self.aberration_sigma_growth >= -1.0, f"camera {self.name}: aberration_sigma_growth must be >= -1 "
+                "(sigma may not turn negative at the corner)")
+        require(len(self.velocity_m_s) == 3 and len(self.angular_velocity_deg_s) == 3,
+                f"camera {self.name}: velocities need 3 components (x, y, z in the camera frame)")
 
     # --- derived quantities -------------------------------------------------
     @property
@@ -85,6 +108,22 @@ class Camera:
     def shape(self) -> tuple[int, int]:
         return self.height_px, self.width_px
 
+    @property
+    def moving(self) -> bool:
+        return any(v != 0 for v in self.velocity_m_s) or any(w != 0 for w in self.angular_velocity_deg_s)
+
+    @property
+    def half_diagonal_px(self) -> float:
+        """Distance from the principal point to the image corner (field height 1), pixels."""
+        return math.hypot(self.width_px / 2.0, self.height_px / 2.0)
+
+    def ideal_optics(self) -> "Camera":
+        """The same geometry with a perfect lens: no PSF, no falloff or shading, no motion (thin-lens
+        defocus and distortion stay)."""
+        return replace(self, diffraction_wavelength_nm=0.0, aberration_sigma_um=0.0, aberration_sigma_growth=0.0,
+                       olpf_split_um=0.0, natural_vignetting=False, shading_a2=0.0, shading_a4=0.0,
+                       velocity_m_s=(0.0, 0.0, 0.0), angular_velocity_deg_s=(0.0, 0.0, 0.0))
+
     def defocus_radius_px(self, distance_m: np.ndarray | float) -> np.ndarray | float:
         """Radius of the thin-lens blur disk, r = fx·R·|1/z_f − 1/z| (pixels)."""
         z = np.asarray(distance_m, dtype=np.float64)
@@ -118,6 +157,8 @@ class Camera:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["distortion"] = {k: float(v) for k, v in zip(("k1", "k2", "p1", "p2", "k3"), self.distortion)}
+        d["velocity_m_s"] = list(self.velocity_m_s)
+        d["angular_velocity_deg_s"] = list(self.angular_velocity_deg_s)
         return d
 
     def ground_truth(self) -> dict:
@@ -139,6 +180,7 @@ class Camera:
             "cx_px": cx,
             "cy_px": cy,
             "dist_coeffs_opencv": self.dist_coeffs.tolist(),
+            "optics": optics_ground_truth(self),
         }
 
 
@@ -156,28 +198,66 @@ CAMERA_KEYS = [
         per_group=True),
     Key("distortion", "table", {}, "", "Brown-Conrady coefficients {k1, k2, p1, p2, k3} (OpenCV order, "
         "normalised coordinates); missing ones are 0"),
+    Key("diffraction_wavelength_nm", "float", _D.diffraction_wavelength_nm, "nm", "wavelength of the Airy "
+        "diffraction PSF at the f-number (cutoff p/(lambda N)); 0 = no diffraction", 0.0, 20000.0, per_group=True),
+    Key("aberration_sigma_um", "float", _D.aberration_sigma_um, "um", "Gaussian aberration blur sigma on the "
+        "sensor at the image centre", 0.0, 1000.0, per_group=True),
+    Key("aberration_sigma_growth", "float", _D.aberration_sigma_growth, "", "growth g of the aberration with "
+        "field height h (0 centre, 1 corner): sigma(h) = sigma * (1 + g h^2)", -1.0, 100.0, per_group=True),
+    Key("olpf_split_um", "float", _D.olpf_split_um, "um", "4-dot birefringent low-pass filter: dots at "
+        "(+-d/2, +-d/2); MTF cos(pi nu_x d) cos(pi nu_y d); 0 = none", 0.0, 1000.0, per_group=True),
+    Key("natural_vignetting", "bool", _D.natural_vignetting, "", "the thin lens's natural falloff: each ray "
+        "weighted by cos^4 of its angle on the sensor (exact relative illumination of a disk aperture)",
+        per_group=True),
+    Key("shading_a2", "float", _D.shading_a2, "", "lens shading: relative illumination times "
+        "1 + a2 h^2 + a4 h^4 (h: field height, 1 at the corner)", -1.0, 10.0, per_group=True),
+    Key("shading_a4", "float", _D.shading_a4, "", "lens shading h^4 coefficient (see shading_a2)", -1.0, 10.0,
+        per_group=True),
+    Key("velocity_m_s", "vec3", list(_D.velocity_m_s), "m/s", "camera velocity [vx, vy, vz] during the "
+        "exposure (camera frame: x right, y down, z forward); a target moving at u is the camera at -u",
+        -1e3, 1e3, per_group=True),
+    Key("angular_velocity_deg_s", "vec3", list(_D.angular_velocity_deg_s), "deg/s", "camera angular velocity "
+        "[wx, wy, wz] about its centre of projection during the exposure (camera frame)", -1e5, 1e5,
+        per_group=True),
 ]
 DISTORTION_KEYS = [Key(k, "float", 0.0, "", f"distortion coefficient {k}", -10.0, 10.0)
                    for k in ("k1", "k2", "p1", "p2", "k3")]
 MAX_PIXELS = 1 << 27  # the largest image edgetruth reads back (``edgetruth.image_io.MAX_IMAGE_PIXELS``)
 
 
+def _tuples(v: dict) -> dict:
+    for k in ("velocity_m_s", "angular_velocity_deg_s"):
+        if k in v:
+            v[k] = tuple(v[k])
+    return v
+
+
+def check_optics(cam: Camera, where: str) -> None:
+    """The lens PSF must be one the renderer can sample (an OLPF alone is not band-limited)."""
+    if cam.olpf_split_um > 0 and cam.aberration_sigma_um == 0 and (cam.diffraction_wavelength_nm == 0
+                                                                    or cam.f_number == 0):
+        raise InputError(f"{where}: olpf_split_um = {cam.olpf_split_um} needs diffraction "
+                         "(diffraction_wavelength_nm > 0 and f_number > 0) or aberration_sigma_um > 0; add one")
+
+
 def camera_from_dict(d: dict, name: str = "custom", where: str | None = None) -> Camera:
     """A camera from a ``[camera]`` table (as in ``assets/cameras/*.toml``), every value checked."""
     where = where or f"camera {name}"
-    v = parse_table(d, CAMERA_KEYS, where)
+    v = _tuples(parse_table(d, CAMERA_KEYS, where))
     dist = parse_table(v.pop("distortion"), DISTORTION_KEYS, f"{where} distortion")
     if v["width_px"] * v["height_px"] > MAX_PIXELS:
         raise InputError(f"{where}: {v['width_px']} x {v['height_px']} px exceeds {MAX_PIXELS:,} pixels; "
                          "use a smaller resolution (or camera_scale)")
-    return Camera(**v, distortion=tuple(dist[k] for k in ("k1", "k2", "p1", "p2", "k3")), name=name)
+    cam = Camera(**v, distortion=tuple(dist[k] for k in ("k1", "k2", "p1", "p2", "k3")), name=name)
+    check_optics(cam, where)
+    return cam
 
 
 def camera_overrides(d: dict, where: str) -> dict:
     """Checked per-group camera overrides (only keys marked ``per_group``)."""
     allowed = [k for k in CAMERA_KEYS if k.per_group]
     try:
-        return parse_table(d, allowed, where, defaults=False)
+        return _tuples(parse_table(d, allowed, where, defaults=False))
     except InputError as exc:
         fixed = sorted(set(d) & {k.name for k in CAMERA_KEYS if not k.per_group})
         if fixed:

@@ -1,7 +1,8 @@
 """Render a spec into a dataset directory, resumably; read images back.
 
 Per image ``NAME``: ``NAME.exr`` (linear radiance, float32), ``NAME.png`` (sensor
-image, 16-bit, raw DN) and ``NAME.json`` (ground truth).  ``manifest.json`` lists
+image: 16-bit raw DN, or 8-bit sRGB/JPEG pixels per the sensor's ``output``) and
+``NAME.json`` (ground truth).  ``manifest.json`` lists
 every image with the SHA-256 of each file; an image counts as done only when its
 manifest entry says so *and* its files still hash to the recorded values.
 """
@@ -12,6 +13,7 @@ import json
 import os
 import platform
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -85,18 +87,26 @@ def versions(variant: str) -> dict:
 
 # --- one image ----------------------------------------------------------------------
 def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
-    """Render one job -> (radiance float32 (H, W), DN uint16 (H, W), ground-truth dict)."""
+    """Render one job -> (radiance float32 (H, W), image file pixels (H, W) uint16 or uint8, ground-truth dict)."""
     import mitsuba as mi
 
+    from edgetruth.render.capture import capture
+    from edgetruth.render.optics import field_height, predicted_mtf50
+
     camera = job.camera
-    settings = spec.render
     sensor = job.sensor
+    settings = replace(spec.render, exposure_s=sensor.exposure_s) if camera.moving else spec.render
     if job.kind == "target":
         size_m = spec.target_size_m
         pose = job_pose(job, camera, target_outline_local(TARGETS[job.target]["shape"], size_m))
         rig = get_rig("target", camera, settings, size_m, crop)
         le = rig.set_state(job.target, pose, job.irradiance_w_m2)
-        gt = target_ground_truth(camera, pose, job.target, size_m)
+        gt = target_ground_truth(camera, pose, job.target, size_m, exposure_s=sensor.exposure_s)
+        cx, cy = gt["centre"]["distorted_px"][0]
+        h = float(field_height(camera, cx, cy))
+        gt["optics_at_target"] = {"field_height": h, "defocus_radius_px": gt["defocus_radius_px"],
+                                  "mtf50_cy_px": predicted_mtf50(camera, h, gt["defocus_radius_px"]),
+                                  "meaning": "analytic MTF50 (pixel x PSF x defocus disk) at the target centre"}
     else:
         board = spec.checkerboard
         pose = job_pose(job, camera, board.plate_corners_local())
@@ -105,9 +115,12 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
         gt = checker_ground_truth(camera, pose, board)
     t0 = time.perf_counter()
     radiance = rig.render(job.seed)
+    band = None
+    if job.kind == "target" and settings.edge_spp:
+        band = _edge_band(radiance, camera, settings, job, pose, gt, crop)
     if timings is not None:
         timings["render_s"] = timings.get("render_s", 0.0) + time.perf_counter() - t0
-    dn = sensor.expose(radiance, camera.f_number, camera.pitch_um, make_rng(job.seed, SENSOR_STREAM))
+    image, captured = capture(radiance, camera, sensor, make_rng(job.seed, SENSOR_STREAM), name=job.name)
     full = {
         "format": FORMAT_VERSION,
         "name": job.name, "index": job.index, "spec": spec.name, "group": job.group, "kind": job.kind,
@@ -122,12 +135,37 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
         "illumination": rig.light_ground_truth(pose, le, job.irradiance_w_m2),
         "sensor": sensor.to_dict(),
         "photons_per_radiance": sensor.photons_per_radiance(camera.f_number, camera.pitch_um),
+        **captured,
         "render": {**settings.to_dict(), "integrator": "direct (emitter sampling only)", "rfilter": "box",
                    "film": "hdrfilm float32", "crop": list(crop) if crop else None,
-                   "distortion": "exact, per-ray inverse Brown-Conrady in a Python sensor plugin"},
+                   "distortion": "exact, per-ray inverse Brown-Conrady in a Python sensor plugin",
+                   "psf": rig.psf_description(), "edge_band": band,
+                   "radiance_meaning": "EXR = scene radiance times the lens's relative illumination (the ray "
+                                       "weights), integrated over pixel (x) PSF: photons = EXR x photons_per_radiance"},
         "versions": versions(mi.variant()),
     }
-    return radiance, dn, full
+    return radiance, image, full
+
+
+def _edge_band(radiance, camera, settings, job, pose, gt, crop) -> dict:
+    """Re-render the pixels near the target's outline at ``settings.edge_spp`` (in place)."""
+    from edgetruth.render.edge_band import TILE_PX, band_tiles, band_width_px, render_band, tile_rig
+
+    outlines = [np.asarray(gt["outline"]["polyline_distorted_px"])]
+    motion_px = 0.0
+    if "motion" in gt:
+        start, end = (np.asarray(gt["motion"][k]) for k in ("outline_start_distorted_px", "outline_end_distorted_px"))
+        outlines += [start, end]
+        motion_px = float(np.max(np.linalg.norm(end - start, axis=1)))
+    width = band_width_px(camera, gt["defocus_radius_px"], motion_px)
+    frame = tuple(crop) if crop else (0, 0, camera.width_px, camera.height_px)
+    tiles = band_tiles(outlines, frame, width)
+    trig = tile_rig(camera, replace(settings, spp=settings.edge_spp), float(gt["target"]["size_m"]))
+    trig.set_state(job.target, pose, job.irradiance_w_m2)
+    n = render_band(radiance, frame[:2], trig, tiles, job.seed)
+    return {"spp": settings.edge_spp, "band_px": width, "tile_px": TILE_PX, "tiles": len(tiles), "pixels": n,
+            "meaning": "pixels within band_px of the outline (at any time of the exposure) rendered at spp, "
+                       "in tiles with their own seeds; the rest of the frame at render.spp"}
 
 
 # --- datasets -----------------------------------------------------------------------

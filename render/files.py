@@ -19,10 +19,12 @@ EXR_CHANNEL = "Y"
 
 
 def encode_png16(image_dn: np.ndarray) -> bytes:
-    """A 2-D uint16 image as 16-bit grayscale PNG bytes (values are raw DN, not rescaled)."""
+    """A 2-D uint16 image as 16-bit grayscale PNG bytes (values are raw DN, not rescaled); a uint8
+    image (the sRGB/JPEG outputs) as an 8-bit PNG."""
     import cv2
 
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(image_dn, dtype=np.uint16))
+    dtype = np.uint8 if np.asarray(image_dn).dtype == np.uint8 else np.uint16
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(image_dn, dtype=dtype))
     if not ok:  # pragma: no cover
         raise OSError("cv2 could not encode a 16-bit PNG")
     return buf.tobytes()

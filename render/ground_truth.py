@@ -2,13 +2,17 @@
 
 Points are projected with the camera's exact model (``Camera.project``), in OpenCV
 pixel coordinates, both distorted (what the image shows) and undistorted (the ideal
-pinhole image with the same K).
+pinhole image with the same K).  A target's outline also comes as a dense polyline of the
+*distorted* curve (``edgetruth.render.outline.OutlineCurve`` evaluates it exactly): under
+distortion a square's sides are curves, not the chords between its corners.  With a moving
+camera everything is at mid-exposure, plus the outline at the start and end of the exposure.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from edgetruth.render.camera import Camera
+from edgetruth.render.outline import OutlineCurve, camera_points_at
 from edgetruth.render.targets import TARGET_STANDOFF_M, TARGETS, Checkerboard
 from edgetruth.render.pose import Pose
 
@@ -34,10 +38,29 @@ def target_outline_local(shape: str, size_m: float, n_circle: int = CIRCLE_OUTLI
     return np.stack([h * np.cos(t), h * np.sin(t), np.full_like(t, z)], axis=1)
 
 
-def target_ground_truth(camera: Camera, pose: Pose, target: str, size_m: float) -> dict:
+def motion_ground_truth(camera: Camera, exposure_s: float, points_cam: np.ndarray, centre_cam: np.ndarray) -> dict:
+    """Where the outline points and the centre are at the start and end of the exposure (τ = ∓T/2)."""
+    half = 0.5 * exposure_s
+    taus = np.linspace(-half, half, 9)
+    return {"velocity_m_s": list(camera.velocity_m_s), "angular_velocity_deg_s": list(camera.angular_velocity_deg_s),
+            "exposure_s": exposure_s, "reference": "outline, centre and pose are at mid-exposure",
+            "camera_motion": "at time tau from mid-exposure the camera sits at v*tau, rotated by omega*tau",
+            "outline_start_distorted_px": camera.project(camera_points_at(camera, points_cam, -half)).tolist(),
+            "outline_end_distorted_px": camera.project(camera_points_at(camera, points_cam, half)).tolist(),
+            "centre_track_tau_s": taus.tolist(),
+            "centre_track_distorted_px": [camera.project(camera_points_at(camera, centre_cam, t))[0].tolist()
+                                          for t in taus]}
+
+
+def target_ground_truth(camera: Camera, pose: Pose, target: str, size_m: float, exposure_s: float = 0.0) -> dict:
     spec = TARGETS[target]
     centre_cam = pose.to_camera(np.array([[0.0, 0.0, -TARGET_STANDOFF_M]]))
     outline = pose.to_camera(target_outline_local(spec["shape"], size_m))
+    curve = OutlineCurve(camera, pose, spec["shape"], size_m)
+    t = curve.parameters()
+    extra = {}
+    if camera.moving:
+        extra["motion"] = motion_ground_truth(camera, exposure_s, outline, centre_cam)
     return {
         "target": {"id": target, "shape": spec["shape"], "material": spec["material"],
                    "size_m": size_m, "size_meaning": "side" if spec["shape"] == "square" else "diameter",
@@ -49,8 +72,16 @@ def target_ground_truth(camera: Camera, pose: Pose, target: str, size_m: float) 
         "outline": {"kind": "corners" if spec["shape"] == "square" else "points",
                     "order": ("top-left, top-right, bottom-right, bottom-left (board frame)"
                               if spec["shape"] == "square" else "angle 2*pi*k/n from board +x towards +y"),
-                    **_project_both(camera, outline)},
+                    **_project_both(camera, outline),
+                    "polyline_distorted_px": curve.points(t).tolist(),
+                    "polyline_parameter": t.tolist(),
+                    "polyline_meaning": "dense points ON the distorted outline curve (square: clockwise from the "
+                                        "top-left corner, parameter t in [0, 1): side floor(4t); circle: angle "
+                                        "2*pi*t); chords stay within polyline_chord_error_px of the curve, which "
+                                        "edgetruth.render.outline.OutlineCurve evaluates exactly",
+                    "polyline_chord_error_px": curve.chord_error_px()},
         "defocus_radius_px": float(camera.defocus_radius_px(centre_cam[0, 2])),
+        **extra,
     }
 
 

@@ -9,7 +9,8 @@ edge) and the others are parked out of sight behind the camera:
 T1 black matte square, T2 black matte disk, T3 gray matte square, T4 glossy black
 square (rough plastic: specular highlights from the light).
 
-Checkerboard scene: a white plate with black squares (one mesh), flush likewise.
+Checkerboard scene: a white plate with black matte squares (one mesh with an explicit diffuse
+BSDF of ``CHECKER_BLACK_REFLECTANCE``, its triangles facing the camera), flush likewise.
 
 Light: one square area light beside the camera (behind its image plane, so never
 in view), aimed at the board centre; its radiance is set so that the board's
@@ -26,7 +27,8 @@ import numpy as np
 from edgetruth.render.camera import Camera
 from edgetruth.render.lens_sensor import sensor_dict
 from edgetruth.render.pose import Pose
-from edgetruth.render.targets import BOARD_HALF_SIZE_M, BOARD_REFLECTANCE, TARGET_STANDOFF_M, TARGETS, Checkerboard
+from edgetruth.render.targets import (BOARD_HALF_SIZE_M, BOARD_REFLECTANCE, CHECKER_BLACK_REFLECTANCE,
+                                      TARGET_STANDOFF_M, TARGETS, Checkerboard)
 
 #: One shape per target, each with a fixed BSDF (the loader merges identical BSDFs, so their
 #: parameters cannot be changed independently through ``traverse``).
@@ -45,9 +47,17 @@ class RenderSettings:
     spp: int = 64
     sampler: str = "multijitter"
     samples_per_pass: int = 0  # 0: all in one pass (JIT memory ~ pixels × spp)
+    #: the shutter time rays are spread over (a moving camera only; 0: static)
+    exposure_s: float = 0.0
+    #: spp of the pixels near a target's outline (``edgetruth.render.edge_band``); 0: none
+    edge_spp: int = 0
 
     def to_dict(self) -> dict:
-        return {"spp": self.spp, "sampler": self.sampler, "samples_per_pass": self.samples_per_pass}
+        d = {"spp": self.spp, "sampler": self.sampler, "samples_per_pass": self.samples_per_pass,
+             "edge_spp": self.edge_spp}
+        if self.exposure_s:
+            d["exposure_s"] = self.exposure_s
+        return d
 
 
 def _rect_local(half_x: float, half_y: float, z_m: float) -> np.ndarray:
@@ -83,22 +93,36 @@ def light_radiance_for(irradiance_w_m2: float, pose: Pose, light_pos: np.ndarray
 class _Rig:
     """Common part: one loaded scene, one camera, parameter updates."""
 
-    def __init__(self, camera: Camera, settings: RenderSettings, crop=None):
+    def __init__(self, camera: Camera, settings: RenderSettings, crop=None, window=None):
         import mitsuba as mi
 
         self.mi = mi
         self.camera = camera
         self.settings = settings
         self.crop = crop
+        self.window = window
+        self._psf = None
         sampler = {"type": settings.sampler, "sample_count": settings.spp}
         integrator = {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0}
         if settings.samples_per_pass:
             integrator["samples_per_pass"] = settings.samples_per_pass
         self.scene_dict = {"type": "scene", "integrator": integrator,
-                           "sensor": sensor_dict(camera, sampler, crop)}
+                           "sensor": sensor_dict(camera, sampler, crop, exposure_s=settings.exposure_s,
+                                                 window=window)}
         self.scene_dict.update(self._shapes())
         self.scene = mi.load_dict(self.scene_dict)
         self.params = mi.traverse(self.scene)
+        self.sensor = self.scene.sensors()[0]  # the Python LensSensor (``set_window``)
+
+    def psf_description(self) -> dict | None:
+        """How the sensor samples the lens PSF (None: the pixel box alone)."""
+        from edgetruth.render.psf import psf_params, psf_table
+
+        if self._psf is None:
+            table = psf_table(psf_params(self.camera))
+            self._psf = {"sampled": False, "why": "no PSF, or one within 1e-4 of an ideal OTF up to Nyquist"} \
+                if table is None else {"sampled": True, **table.describe()}
+        return self._psf
 
     def _T(self, m: np.ndarray):
         return self.mi.ScalarTransform4f(np.asarray(m, dtype=np.float64).tolist())
@@ -118,8 +142,11 @@ class _Rig:
         return {"type": "rectangle", "to_world": self._T(np.eye(4)),
                 "emitter": {"type": "area", "radiance": {"type": "uniform", "value": 1.0}}}
 
-    def render(self, seed: int) -> np.ndarray:
-        """Render with the current parameters; radiance (H, W) float32 (RGB channels are equal)."""
+    def render(self, seed: int, window_at: tuple[int, int] | None = None) -> np.ndarray:
+        """Render with the current parameters; radiance (H, W) float32 (RGB channels are equal).
+        ``window_at``: where a window rig's film sits in the frame (its top-left pixel)."""
+        if window_at is not None:
+            self.sensor.set_window(*window_at)
         img = self.mi.render(self.scene, self.params, seed=int(seed) & 0x7FFFFFFF, spp=self.settings.spp)
         arr = np.asarray(img, dtype=np.float32)
         return arr[..., 1].copy()  # achromatic scene: R = G = B exactly
@@ -133,9 +160,10 @@ class _Rig:
 class TargetRig(_Rig):
     """The target scene."""
 
-    def __init__(self, camera: Camera, settings: RenderSettings, target_size_m: float = 0.13, crop=None):
+    def __init__(self, camera: Camera, settings: RenderSettings, target_size_m: float = 0.13, crop=None,
+                 window=None):
         self.target_size_m = float(target_size_m)
-        super().__init__(camera, settings, crop)
+        super().__init__(camera, settings, crop, window)
 
     def _shapes(self) -> dict:
         T = self._T(_PARKED)
@@ -181,11 +209,15 @@ class CheckerRig(_Rig):
         quads = self.board.black_quads_local(-TARGET_STANDOFF_M)
         n = len(quads)
         verts = quads.reshape(-1, 3)
-        faces = np.concatenate([np.stack([4 * np.arange(n), 4 * np.arange(n) + 1, 4 * np.arange(n) + 2], 1),
-                                np.stack([4 * np.arange(n), 4 * np.arange(n) + 2, 4 * np.arange(n) + 3], 1)])
+        # wound so that the face normal points to the camera (local -z): a one-sided diffuse BSDF seen
+        # from behind is black whatever its albedo
+        faces = np.concatenate([np.stack([4 * np.arange(n), 4 * np.arange(n) + 2, 4 * np.arange(n) + 1], 1),
+                                np.stack([4 * np.arange(n), 4 * np.arange(n) + 3, 4 * np.arange(n) + 2], 1)])
+        props = mi.Properties()
+        # without a BSDF of its own a mesh gets Mitsuba's default diffuse 0.5
+        props["bsdf"] = mi.load_dict({"type": "diffuse", "reflectance": CHECKER_BLACK_REFLECTANCE})
         mesh = mi.Mesh("checker", vertex_count=len(verts), face_count=len(faces), has_vertex_normals=False,
-                       has_vertex_texcoords=False,
-                       props=mi.Properties())
+                       has_vertex_texcoords=False, props=props)
         params = mi.traverse(mesh)
         # buffer types differ per variant (mi.Float on JIT, drjit.scalar.ArrayXf on scalar)
         self._vertex_type = type(params["vertex_positions"])

@@ -24,7 +24,8 @@ REQUIRED = object()
 @dataclass(frozen=True)
 class Key:
     name: str
-    type: str  # "int", "float", "str", "bool", "name", "table", "range2" (a [lo, hi] pair), "ranges" ([[lo, hi], ...])
+    type: str  # "int", "float", "str", "bool", "name", "table", "range2" (a [lo, hi] pair), "ranges" ([[lo, hi], ...]),
+    # "vec3" ([x, y, z], each in [lo, hi])
     default: Any
     unit: str
     meaning: str
@@ -89,6 +90,10 @@ def check_value(k: Key, v, where: str):
                                                   and r[0] <= r[1] and all(_in(k, x) for x in r) for r in v)):
             bad(f"give [[near, far], ...] with near <= far, each in {rng} {k.unit}")
         v = tuple((float(a), float(b)) for a, b in v)
+    elif k.type == "vec3":
+        if not (isinstance(v, list) and len(v) == 3 and all(_is_num(x) and _in(k, x) for x in v)):
+            bad(f"give [x, y, z], each a number in {rng}" + (f" {k.unit}" if k.unit else ""))
+        v = tuple(float(x) for x in v)
     elif k.type == "table":
         if not isinstance(v, dict):
             bad("must be a table { key = value, ... }")

@@ -6,8 +6,12 @@
     y   = K · (e + N(0, σd²)) + offset                  K = K0 · 10^(G_dB / 20)  [DN/e⁻]
     DN  = clip(round(y), 0, 2^bits − 1)
 
-so that Var(y) = K²(σd² + μe) + 1/12 below saturation.  All randomness comes from
-a seeded ``numpy.random.Generator`` passed in by the caller (never the global RNG).
+so that Var(y) = K²(σd² + μe) + 1/12 below saturation.  The offset (black level) keeps the
+dark noise above 0: nothing clips there.  With a Bayer colour filter array (``cfa``) each
+pixel has its channel's QE (``qe_r``, ``qe_g``, ``qe_b``) instead of ``qe``; demosaicing and
+the output encoding (``output``: raw DN, 8-bit sRGB, JPEG) are ``edgetruth.render.pipeline``.
+All randomness comes from a seeded ``numpy.random.Generator`` passed in by the caller
+(never the global RNG).
 """
 from __future__ import annotations
 
@@ -18,6 +22,8 @@ import numpy as np
 from edgetruth.errors import require
 from edgetruth.render.schema import Key, parse_table
 
+CFA_PATTERNS = ("none", "RGGB", "BGGR", "GRBG", "GBRG")
+OUTPUTS = ("raw", "srgb8", "jpeg")
 PLANCK_J_S = 6.62607015e-34
 SPEED_OF_LIGHT_M_S = 299792458.0
 
@@ -34,7 +40,13 @@ class SensorModel:
     k0_dn_per_e: float = 0.39
     gain_db: float = 0.0
     bits: int = 12
-    dark_offset_dn: float = 0.0
+    dark_offset_dn: float = 256.0
+    cfa: str = "none"
+    qe_r: float = 0.15
+    qe_g: float = 0.6
+    qe_b: float = 0.15
+    output: str = "raw"
+    jpeg_quality: int = 90
 
     def __post_init__(self) -> None:
         require(0 < self.qe <= 1, f"sensor: qe must be in (0, 1], got {self.qe}")
@@ -42,6 +54,9 @@ class SensorModel:
                 "sensor: exposure_s, full_well_e, k0_dn_per_e must be positive")
         require(self.dark_noise_e >= 0, "sensor: dark_noise_e must be >= 0")
         require(1 <= int(self.bits) <= 16, f"sensor: bits must be 1..16 (stored as 16-bit PNG), got {self.bits}")
+        require(self.cfa in CFA_PATTERNS, f"sensor: cfa must be one of {', '.join(CFA_PATTERNS)}")
+        require(self.output in OUTPUTS, f"sensor: output must be one of {', '.join(OUTPUTS)}")
+        require(0 <= self.dark_offset_dn < self.max_dn, "sensor: dark_offset_dn must lie below full scale")
 
     @property
     def gain_dn_per_e(self) -> float:
@@ -59,17 +74,36 @@ class SensorModel:
         photon_energy_j = PLANCK_J_S * SPEED_OF_LIGHT_M_S / (self.wavelength_nm * 1e-9)
         return np.pi / (4.0 * f_number ** 2) * pixel_area_m2 * self.exposure_s / photon_energy_j
 
+    def qe_map(self, shape: tuple[int, int]) -> np.ndarray | float:
+        """η per pixel: ``qe`` without a CFA, else each pixel's channel QE (pattern from pixel (0, 0))."""
+        if self.cfa == "none":
+            return self.qe
+        qe = {"R": self.qe_r, "G": self.qe_g, "B": self.qe_b}
+        out = np.empty(shape)
+        for k, ch in enumerate(self.cfa):
+            out[k // 2::2, k % 2::2] = qe[ch]
+        return out
+
     def mean_electrons(self, radiance: np.ndarray, f_number: float, pitch_um: float) -> np.ndarray:
         """μe = η · μp (no noise, no clipping)."""
-        return self.qe * self.photons_per_radiance(f_number, pitch_um) * np.asarray(radiance, dtype=np.float64)
+        rad = np.asarray(radiance, dtype=np.float64)
+        return self.qe_map(rad.shape) * self.photons_per_radiance(f_number, pitch_um) * rad
 
     def expose_electrons(self, mean_e: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Mean electrons -> digital numbers (uint16), with shot noise, dark noise, clipping, ADC."""
+        return self.expose_clipped(mean_e, rng)[0]
+
+    def expose_clipped(self, mean_e: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """(DN uint16, saturated bool): pixels whose electrons reached the full well or whose DN the ADC
+        clipped at full scale (the black level keeps the low end unclipped)."""
         mean_e = np.clip(np.asarray(mean_e, dtype=np.float64), 0.0, None)
-        e = np.minimum(rng.poisson(mean_e).astype(np.float64), self.full_well_e)
+        e = rng.poisson(mean_e).astype(np.float64)
+        saturated = e >= self.full_well_e
+        e = np.minimum(e, self.full_well_e)
         e += rng.normal(0.0, self.dark_noise_e, size=e.shape) if self.dark_noise_e > 0 else 0.0
-        y = self.gain_dn_per_e * e + self.dark_offset_dn
-        return np.clip(np.rint(y), 0, self.max_dn).astype(np.uint16)
+        y = np.rint(self.gain_dn_per_e * e + self.dark_offset_dn)
+        saturated |= y >= self.max_dn
+        return np.clip(y, 0, self.max_dn).astype(np.uint16), saturated
 
     def expose(self, radiance: np.ndarray, f_number: float, pitch_um: float, rng: np.random.Generator) -> np.ndarray:
         """Radiance image -> digital numbers (uint16)."""
@@ -94,6 +128,7 @@ class SensorModel:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["gain_dn_per_e"] = self.gain_dn_per_e
+        d["max_dn"] = self.max_dn
         d["model"] = "EMVA 1288 linear: Var(y) = K^2 (sigma_d^2 + mu_e) + 1/12"
         return d
 
@@ -109,7 +144,17 @@ SENSOR_KEYS = [
     Key("k0_dn_per_e", "float", _D.k0_dn_per_e, "DN/e-", "system gain K0 at 0 dB", 1e-6, 1e3),
     Key("gain_db", "float", _D.gain_db, "dB", "analog gain G: K = K0 * 10^(G/20)", -40.0, 60.0),
     Key("bits", "int", _D.bits, "bit", "ADC resolution (stored in a 16-bit PNG)", 1, 16),
-    Key("dark_offset_dn", "float", _D.dark_offset_dn, "DN", "black level added before the ADC", 0.0, 65535.0),
+    Key("dark_offset_dn", "float", _D.dark_offset_dn, "DN", "black level (dark offset) added before the ADC, so "
+        "that dark noise is not clipped at 0", 0.0, 65535.0),
+    Key("cfa", "str", _D.cfa, "", "Bayer colour filter array (pattern of the 2x2 block at pixel (0, 0)); the "
+        "output is demosaiced (OpenCV) to gray", choices=CFA_PATTERNS),
+    Key("qe_r", "float", _D.qe_r, "", "QE of the red CFA pixels at the wavelength", 1e-6, 1.0),
+    Key("qe_g", "float", _D.qe_g, "", "QE of the green CFA pixels at the wavelength", 1e-6, 1.0),
+    Key("qe_b", "float", _D.qe_b, "", "QE of the blue CFA pixels at the wavelength", 1e-6, 1.0),
+    Key("output", "str", _D.output, "", "image file content: raw = DN in a 16-bit PNG; srgb8 = (DN - black) / "
+        "(full scale - black) through the sRGB curve in an 8-bit PNG; jpeg = srgb8 through a JPEG encoder "
+        "(decoded pixels in an 8-bit PNG)", choices=OUTPUTS),
+    Key("jpeg_quality", "int", _D.jpeg_quality, "", "JPEG quality (libjpeg scale) for output = jpeg", 1, 100),
 ]
 assert [k.name for k in SENSOR_KEYS] == [f.name for f in fields(SensorModel)]
 

@@ -48,6 +48,9 @@ SPEC_KEYS = [
     Key("camera_scale", "int", 1, "", "binning: the camera with camera_scale x fewer pixels per side (same field "
         "of view, pitch x camera_scale)", 1, 64),
     Key("spp", "int", RenderSettings.spp, "samples/px", "Monte-Carlo samples per pixel", 1, MAX_SPP),
+    Key("edge_spp", "int", RenderSettings.edge_spp, "samples/px", "samples per pixel near a target's outline "
+        "(within the PSF, defocus and motion reach; the rest of the frame uses spp); 0 = spp everywhere", 0,
+        MAX_SPP),
     Key("sampler", "str", RenderSettings.sampler, "", "Mitsuba sampler", choices=SAMPLERS),
     Key("target_size_m", "float", 0.13, "m", "target side (square) or diameter (circle)", 1e-3, 10.0),
     Key("checkerboard", "table", {}, "", "the calibration board {cols, rows, square_m, margin_m}"),
@@ -285,6 +288,7 @@ def load_spec(name_or_path: str | Path) -> Spec:
                             camera=camera, camera_overrides=cam_over, sensor_overrides=dict(g["sensor"])))
         first += n
     return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
-                camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"]),
+                camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"],
+                                                                         edge_spp=s["edge_spp"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
                 text_sha256=hashlib.sha256(path.read_bytes()).hexdigest())

@@ -16,6 +16,7 @@ from edgetruth.render.schema import Key
 TARGET_STANDOFF_M = 10e-6
 BOARD_HALF_SIZE_M = (1.8, 1.5)  # fills the frame at 3 m with room for lateral offsets
 BOARD_REFLECTANCE = 0.8  # white matte board (Lambertian albedo)
+CHECKER_BLACK_REFLECTANCE = 0.04  # the checkerboard's black squares: matte black print
 
 #: Target ids -> shape and material.  Reflectances are Lambertian albedos.
 TARGETS = {
@@ -70,7 +71,9 @@ class Checkerboard:
 
     def to_dict(self) -> dict:
         return {"cols": self.cols, "rows": self.rows, "square_m": self.square_m, "margin_m": self.margin_m,
-                "pattern_size": list(self.pattern_size), "black_square": "(col + row) even, col 0 row 0 at top-left"}
+                "pattern_size": list(self.pattern_size), "black_square": "(col + row) even, col 0 row 0 at top-left",
+                "white_reflectance": BOARD_REFLECTANCE, "black_reflectance": CHECKER_BLACK_REFLECTANCE,
+                "material": "Lambertian (diffuse) white plate and black squares"}
 
 
 _C = Checkerboard()

@@ -2,7 +2,7 @@
 -> size -> Z = fx S / l must be within 0.1 % of the true distance at every distance (T1 square, T2 circle).
 
 Renders go through the renderer's scene objects (``edgetruth.render.dataset.get_rig`` + ``edgetruth.render.ground_truth``)
-with a pinhole-like camera (f/10000: defocus < 0.01 px), zero distortion, full resolution, the
+with a pinhole-like camera (f/10000: defocus < 0.01 px) and a perfect lens (no PSF, no falloff), zero distortion, full resolution, the
 radiance image (no sensor noise) and a crop around the target (board margin > target size so the
 board-level estimate of ``target_finding`` sees the board).  The pose is fronto-parallel with a 3°
 roll (slanted edges sample every subpixel phase); the true model is used (the chain, not the
@@ -40,7 +40,7 @@ def render_clean(target: str, distance_m: float, spp: int = 64, roll_deg: float 
     from edgetruth.render.mitsuba_scene import RenderSettings
     from edgetruth.render.pose import Pose
 
-    cam = replace(load_camera(), f_number=10000.0, distortion=(0.0,) * 5)
+    cam = replace(load_camera().ideal_optics(), f_number=10000.0, distortion=(0.0,) * 5)
     pose = Pose(distance_m, roll_deg=roll_deg)
     gt = target_ground_truth(cam, pose, target, 0.13)
     gt["camera"] = cam.ground_truth()

@@ -16,8 +16,9 @@ def test_blur_radius(distance_m):
     from edgetruth.render.pose import Pose
 
     choose_variant(announce=lambda s: None)
-    # default optics opened to f/1.4 for blur of several pixels; no distortion (isolates defocus)
-    cam = replace(load_camera(), f_number=1.4, distortion=(0.0,) * 5)
+    # default geometry with a perfect lens opened to f/1.4 for blur of several pixels; no distortion and no
+    # PSF (isolates defocus)
+    cam = replace(load_camera().ideal_optics(), f_number=1.4, distortion=(0.0,) * 5)
     expected_r = cam.defocus_radius_px(distance_m)
     dot_r_m = 1e-3 * distance_m  # 1.7 px: big enough that most samples hit it (low MC noise)
     dot_r_px = cam.fx_px * dot_r_m / distance_m

@@ -48,7 +48,7 @@ def test_rendered_dot_grid_matches_project_points():
     if variant == "scalar_rgb":
         pytest.skip("llvm_ad_rgb unavailable: the Python lens sensor needs minutes per frame on scalar_rgb "
                     "(install karellen-llvm-core to run this test)")
-    cam = replace(load_camera(), f_number=0.0)  # pinhole: sharp dots, distortion only
+    cam = replace(load_camera().ideal_optics(), f_number=0.0)  # pinhole, perfect lens: sharp dots, distortion only
     z = 1.0
     half_w, half_h = cam.width_px / 2 / cam.fx_px * z, cam.height_px / 2 / cam.fx_px * z
     xs = np.linspace(-0.93, 0.93, 9) * half_w

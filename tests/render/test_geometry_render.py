@@ -21,7 +21,7 @@ def test_square_width_and_centroid(distance_m):
     from edgetruth.render.pose import Pose
 
     # default optics at 1/4 resolution (320x256, same field of view), pinhole
-    cam = load_camera().scaled(4)
+    cam = load_camera().ideal_optics().scaled(4)  # geometry: no PSF, no falloff
     cam = replace(cam, f_number=0.0, distortion=(0.0,) * 5)
     size_m = 0.13
     pose = Pose(distance_m, lateral_x_m=0.013 * distance_m, lateral_y_m=-0.007 * distance_m)
@@ -40,7 +40,7 @@ def test_crop_window_matches_full_frame():
     from edgetruth.render.emissive import centroid, render_emissive
     from edgetruth.render.pose import Pose
 
-    cam = load_camera().scaled(4)
+    cam = load_camera().ideal_optics().scaled(4)  # geometry: no PSF, no falloff
     pose = Pose(1.0, 0.05, 0.03)
     crop = (150, 120, 60, 50)
     img = render_emissive(cam, [("disk", 0.02, pose)], spp=256, seed=1, crop=crop)

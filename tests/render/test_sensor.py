@@ -45,7 +45,8 @@ def test_gain_formula_and_clipping():
     out = s.expose_electrons(np.array([[0.0, 1e9]]), make_rng(1, 2))
     assert out.dtype == np.uint16 and out.max() == 1023  # ADC clip at 2^bits - 1
     w = SensorModel(full_well_e=1000.0, k0_dn_per_e=1.0, dark_noise_e=0.0)
-    assert w.expose_electrons(np.full((4, 4), 5e4), make_rng(1, 2)).max() == 1000  # full-well clip
+    # full-well clip (above the black level)
+    assert w.expose_electrons(np.full((4, 4), 5e4), make_rng(1, 2)).max() == 1000 + w.dark_offset_dn
 
 
 def test_same_seed_same_bytes_and_different_seed_differs():

@@ -1,0 +1,55 @@
+"""Monte-Carlo noise of a render, measured: two renders with different seeds, (a − b)/√2.
+
+``edge_mc_noise`` renders a black matte square (T1) with the given camera and render settings
+around its outline and reports the Monte-Carlo noise in electrons (default sensor) in bands of
+distance from the true distorted outline, next to the sensor's own temporal noise there.  The
+edge band (``edge_spp``) is rendered as ``render_job`` does.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+BANDS_PX = ((0.0, 1.0), (1.0, 3.0), (3.0, 5.0), (5.0, 10.0), (10.0, 20.0))
+
+
+def edge_mc_noise(camera, settings, distance_m: float, sensor=None, irradiance_w_m2: float = 1.2,
+                  roll_deg: float = 7.0, seeds=(11, 12)) -> dict:
+    """{band: (MC noise e-, sensor temporal noise e-)} for |d| bands around a T1 square's outline."""
+    from edgetruth.render.edge_band import band_tiles, band_width_px, render_band, tile_rig
+    from edgetruth.render.mitsuba_scene import TargetRig
+    from edgetruth.render.outline import OutlineCurve
+    from edgetruth.render.pose import Pose
+    from edgetruth.render.sensor import SensorModel
+
+    sensor = sensor or SensorModel()
+    pose = Pose(distance_m, 0.02, -0.01, 2.0, -1.5, roll_deg=roll_deg)
+    curve = OutlineCurve(camera, pose, "square", 0.13)
+    poly = curve.polyline()
+    x0, y0 = (np.floor(poly.min(0)) - 24).astype(int)
+    x1, y1 = (np.ceil(poly.max(0)) + 24).astype(int)
+    crop = (int(x0), int(y0), int(x1 - x0), int(y1 - y0))
+    base = TargetRig(camera, replace(settings, edge_spp=0), crop=crop)
+    base.set_state("T1", pose, irradiance_w_m2)
+    imgs = []
+    for seed in seeds:
+        img = base.render(seed).astype(np.float64)
+        if settings.edge_spp:
+            width = band_width_px(camera, float(camera.defocus_radius_px(distance_m)))
+            tiles = band_tiles([poly], crop, width)
+            trig = tile_rig(camera, replace(settings, spp=settings.edge_spp), 0.13)
+            trig.set_state("T1", pose, irradiance_w_m2)
+            render_band(img, crop[:2], trig, tiles, seed)
+        imgs.append(img)
+    e_per_rad = sensor.qe * sensor.photons_per_radiance(camera.f_number, camera.pitch_um)
+    diff = (imgs[0] - imgs[1]) / np.sqrt(2.0) * e_per_rad
+    mean = 0.5 * (imgs[0] + imgs[1]) * e_per_rad
+    temporal = np.sqrt(sensor.dark_noise_e ** 2 + mean)
+    ys, xs = np.mgrid[y0:y1, x0:x1]
+    d = np.abs(curve.signed_distance(xs.astype(float), ys.astype(float)))
+    out = {}
+    for lo, hi in BANDS_PX:
+        m = (d >= lo) & (d < hi)
+        out[(lo, hi)] = (float(np.sqrt(np.mean(diff[m] ** 2))), float(np.sqrt(np.mean(temporal[m] ** 2))))
+    return out
