@@ -16,6 +16,19 @@ from edgetruth.render import pipeline
 SATURATION_WARN_FRACTION = 1e-3
 
 
+def predicted_saturated_fraction(radiance: np.ndarray, camera, sensor) -> float:
+    """Expected saturated fraction of the lit pixels, from noise-free radiance (Gaussian
+    approximation of the DN distribution, K²(σd² + μe) + 1/12, and the full-well clip)."""
+    from scipy.special import ndtr
+
+    mean_e = sensor.mean_electrons(radiance, camera.f_number, camera.pitch_um)
+    lit = np.asarray(radiance) > 0
+    dn = sensor.gain_dn_per_e * mean_e + sensor.dark_offset_dn
+    p = ndtr((dn - (sensor.max_dn - 0.5)) / np.sqrt(sensor.predicted_variance_dn2(mean_e)))
+    p = np.maximum(p, ndtr((mean_e - sensor.full_well_e) / np.sqrt(np.maximum(mean_e, 1.0))))
+    return float(p[lit].mean()) if lit.any() else 0.0
+
+
 def capture(radiance: np.ndarray, camera, sensor, rng: np.random.Generator, name: str = "image"):
     """(image file pixels, ground-truth dict) from the radiance of one render."""
     mean_e = sensor.mean_electrons(radiance, camera.f_number, camera.pitch_um)

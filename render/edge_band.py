@@ -1,11 +1,12 @@
 """The edge band: the pixels near a target's outline, rendered again at ``edge_spp``.
 
 Monte-Carlo noise lives at edges: on the flat board the direct integrator's light sample is
-almost deterministic (< 0.1 e⁻ at 64 spp), but a pixel an edge crosses averages a step over
-the pixel, the PSF (whose Airy tail reaches ~20 px at f/4) and the aperture (defocus), and its
-error falls only like spp^-0.5 ... spp^-0.75.  So the whole frame renders at ``spp`` and the
-tiles of ``TILE_PX`` x ``TILE_PX`` pixels that come within ``band_px`` of the outline (at any
-time of the exposure) render again at ``edge_spp`` and replace those pixels.
+almost deterministic (< 0.1 e⁻ at 49 spp), but a pixel whose kernel (pixel ⊗ PSF ⊗ defocus
+disk ⊗ motion path) an edge crosses averages a step, and its error falls only like
+spp^-0.5 ... spp^-0.75.  So the whole frame renders at ``spp`` and the tiles of ``TILE_PX`` x
+``TILE_PX`` pixels that come within ``band_px`` -- the kernel's reach -- of the outline (at any
+time of the exposure) render again at ``edge_spp`` and replace those pixels.  Outside the band
+no sample can cross an edge: those pixels carry only the light sample's noise.
 
 A tile is a small film whose place in the frame the sensor plugin moves (``set_window``), so
 one compiled kernel serves every tile; each tile has its own seed (a hash of the image seed and
@@ -18,18 +19,19 @@ import math
 
 import numpy as np
 
-TILE_PX = 32
-MIN_BAND_PX = 12.0  # the Airy tail's Monte-Carlo noise reaches this far at 64 spp (docs/optics.md)
+TILE_PX = 16
 _rigs: dict = {}
 
 
 def band_width_px(camera, defocus_px: float, motion_px: float = 0.0) -> float:
-    """Half-width of the band around the outline: PSF (6 sigma at the corner, at least
-    ``MIN_BAND_PX``), defocus disk and motion path."""
-    from edgetruth.render.psf import psf_params
+    """Half-width of the band around the outline: the sampled kernel's reach (pixel ⊗ PSF, the
+    table's half-width; the pixel box alone without a PSF), plus the defocus disk and the motion
+    path, plus 1 px."""
+    from edgetruth.render.psf import psf_params, psf_table
 
-    p = psf_params(camera)
-    return max(MIN_BAND_PX, 6.0 * p.sigma_at(1.0) + 2.0) + float(defocus_px) + float(motion_px)
+    table = psf_table(psf_params(camera))
+    reach = math.sqrt(0.5) if table is None else table.half_width_px + table.step_px
+    return reach + float(defocus_px) + float(motion_px) + 1.0
 
 
 def tile_seed(seed: int, x0: int, y0: int) -> int:
@@ -71,19 +73,23 @@ def tile_rig(camera, settings, target_size_m: float, tile_px: int = TILE_PX):
 
 
 def render_band(radiance: np.ndarray, frame_origin: tuple[int, int], rig, tiles: list[tuple[int, int]],
-                seed: int) -> int:
+                seed: int) -> tuple[int, float]:
     """Render ``tiles`` with ``rig`` (a posed window rig) and paste them into ``radiance`` (whose pixel
-    (0, 0) is frame pixel ``frame_origin``).  Returns the number of pixels replaced."""
+    (0, 0) is frame pixel ``frame_origin``).  Returns (pixels replaced, seconds inside the renders)."""
+    import time
+
     t = rig.window[0]
     h, w = radiance.shape
     ox, oy = frame_origin
-    n = 0
+    n, render_s = 0, 0.0
     for x0, y0 in tiles:
+        t0 = time.perf_counter()
         tile = rig.render(tile_seed(seed, x0, y0), window_at=(x0, y0))
+        render_s += time.perf_counter() - t0
         xa, ya = max(x0, ox), max(y0, oy)
         xb, yb = min(x0 + t, ox + w), min(y0 + t, oy + h)
         if xb <= xa or yb <= ya:
             continue
         radiance[ya - oy:yb - oy, xa - ox:xb - ox] = tile[ya - y0:yb - y0, xa - x0:xb - x0]
         n += (xb - xa) * (yb - ya)
-    return n
+    return n, render_s

@@ -20,16 +20,17 @@ def _facing_camera(local_scale: tuple[float, float], pose: Pose) -> np.ndarray:
 
 
 def render_emissive(camera: Camera, shapes: list[tuple[str, float, Pose]], spp: int = 256,
-                    sampler: str = "multijitter", seed: int = 0, crop=None) -> np.ndarray:
+                    sampler: str = "multijitter", seed: int = 0, crop=None, exposure_s: float = 0.0) -> np.ndarray:
     """Render emissive ``(kind, half_size_m, pose)`` shapes (kind: 'square' or 'disk') on black.
 
-    Returns the radiance (H, W) float64 — each pixel's covered fraction.  Loads a new scene
-    per call: meant for tests, not batch rendering.
+    Returns the radiance (H, W) float64 — each pixel's covered fraction (times the lens's
+    relative illumination).  ``exposure_s``: the shutter time of a moving camera.  Loads a new
+    scene per call: meant for tests, not batch rendering.
     """
     import mitsuba as mi
 
     scene = {"type": "scene", "integrator": {"type": "direct"},
-             "sensor": sensor_dict(camera, {"type": sampler, "sample_count": spp}, crop)}
+             "sensor": sensor_dict(camera, {"type": sampler, "sample_count": spp}, crop, exposure_s=exposure_s)}
     for i, (kind, half, pose) in enumerate(shapes):
         scene[f"s{i}"] = {"type": "rectangle" if kind == "square" else "disk",
                           "to_world": mi.ScalarTransform4f(_facing_camera((half, half), pose).tolist()),

@@ -11,7 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 
-BANDS_PX = ((0.0, 1.0), (1.0, 3.0), (3.0, 5.0), (5.0, 10.0), (10.0, 20.0))
+BANDS_PX = ((0.0, 1.0), (1.0, 3.0), (3.0, 5.0), (5.0, 10.0), (10.0, 20.0), (20.0, 1e9))
 
 
 def edge_mc_noise(camera, settings, distance_m: float, sensor=None, irradiance_w_m2: float = 1.2,
@@ -53,3 +53,37 @@ def edge_mc_noise(camera, settings, distance_m: float, sensor=None, irradiance_w
         m = (d >= lo) & (d < hi)
         out[(lo, hi)] = (float(np.sqrt(np.mean(diff[m] ** 2))), float(np.sqrt(np.mean(temporal[m] ** 2))))
     return out
+
+
+def convergence_table(distances_m=(1.0, 1.5), edge_spps=(121, 361, 961, 2209), camera=None) -> list[str]:
+    """Lines: MC noise per |d| band for each edge_spp (orthogonal sampler, base 49 spp), and the
+    spp extrapolated (power law through the two largest) to reach a quarter of the dark noise."""
+    from edgetruth.render.camera import load_camera
+    from edgetruth.render.mitsuba_scene import RenderSettings
+    from edgetruth.render.sensor import SensorModel
+
+    camera = camera or load_camera()
+    target = SensorModel().dark_noise_e / 4
+    lines = []
+    for z in distances_m:
+        rows = {n: edge_mc_noise(camera, RenderSettings(spp=49, edge_spp=n, sampler="orthogonal"), z)
+                for n in edge_spps}
+        for n, r in rows.items():
+            lines.append(f"{z} m edge_spp {n:5d}: " + "; ".join(f"|d| {lo:g}-{hi:g} px {mc:.1f} e-"
+                                                              for (lo, hi), (mc, _) in r.items()))
+        a, b = edge_spps[-2], edge_spps[-1]
+        for band in BANDS_PX[:4]:
+            ya, yb = rows[a][band][0], rows[b][band][0]
+            slope = np.log(yb / ya) / np.log(b / a)
+            need = b * (target / yb) ** (1.0 / slope) if slope < 0 and yb > target else b
+            lines.append(f"{z} m |d| {band[0]:g}-{band[1]:g} px: noise ~ spp^{slope:.2f}; "
+                         f"{target:.1f} e- (1/4 dark noise) needs ~{need:,.0f} spp")
+    return lines
+
+
+if __name__ == "__main__":  # pragma: no cover
+    from edgetruth.render.variants import choose_variant
+
+    choose_variant()
+    for line in convergence_table():
+        print(line, flush=True)

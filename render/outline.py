@@ -82,7 +82,8 @@ class OutlineCurve:
             return POLYLINE_STEP_PX
         ring = self.points(np.linspace(0.0, 1.0, 64, endpoint=False))
         r_px = 0.5 * float(np.min(np.ptp(ring, axis=0)))
-        return min(POLYLINE_STEP_PX, math.sqrt(8.0 * CHORD_TOLERANCE_PX * max(r_px, 1.0)))
+        # 0.8: the ellipse of a tilted circle curves more than its mean radius says
+        return min(POLYLINE_STEP_PX, 0.8 * math.sqrt(8.0 * CHORD_TOLERANCE_PX * max(r_px, 1.0)))
 
     def parameters(self, step_px: float | None = None) -> np.ndarray:
         """Curve parameters spaced at most ``step_px`` apart in the image (the square's corners included)."""
@@ -95,7 +96,7 @@ class OutlineCurve:
             length = float(np.sum(np.linalg.norm(np.diff(probe, axis=0), axis=1)))
             if pieces == 1:
                 length += float(np.linalg.norm(probe[0] - probe[-1]))
-            n = max(8, int(math.ceil(length / step_px)))
+            n = max(8, int(math.ceil(1.1 * length / step_px)))  # 1.1: perspective makes the spacing uneven
             out.append(t0 + (t1 - t0) * np.arange(n) / n)
         return np.concatenate(out)
 

@@ -19,8 +19,9 @@ warp), built in the frequency domain from the analytic OTF (``edgetruth.render.m
 pre-divided by the bilinear interpolation's own transfer sinc²(νx h) sinc²(νy h), so the
 interpolated table reproduces K̂ in the base band.  The grid step h keeps K̂ band-limited
 below the grid's Nyquist frequency 1/(2h) (diffraction cuts off at νc = p/(λN)); the table
-spans ±R with R holding all but ``AIRY_TAIL_LOSS`` of the Airy pattern's energy (its tail
-falls as 2λN/(π²r)) and 6σ of the Gaussian; the truncated kernel is renormalised.
+reaches R (a round support) with R holding all but ``AIRY_TAIL_LOSS`` of the Airy pattern's
+energy (its tail falls as 2λN/(π²r)) and 6σ of the Gaussian; the truncated kernel is
+renormalised.
 
 A field-dependent Gaussian σ(h) = σ0 (1 + g h²) (h: field height / half-diagonal) is
 tabulated at ``FIELD_LEVELS`` values of h² (σ is linear in h², so the warp's linear mixing of
@@ -35,7 +36,7 @@ import numpy as np
 
 from edgetruth.render import mtf
 
-AIRY_TAIL_LOSS = 0.005  # fraction of the Airy energy left outside the table (renormalised)
+AIRY_TAIL_LOSS = 0.01  # fraction of the Airy energy left outside the table (renormalised)
 GAUSS_SIGMAS = 6.0
 FIELD_LEVELS = 9
 MAX_VERTICES = 1025  # per side
@@ -119,18 +120,23 @@ def _band_limit_cy_px(p: PsfParams) -> float:
     return float(nu[min(above[-1] + 1, len(nu) - 1)])
 
 
+def kernel_radius_px(p: PsfParams) -> float:
+    """How far from the pixel centre the tabulated kernel reaches (before rounding to the grid)."""
+    sigma_max = max(p.sigma_at(0.0), p.sigma_at(1.0))
+    airy_r = 0.0
+    if math.isfinite(p.cutoff_cy_px):
+        lam_n_px = 1.0 / p.cutoff_cy_px  # λN in pixels
+        airy_r = 2.0 * lam_n_px / (math.pi ** 2 * AIRY_TAIL_LOSS)
+    return 0.5 * math.sqrt(2.0) + airy_r + GAUSS_SIGMAS * sigma_max + p.olpf_px * math.sqrt(0.5)
+
+
 def table_geometry(p: PsfParams) -> tuple[float, int]:
     """(step h, vertices per side n) of the table for ``p``."""
     band = _band_limit_cy_px(p)
     if not math.isfinite(band):
         raise ValueError("a 4-dot OLPF alone is not band-limited: add diffraction or aberration blur")
     h = min(max(1.0 / (2.2 * band), 1.0 / 64.0), 0.25)  # the grid's Nyquist 1/(2h) >= 1.1 x the band limit
-    sigma_max = max(p.sigma_at(0.0), p.sigma_at(1.0))
-    airy_r = 0.0
-    if math.isfinite(p.cutoff_cy_px):
-        lam_n_px = 1.0 / p.cutoff_cy_px  # λN in pixels
-        airy_r = 2.0 * lam_n_px / (math.pi ** 2 * AIRY_TAIL_LOSS)
-    radius = 0.5 * math.sqrt(2.0) + airy_r + GAUSS_SIGMAS * sigma_max + p.olpf_px * math.sqrt(0.5)
+    radius = kernel_radius_px(p)
     half = int(math.ceil(radius / h))
     if 2 * half + 1 > MAX_VERTICES:  # coarser grid rather than a truncated kernel
         h = radius / ((MAX_VERTICES - 1) // 2)
@@ -149,6 +155,8 @@ def _kernel_level(p: PsfParams, field_height: float, h: float, n: int) -> np.nda
     half = (n - 1) // 2
     idx = np.r_[m - half:m, 0:half + 1]  # vertices -R..R around the origin (index 0)
     k = k[np.ix_(idx, idx)]
+    r = np.arange(-half, half + 1) * h
+    k[np.hypot(r[None, :], r[:, None]) > half * h] = 0.0  # a round support: the kernel reaches R, not R√2
     return np.clip(k, 0.0, None)
 
 

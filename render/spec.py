@@ -37,7 +37,7 @@ KINDS = ("target", "checkerboard")
 SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
 MAX_SPP = 1 << 16
 MAX_IMAGES = 10_000_000
-DEFAULT_IRRADIANCE_W_M2 = 1.75  # the white board at ~80 % of full well at 0 dB (default camera and sensor)
+DEFAULT_IRRADIANCE_W_M2 = 1.2  # the white board centre at ~60 % of the range above the black level at 0 dB
 
 SPEC_KEYS = [
     Key("name", "name", None, "", "spec name (names the output directory and seeds every image); "
@@ -235,6 +235,26 @@ def _n_images(g: dict) -> int:
     return g["count"]
 
 
+def _is_prime(n: int) -> bool:
+    return n >= 2 and all(n % k for k in range(2, int(n ** 0.5) + 1))
+
+
+def _check_sample_counts(s: dict, where: str) -> None:
+    """The orthogonal-array sampler takes p^2 samples (p prime); anything else Mitsuba rounds up silently."""
+    if s["sampler"] != "orthogonal":
+        return
+    for key in ("spp", "edge_spp"):
+        n = s[key]
+        if key == "edge_spp" and n == 0:
+            continue
+        p = round(n ** 0.5)
+        if p * p != n or not _is_prime(p):
+            lo = max((q for q in range(2, int(n ** 0.5) + 1) if _is_prime(q)), default=2)
+            hi = next(q for q in range(int(n ** 0.5) + 1, 10 ** 4) if _is_prime(q))
+            raise InputError(f"{where}: {key} = {n}: the orthogonal sampler takes a prime squared; use {lo * lo} or "
+                             f"{hi * hi} (or another sampler)")
+
+
 def load_spec(name_or_path: str | Path) -> Spec:
     """Parse and validate a spec (a shipped name or a TOML path) into a ``Spec``, in one pass."""
     path = resolve_spec_path(name_or_path)
@@ -287,6 +307,7 @@ def load_spec(name_or_path: str | Path) -> Spec:
                             roll_max_deg=g["roll_max_deg"], irradiance_w_m2=g["irradiance_w_m2"], sensor=sensor,
                             camera=camera, camera_overrides=cam_over, sensor_overrides=dict(g["sensor"])))
         first += n
+    _check_sample_counts(s, f"{src} [spec]")
     return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
                 camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"],
                                                                          edge_spp=s["edge_spp"]),

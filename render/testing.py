@@ -23,6 +23,7 @@ TINY_SPEC = """
 name = "tiny"
 camera = "{camera}"
 spp = {spp}
+edge_spp = {edge_spp}
 sampler = "multijitter"
 checkerboard = {{ cols = 6, rows = 5, square_m = 0.03, margin_m = 0.03 }}
 
@@ -45,10 +46,10 @@ irradiance_w_m2 = 0.0044
 """
 
 
-def write_tiny_spec(tmp_path: Path, spp: int = 16) -> Path:
+def write_tiny_spec(tmp_path: Path, spp: int = 16, edge_spp: int = 36) -> Path:
     """Write a 64×48-pixel camera and a 3-image spec (2 circles, 1 checkerboard) into ``tmp_path``."""
     cam = tmp_path / "tiny_cam.toml"
     cam.write_text(TINY_CAMERA)
     spec = tmp_path / "tiny.toml"
-    spec.write_text(TINY_SPEC.format(camera=cam, spp=spp))
+    spec.write_text(TINY_SPEC.format(camera=cam, spp=spp, edge_spp=edge_spp))
     return spec

@@ -52,8 +52,8 @@ def render_clean(target: str, distance_m: float, spp: int = 64, roll_deg: float 
     x1 = min(cam.width_px, int(pts[:, 0].max()) + m + 1)
     y1 = min(cam.height_px, int(pts[:, 1].max()) + m + 1)
     crop = (x0, y0, x1 - x0, y1 - y0)
-    rig = get_rig("target", cam, RenderSettings(spp=spp), 0.13, crop)
-    rig.set_state(target, pose, 1.75)
+    rig = get_rig("target", cam, RenderSettings(spp=spp, sampler="multijitter"), 0.13, crop)
+    rig.set_state(target, pose, 1.2)
     img = rig.render(seed=7)
     return img.astype(np.float64), (x0, y0), gt, cam
 

@@ -98,8 +98,43 @@ def test_ground_truth_content(tmp_path):
     for key in ("seed", "sensor", "versions", "true_distance_m", "illumination", "defocus_radius_px"):
         assert key in gt
     assert gt["versions"]["variant"] and gt["versions"]["mitsuba"]
+    # every optics and sensor parameter the render used, and what the pixels mean
+    optics = gt["camera"]["optics"]
+    assert optics["psf"]["diffraction_wavelength_nm"] == 550.0 and optics["mtf50_centre_cy_px"] > 0
+    assert optics["mtf50_corner_cy_px"] <= optics["mtf50_centre_cy_px"]
+    assert gt["optics_at_target"]["mtf50_cy_px"] > 0 and gt["render"]["psf"]["sampled"]
+    assert gt["image"]["png_bit_depth"] == 16 and gt["image"]["black_level_dn"] == gt["sensor"]["dark_offset_dn"] > 0
+    assert 0 <= gt["saturation"]["fraction_lit"] <= 1e-3
+    band = gt["render"]["edge_band"]
+    assert band["spp"] == 36 and band["pixels"] > 0 and band["band_px"] > 1
+    # the dense polyline lies on the distorted circle: cv2.projectPoints at its parameters
+    t = np.asarray(gt["outline"]["polyline_parameter"])
+    a = 2 * np.pi * t
+    local = np.c_[h * np.cos(a), h * np.sin(a), np.full(len(t), -gt["target"]["standoff_m"])]
+    ref, _ = cv2.projectPoints(local, rvec, t_vec := np.array(gt["pose"]["t_cam_from_board_m"]), K,
+                               np.array(gt["camera"]["dist_coeffs_opencv"]))
+    np.testing.assert_allclose(gt["outline"]["polyline_distorted_px"], ref.reshape(-1, 2), atol=1e-6)
+    assert gt["outline"]["polyline_chord_error_px"] < 1e-3 and len(t_vec) == 3
     cal = ds.checkerboards()[0].truth
     assert len(cal["corners"]["distorted_px"]) == 5 * 4
+    assert cal["checkerboard"]["black_reflectance"] == 0.04 and cal["checkerboard"]["white_reflectance"] == 0.8
+
+
+def test_8_bit_outputs_are_8_bit_pngs(tmp_path):
+    import cv2
+
+    from edgetruth.render import open_dataset
+    from edgetruth.render.dataset import render_spec
+
+    spec = _spec(tmp_path)
+    spec.write_text(spec.read_text().replace("[[group]]", '[sensor]\noutput = "jpeg"\njpeg_quality = 80\n'
+                                             'cfa = "RGGB"\n\n[[group]]', 1))
+    out = tmp_path / "jpg"
+    render_spec(spec, out, progress=False, only=[0], announce=lambda s: None)
+    s = open_dataset(out)[0]
+    raw = cv2.imread(str(out / f"{s.name}.png"), cv2.IMREAD_UNCHANGED)
+    assert raw.dtype == np.uint8 and s.truth["image"]["png_bit_depth"] == 8
+    assert "quality 80" in s.truth["image"]["encoding"] and s.truth["image"]["cfa"] == "RGGB"
 
 
 def test_seed_is_pure_function_of_spec_and_index():

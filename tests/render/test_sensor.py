@@ -73,3 +73,49 @@ def test_photometry():
 def test_unknown_sensor_key_is_input_error():
     with pytest.raises(InputError, match="unknown key"):
         sensor_from_dict({"gain": 3})
+
+
+def test_black_level_keeps_dark_noise_unclipped_and_the_ptc_linear():
+    """Dark frames at the highest gain the shipped specs use: no pixel at DN 0; the photon-transfer
+    curve from the dark level up is linear, slope K, intercept K² σd² + 1/12, dark mean = black level."""
+    from edgetruth.render.spec import load_spec
+
+    gain_db = max(g.sensor.gain_db for name in ("snr", "standard", "targets", "quick") for g in load_spec(name).groups)
+    s = SensorModel(gain_db=gain_db)
+    levels = np.r_[0.0, np.linspace(0.02, 0.7, 8) * (s.max_dn - s.dark_offset_dn) / s.gain_dn_per_e]
+    means, variances = [], []
+    for i, mu_e in enumerate(levels):
+        a, b = _pair(s, mu_e, seed=40 + i)
+        if mu_e == 0:
+            assert a.min() > 0 and b.min() > 0  # nothing clips at 0
+            assert abs(a.mean() - s.dark_offset_dn) < 4 * a.std() / np.sqrt(a.size)
+        means.append(0.5 * (a.mean() + b.mean()) - s.dark_offset_dn)
+        variances.append(np.var(a - b) / 2.0)
+    slope, intercept = np.polyfit(means, variances, 1)
+    k = s.gain_dn_per_e
+    print(f"gain {gain_db} dB: PTC slope {slope:.4f} (K {k:.4f}), intercept {intercept:.2f} "
+          f"(K^2 sd^2 + 1/12 = {k * k * s.dark_noise_e ** 2 + 1 / 12:.2f})")
+    assert abs(slope / k - 1.0) < 0.02
+    assert abs(intercept / (k * k * s.dark_noise_e ** 2 + 1 / 12) - 1.0) < 0.05
+
+
+def test_cfa_channel_means_follow_their_qe():
+    """A flat field through an RGGB mosaic: each channel's mean DN = K η_c μp + black; OpenCV's
+    demosaicing keeps a flat field flat, and the gray output is 0.299 R + 0.587 G + 0.114 B."""
+    from edgetruth.render.pipeline import develop
+
+    s = SensorModel(cfa="RGGB", qe_r=0.2, qe_g=0.55, qe_b=0.12)
+    radiance = np.full((256, 256), 0.2)
+    mu_p = s.photons_per_radiance(4.0, 4.8) * 0.2
+    raw = s.expose(radiance, 4.0, 4.8, make_rng(3, 2)).astype(np.float64)
+    k = s.gain_dn_per_e
+    expected = {}
+    for (dy, dx), ch, qe in (((0, 0), "R", s.qe_r), ((0, 1), "G", s.qe_g), ((1, 0), "G", s.qe_g), ((1, 1), "B", s.qe_b)):
+        px = raw[dy::2, dx::2]
+        expected[ch] = k * qe * mu_p + s.dark_offset_dn
+        se = np.sqrt(s.predicted_variance_dn2(qe * mu_p) / px.size)
+        assert abs(px.mean() - expected[ch]) < 4 * se, (ch, px.mean(), expected[ch])
+    gray = develop(raw.astype(np.uint16), s).astype(np.float64)[4:-4, 4:-4]
+    y = 0.299 * expected["R"] + 0.587 * expected["G"] + 0.114 * expected["B"]
+    assert abs(gray.mean() - y) < 1.0  # rounding of the 16-bit demosaic and gray steps
+    assert gray.dtype == np.float64 and develop(raw.astype(np.uint16), s).dtype == np.uint16
