@@ -45,13 +45,13 @@ class RenderSettings:
     """Monte-Carlo settings (the shipped specs' values; docs/optics.md has the measured noise):
     flat regions at ``spp``, the band around a target's outline at ``edge_spp``."""
 
-    spp: int = 49
+    spp: int = 25
     sampler: str = "orthogonal"
     samples_per_pass: int = 0  # 0: all in one pass (JIT memory ~ pixels × spp)
     #: the shutter time rays are spread over (a moving camera only; 0: static)
     exposure_s: float = 0.0
     #: spp of the pixels near a target's outline (``edgetruth.render.edge_band``); 0: none
-    edge_spp: int = 961
+    edge_spp: int = 2209
 
     def to_dict(self) -> dict:
         d = {"spp": self.spp, "sampler": self.sampler, "samples_per_pass": self.samples_per_pass,

@@ -46,3 +46,31 @@ def test_bad_camera_specs_are_input_errors(tmp_path):
     bad.write_text("[camera\n")
     with pytest.raises(InputError, match="invalid TOML"):
         load_camera(bad)
+
+
+def test_default_camera_is_a_real_one():
+    """The shipped lens: in focus MTF50 0.30 cy/px at the centre (0.27-0.33), lower at the corner;
+    falloff towards the corners; every parameter in the ground truth."""
+    from edgetruth.render.optics import predicted_mtf50
+
+    cam = load_camera()
+    gt = cam.ground_truth()["optics"]
+    assert 0.29 < predicted_mtf50(cam) == gt["mtf50_centre_cy_px"] < 0.31
+    assert gt["mtf50_corner_cy_px"] < gt["mtf50_centre_cy_px"] - 0.05
+    assert gt["relative_illumination"]["corner"] < 0.7
+    assert gt["psf"]["aberration_sigma_um"] == cam.aberration_sigma_um == 2.13
+
+
+def test_optics_keys_parse_and_scale_with_binning():
+    cam = camera_from_dict({"aberration_sigma_um": 2.0, "olpf_split_um": 3.0, "velocity_m_s": [0.1, 0, 0],
+                            "angular_velocity_deg_s": [0, 5, 0], "natural_vignetting": False, "shading_a2": -0.1})
+    assert cam.velocity_m_s == (0.1, 0.0, 0.0) and cam.moving and not cam.natural_vignetting
+    from edgetruth.render.psf import psf_params
+
+    p1, p2 = psf_params(cam), psf_params(cam.scaled(2))
+    assert p2.sigma_px == pytest.approx(p1.sigma_px / 2) and p2.olpf_px == pytest.approx(p1.olpf_px / 2)
+    assert p2.cutoff_cy_px == pytest.approx(2 * p1.cutoff_cy_px)  # p / (λN): in cycles per (bigger) pixel
+    with pytest.raises(InputError, match="velocity_m_s"):
+        camera_from_dict({"velocity_m_s": [1, 2]})
+    with pytest.raises(InputError, match="olpf_split_um"):  # an OLPF alone has no band limit to tabulate
+        camera_from_dict({"olpf_split_um": 3.0, "diffraction_wavelength_nm": 0.0})
