@@ -143,3 +143,27 @@ def test_seed_is_pure_function_of_spec_and_index():
     assert image_seed("standard", 3) == image_seed("standard", 3)
     assert len({image_seed("standard", i) for i in range(1000)}) == 1000
     assert image_seed("standard", 3) != image_seed("snr", 3)
+
+
+def test_moving_camera_ground_truth_is_mid_exposure_plus_the_motion(tmp_path):
+    from edgetruth.render import open_dataset
+    from edgetruth.render.dataset import render_spec
+
+    spec = _spec(tmp_path)
+    spec.write_text(spec.read_text().replace("tilt_max_deg = 5\n", "tilt_max_deg = 5\n"
+                                             "camera = { velocity_m_s = [1.5, 0.0, 0.0] }\n", 1))
+    still = tmp_path / "still.toml"
+    still.write_text(spec.read_text().replace("camera = { velocity_m_s = [1.5, 0.0, 0.0] }\n", ""))
+    render_spec(spec, tmp_path / "moving", progress=False, only=[0], announce=lambda s: None)
+    render_spec(still, tmp_path / "still", progress=False, only=[0], announce=lambda s: None)
+    moving, static = open_dataset(tmp_path / "moving")[0], open_dataset(tmp_path / "still")[0]
+    m = moving.truth["motion"]
+    assert m["velocity_m_s"] == [1.5, 0.0, 0.0] and m["exposure_s"] == moving.truth["sensor"]["exposure_s"]
+    assert "motion" not in static.truth
+    # mid-exposure outline = the static one (same pose); start and end straddle it
+    np.testing.assert_allclose(moving.truth["outline"]["distorted_px"], static.truth["outline"]["distorted_px"])
+    mid = np.asarray(moving.truth["outline"]["distorted_px"])
+    start, end = np.asarray(m["outline_start_distorted_px"]), np.asarray(m["outline_end_distorted_px"])
+    assert np.all(end[:, 0] < mid[:, 0]) and np.all(start[:, 0] > mid[:, 0])  # camera right: image moves left
+    np.testing.assert_allclose(0.5 * (start + end), mid, atol=0.05)
+    assert np.abs(moving.radiance - static.radiance).max() > 0.1 * np.ptp(static.radiance)  # ~1.8 px of motion

@@ -126,3 +126,27 @@ def test_docs_spec_md_is_generated_from_the_key_tables():
     assert doc == spec_markdown(), "docs/spec.md is stale: python -m edgetruth.render.spec_doc > docs/spec.md"
     for key in ("irradiance_w_m2", "f_number", "dark_offset_dn", "distance_intervals_cm", "square_m"):
         assert f"`{key}`" in doc
+
+
+def test_groups_sweep_the_optics_and_motion(tmp_path):
+    p = _write(tmp_path, extra='camera = { aberration_sigma_um = 3.0, olpf_split_um = 2.0, '
+                                'velocity_m_s = [0.2, 0.0, 0.0], natural_vignetting = false }')
+    spec = load_spec(p)
+    g = spec.group("f8").camera
+    assert (g.aberration_sigma_um, g.olpf_split_um, g.velocity_m_s, g.natural_vignetting) == (3.0, 2.0, (0.2, 0.0, 0.0),
+                                                                                              False)
+    assert spec.group("f2").camera.aberration_sigma_um == spec.camera.aberration_sigma_um  # untouched
+    with pytest.raises(InputError, match="pitch_um fix the intrinsics"):
+        load_spec(_write(tmp_path / "b", extra="camera = { pitch_um = 3.0 }"))
+
+
+def test_orthogonal_sampler_needs_a_prime_squared(tmp_path):
+    p = _write(tmp_path)
+    p.write_text(p.read_text().replace("spp = 4", 'spp = 64\nsampler = "orthogonal"'))
+    with pytest.raises(InputError, match="spp = 64: the orthogonal sampler takes a prime squared; use 49 or 121"):
+        load_spec(p)
+    p.write_text(p.read_text().replace("spp = 64", "spp = 49\nedge_spp = 1000"))
+    with pytest.raises(InputError, match="edge_spp = 1000.*use 961 or 1369"):
+        load_spec(p)
+    p.write_text(p.read_text().replace("edge_spp = 1000", "edge_spp = 961"))
+    assert (load_spec(p).render.spp, load_spec(p).render.edge_spp) == (49, 961)
