@@ -354,7 +354,7 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
         f"lines and circles alternating; {d.scenario.size} on-edge candidate points "
         f"(|candidate − true edge| ≤ {MATCH_RADIUS_PX} px), {d.off_edge} off-edge candidates excluded for every method. "
         "Seeds: test split (disjoint from the threshold calibration split). "
-        f"Entropy thresholds: 2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({_thresholds_label(tau['source'])}). "
+        f"Entropy thresholds: 2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']}). "
         f"Study options: { {m: {k: v for k, v in o.items() if k != 'tau'} for m, o in d.options.items()} }. Errors are signed distances to the true edge along the true normal; "
         "failed refinements count with the candidate pixel (see 'converged %').",
         "",
@@ -410,16 +410,6 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
     tmp.replace(report)
     (out_dir / "claims.json").write_text(json.dumps(claims, indent=2) + "\n")
     return report
-
-
-def _thresholds_label(source: str) -> str:
-    from edgetruth.resources import shipped_thresholds
-
-    try:
-        shipped = Path(source).resolve() == shipped_thresholds().resolve()
-    except Exception:
-        shipped = False
-    return "shipped: assets/entropy_thresholds.json" if shipped else f"from {Path(source).name}"
 
 
 def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: bool = True,
