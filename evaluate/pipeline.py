@@ -31,8 +31,8 @@ def utc_stamp() -> str:
     return datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
 
 
-def prepare_run_dir(out: str | Path, kind: str, settings: dict, option: str = "-o") -> Path:
-    """Create (or re-open, to resume) a run directory; refuse a file or a foreign non-empty directory."""
+def check_run_dir(out: str | Path, kind: str, option: str = "-o") -> Path:
+    """Refuse (without creating anything) a file, or a non-empty directory that is not a ``kind`` run."""
     out = check_output_dir(out, option)
     marker = out / RUN_MARKER
     if out.is_dir() and any(out.iterdir()):
@@ -46,6 +46,13 @@ def prepare_run_dir(out: str | Path, kind: str, settings: dict, option: str = "-
         if old.get("kind") != kind:
             raise InputError(f"{option} {out}: holds an `edgetruth {old.get('kind')}` run, not `{kind}`; "
                              "choose a new directory")
+    return out
+
+
+def prepare_run_dir(out: str | Path, kind: str, settings: dict, option: str = "-o") -> Path:
+    """Create (or re-open, to resume) a run directory; refuse a file or a foreign non-empty directory."""
+    out = check_run_dir(out, kind, option)
+    marker = out / RUN_MARKER
     out.mkdir(parents=True, exist_ok=True)
     write_json(marker, {"kind": kind, "edgetruth": __version__, "settings": settings, "updated_utc": utc_stamp()})
     return out

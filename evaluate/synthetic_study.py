@@ -429,6 +429,10 @@ def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: 
 
     check_backend_args(backend, workers, address)
     options = mo.study_options(thresholds)
+    out_dir = Path(out_dir)
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not (out_dir / "cache" / "key.json").is_file():
+        raise InputError(f"-o {out_dir}: exists, is not empty and holds no synthetic study (no cache/key.json); "
+                         "choose a new directory, or an earlier study's to resume it")
     out_dir = make_output_dir(out_dir)
     t0 = time.perf_counter()
     d = collect(out_dir, n_per, methods, progress=progress, backend=backend, workers=workers, address=address,
