@@ -113,6 +113,17 @@ def true_size_px(gt: dict) -> float:
     return 2.0 * circle_taubin(pts[:, 0], pts[:, 1])[2]
 
 
+def design_fields(gt: dict) -> dict:
+    """Row fields of a paired design cell: its pose slot, its levels (``f1=L1;f2=L2``) and the factors
+    it moves off the base cell (``off_base``; empty for the base cell)."""
+    d = gt.get("design")
+    if not d:
+        return {"slot": "", "levels": "", "off_base": ""}
+    lv, base = d.get("levels") or {}, d.get("base_levels") or {}
+    return {"slot": d["slot"], "levels": ";".join(f"{k}={v}" for k, v in lv.items()),
+            "off_base": ",".join(k for k, v in lv.items() if base.get(k) != v)}
+
+
 def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[str], keep_points: bool = False,
                   name: str = "image", options: dict | None = None) -> ImageResult:
     """Run steps 1-5 on one image; ``gt`` supplies only the target's shape/size (and the scoring truth)."""
@@ -125,7 +136,7 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
     fx, fy, cy = cal.fx, cal.fy, cal.cy
     base = {"image": name, "spec": gt.get("spec", ""), "group": gt.get("group", ""),
             "target": gt["target"]["id"], "shape": shape, "true_distance_m": z_true,
-            "interval": interval_label(100 * z_true)}
+            "interval": interval_label(100 * z_true), **design_fields(gt)}
     floor_l = true_size_px(gt)
     f_true = float(gt["camera"]["fx_px"])
     base["model_floor_cm"] = 100.0 * (distance_from_size(f_true, size_m, floor_l) - z_true)
@@ -165,7 +176,8 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
     return res
 
 
-ROW_FIELDS = ("dataset", "image", "spec", "group", "target", "shape", "true_distance_m", "interval", "method", "status",
+ROW_FIELDS = ("dataset", "image", "spec", "group", "slot", "levels", "off_base", "target", "shape", "true_distance_m",
+              "interval", "method", "status",
               "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px", "size_seed_px", "size_error_px",
               "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm", "n_points", "n_used", "fit_rms_px",
               "converged_frac", "time_s")

@@ -30,15 +30,34 @@ def _label(m: str) -> str:
     return locate.METHODS[m].label if m in locate.METHODS else m
 
 
+def _level(row, factor: str) -> str | None:
+    for part in str(row.get("levels", "")).split(";"):
+        k, _, v = part.partition("=")
+        if k == factor:
+            return v
+    return None
+
+
+#: the design factors behind Tables 16 (SNR levels G1-G4) and 17 (targets T1-T4)
+TABLE_FACTORS = {"G": ("snr", "illumination"), "T": ("target",)}
+
+
 def main_rows(rows):
-    """Rows of Tables 13-15 and claims 1-4: the ``standard`` spec when present (the seed's standard
-    experiment: T1, G1 light), else every row (``quick``)."""
-    return [r for r in rows if r.get("spec") == "standard"] or list(rows)
+    """Rows of Tables 13-15 and claims 1-4: a paired design's base cell (every factor at its first
+    level: the seed's standard experiment); else the ``standard`` spec when present; else every row."""
+    base = [r for r in rows if r.get("levels") and r.get("off_base", "") == ""]
+    return base or [r for r in rows if r.get("spec") == "standard"] or list(rows)
 
 
 def group_rows(rows, prefix: str):
-    """Rows of Table 16 (prefix G: the ``snr`` spec) or 17 (prefix T: the ``targets`` spec), else every row
-    whose group is G1..G4 / T1..T4."""
+    """Rows of Table 16 (prefix G) or 17 (prefix T), with ``group`` = the level.  A paired design: the
+    cells that move only that factor off the base (every level on the same pose slots).  Otherwise
+    the ``snr`` / ``targets`` spec, else every row whose group is G1..G4 / T1..T4."""
+    for factor in TABLE_FACTORS[prefix]:
+        sel = [dict(r, group=_level(r, factor)) for r in rows
+               if r.get("levels") and r.get("off_base", "") in ("", factor) and _level(r, factor)]
+        if sel:
+            return sel
     spec = {"G": "snr", "T": "targets"}[prefix]
     sel = [r for r in rows if r.get("spec") == spec]
     if not sel:
@@ -137,7 +156,7 @@ def level_analysis(rows, groups: list[str]) -> dict:
     by = {g: {(r.get("spec", ""), r.get("slot")): abs(r["error_cm"]) for r in ok if r["group"] == g} for g in groups}
     slots = set.intersection(*(set(v) for v in by.values())) if by else set()
     rmses = [rmse([r["error_cm"] for r in ok if r["group"] == g]) for g in groups]
-    if slots and all(k[1] is not None for k in slots):
+    if slots and all(k[1] not in (None, "") for k in slots):
         keys = sorted(slots, key=str)
         m = np.array([[by[g][k] for g in groups] for k in keys])
         f = friedman(m)
