@@ -14,7 +14,7 @@ INTRO = """# Render specs and cameras
 
 A **spec** (TOML) declares a dataset: `edgetruth render SPEC -o DIR` renders every image
 of it, each a pure function of (spec, index).  `SPEC` is a shipped name (`quick`,
-`standard`, `snr`, `targets`, `calibration`) or a path.  A spec has a `[spec]` table, an
+`study`, `calibration`) or a path.  A spec has a `[spec]` table, an
 optional `[sensor]` table, `[[group]]` tables (each draws its own poses) and/or a
 `[design]` (paired cells on shared pose slots); a **camera** is a TOML file
 with a `[camera]` table, named by `[spec] camera` (a shipped name, or a path relative to

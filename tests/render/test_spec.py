@@ -106,7 +106,7 @@ def test_shipped_specs_load():
     from edgetruth.resources import shipped_spec_names
 
     names = shipped_spec_names()
-    assert {"quick", "standard", "snr", "targets", "calibration"} <= set(names)
+    assert {"quick", "study", "calibration"} <= set(names)
     for n in names:
         assert load_spec(n).n_images > 0
 
