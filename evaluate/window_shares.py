@@ -4,7 +4,7 @@ The same chain as the ranging study up to the refinement (target finding on the 
 boundary candidates, ``dynamic_erf_4p`` with the shipped thresholds), without calibration or
 undistortion: the window depends on the edge's blur, which the lens model sets.
 
-    python -m edgetruth.evaluate.window_shares runs/standard [more datasets...]
+    python -m edgetruth.evaluate.window_shares runs/study [more datasets...] [--group G1_T1]
 """
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ def image_window_counts(image: np.ndarray, method: str = "dynamic_erf_4p") -> di
     return {k: int(np.sum(w == k)) for k in WINDOWS}
 
 
-def window_shares(dataset_dirs, method: str = "dynamic_erf_4p") -> dict:
+def window_shares(dataset_dirs, method: str = "dynamic_erf_4p", groups=None) -> dict:
     """{"total": {5: share, ...}, "by_interval": {"50-100": {...}, ...}, "n_points": N, "n_images": M}."""
     from edgetruth.evaluate.ranging import interval_label
     from edgetruth.render.reader import open_dataset
@@ -35,6 +35,8 @@ def window_shares(dataset_dirs, method: str = "dynamic_erf_4p") -> dict:
     n_images = 0
     for d in dataset_dirs:
         for s in open_dataset(d).targets():
+            if groups and s.group not in groups:
+                continue
             counts = image_window_counts(s.image, method)
             key = interval_label(100 * float(s.truth["true_distance_m"]))
             acc = by_interval.setdefault(key, dict.fromkeys(WINDOWS, 0))
@@ -52,7 +54,9 @@ def window_shares(dataset_dirs, method: str = "dynamic_erf_4p") -> dict:
 
 
 def main(argv: list[str]) -> int:  # pragma: no cover - a thin printer
-    r = window_shares(argv)
+    groups = [argv[i + 1] for i, a in enumerate(argv) if a == "--group"]
+    dirs = [a for i, a in enumerate(argv) if a != "--group" and (i == 0 or argv[i - 1] != "--group")]
+    r = window_shares(dirs, groups=groups or None)
     fmt = lambda s: "  ".join(f"{k}: {100 * v:5.1f} %" for k, v in s.items())  # noqa: E731
     print(f"{r['method']} window shares over {r['n_images']} images, {r['n_points']} points: {fmt(r['total'])}")
     for k, s in r["by_interval"].items():

@@ -35,6 +35,7 @@ FORMAT_VERSION = 1
 POSE_STREAM, SENSOR_STREAM = 1, 2
 VIEW_MARGIN_PX = 12.0  # full-size frames; small test frames use 2 % of their width
 _rigs: dict = {}
+_radiance_cache: dict = {}  # the last design-slot radiance this process rendered (its cells reuse it)
 
 
 # --- scene objects ----------------------------------------------------------------
@@ -58,7 +59,7 @@ def _half_view_m(camera: Camera, distance_m: float) -> np.ndarray:
 def job_pose(job: Job, camera: Camera, outline_local: np.ndarray) -> Pose:
     """The pose of a job: distance from the spec, lateral offset and tilts drawn from the job seed,
     redrawn (deterministically) until the outline lies inside the image."""
-    rng = make_rng(job.seed, POSE_STREAM)
+    rng = make_rng(job.pose_seed, POSE_STREAM)
     d = job.distance_cm / 100.0
     extent = float(np.max(np.abs(outline_local[:, :2])))
     for attempt in range(200):
@@ -96,11 +97,16 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
     camera = job.camera
     sensor = job.sensor
     settings = replace(spec.render, exposure_s=sensor.exposure_s) if camera.moving else spec.render
+    # a design cell renders its unit's radiance at the unit's irradiance and scales it (light transport
+    # is linear in emitted power): every cell of a unit shares one render, whatever order they come in
+    e_render = job.unit_irradiance_w_m2 if job.unit_irradiance_w_m2 is not None else job.irradiance_w_m2
     if job.kind == "target":
         size_m = spec.target_size_m
-        pose = job_pose(job, camera, target_outline_local(TARGETS[job.target]["shape"], size_m))
+        # paired cells share the pose whatever the target: the view check uses the square (it bounds the circle)
+        shape = "square" if job.slot is not None else TARGETS[job.target]["shape"]
+        pose = job_pose(job, camera, target_outline_local(shape, size_m))
         rig = get_rig("target", camera, settings, size_m, crop)
-        le = rig.set_state(job.target, pose, job.irradiance_w_m2)
+        le = rig.set_state(job.target, pose, e_render)
         gt = target_ground_truth(camera, pose, job.target, size_m, exposure_s=sensor.exposure_s)
         cx, cy = gt["centre"]["distorted_px"][0]
         h = float(field_height(camera, cx, cy))
@@ -111,24 +117,42 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
         board = spec.checkerboard
         pose = job_pose(job, camera, board.plate_corners_local())
         rig = get_rig("checkerboard", camera, settings, board, crop)
-        le = rig.set_state(pose, job.irradiance_w_m2)
+        le = rig.set_state(pose, e_render)
         gt = checker_ground_truth(camera, pose, board)
+    key = (spec.identity_sha256, job.radiance_unit, job.slot, crop)
     t0 = time.perf_counter()
-    radiance = rig.render(job.seed)
-    render_s = time.perf_counter() - t0
-    band = None
-    if job.kind == "target" and settings.edge_spp:
-        band = _edge_band(radiance, camera, settings, job, pose, gt, crop)
-        render_s += band.pop("render_s")
+    if job.slot is not None and _radiance_cache.get("key") == key:
+        radiance, band = _radiance_cache["radiance"], _radiance_cache["band"]
+        reused, render_s = True, 0.0
+    else:
+        radiance = rig.render(job.render_seed)
+        render_s = time.perf_counter() - t0
+        band = None
+        if job.kind == "target" and settings.edge_spp:  # part of the unit's radiance: the cells reuse it too
+            band = _edge_band(radiance, camera, settings, job, pose, gt, crop, e_render)
+            render_s += band.pop("render_s")
+        reused = False
+        if job.slot is not None:
+            _radiance_cache.update(key=key, radiance=radiance, band=band)
     if timings is not None:
         timings["render_s"] = timings.get("render_s", 0.0) + render_s
+        timings["reused"] = timings.get("reused", 0) + int(reused)
+    scale = job.irradiance_w_m2 / e_render
+    if scale != 1.0:
+        radiance = (radiance * np.float32(scale)).astype(np.float32)
+        le *= scale
     image, captured = capture(radiance, camera, sensor, make_rng(job.seed, SENSOR_STREAM), name=job.name)
     full = {
         "format": FORMAT_VERSION,
         "name": job.name, "index": job.index, "spec": spec.name, "group": job.group, "kind": job.kind,
         "seed": job.seed,
-        "seeds": {"mitsuba": job.seed, "pose_rng": [job.seed, POSE_STREAM], "sensor_rng": [job.seed, SENSOR_STREAM],
-                  "rng": "numpy PCG64 seeded with [seed, stream]"},
+        "seeds": {"mitsuba": job.render_seed, "pose_rng": [job.pose_seed, POSE_STREAM],
+                  "sensor_rng": [job.seed, SENSOR_STREAM], "rng": "numpy PCG64 seeded with [seed, stream]"},
+        "design": None if job.slot is None else {
+            "slot": job.slot, "levels": job.levels, "base_levels": job.base_levels, "radiance_unit": job.radiance_unit,
+            "unit_irradiance_w_m2": job.unit_irradiance_w_m2, "radiance_scale": scale,
+            "pairing": "every cell of the spec's design renders pose slot `slot` (same seed, same pose); cells "
+                       "of one radiance unit share one render, scaled by irradiance / unit irradiance"},
         "conventions": "pixel coordinates: OpenCV (pixel (r, c) centre at x=c, y=r); lengths in metres; "
                        "camera frame x right, y down, z forward",
         "camera": camera.ground_truth(),
@@ -149,7 +173,7 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
     return radiance, image, full
 
 
-def _edge_band(radiance, camera, settings, job, pose, gt, crop) -> dict:
+def _edge_band(radiance, camera, settings, job, pose, gt, crop, irradiance_w_m2) -> dict:
     """Re-render the pixels near the target's outline at ``settings.edge_spp`` (in place)."""
     from edgetruth.render.edge_band import TILE_PX, band_tiles, band_width_px, render_band, tile_rig
 
@@ -163,8 +187,8 @@ def _edge_band(radiance, camera, settings, job, pose, gt, crop) -> dict:
     frame = tuple(crop) if crop else (0, 0, camera.width_px, camera.height_px)
     tiles = band_tiles(outlines, frame, width)
     trig = tile_rig(camera, replace(settings, spp=settings.edge_spp), float(gt["target"]["size_m"]))
-    trig.set_state(job.target, pose, job.irradiance_w_m2)
-    n, render_s = render_band(radiance, frame[:2], trig, tiles, job.seed)
+    trig.set_state(job.target, pose, irradiance_w_m2)
+    n, render_s = render_band(radiance, frame[:2], trig, tiles, job.render_seed)
     return {"render_s": render_s, "spp": settings.edge_spp, "band_px": width, "tile_px": TILE_PX, "tiles": len(tiles), "pixels": n,
             "meaning": "pixels within band_px of the outline (at any time of the exposure) rendered at spp, "
                        "in tiles with their own seeds; the rest of the frame at render.spp"}
@@ -225,7 +249,7 @@ def render_task(spec: Spec, index: int, variant: str, out_dir: str | None) -> di
         "variant": variant, "complete": True,
         "files": {k: {"path": f"{name}.{k}", "sha256": hashlib.sha256(b).hexdigest()} for k, b in data.items()},
     }
-    return {"name": name, "entry": entry, "render_s": timings.get("render_s", 0.0),
+    return {"name": name, "entry": entry, "render_s": timings.get("render_s", 0.0), "reused": timings.get("reused", 0),
             "payload": None if out_dir is not None else data}
 
 
@@ -306,6 +330,9 @@ def _render_locked(spec, out_dir, variant, progress, only, timings, announce, ba
             p.unlink()
     jobs = list(spec.jobs) if only is None else [spec.jobs[i] for i in sorted(set(only))]
     todo = [j for j in jobs if not _entry_complete(out_dir, manifest["images"].get(j.name))]
+    # the images of one radiance unit next to each other: a worker renders the unit once and reuses it
+    unit_rank = {i: u for u, unit in enumerate(spec.units()) for i in unit}
+    todo.sort(key=lambda j: (unit_rank[j.index], j.index))
     stats = timings if timings is not None else {}
     t_start = time.perf_counter()
     if not todo:
@@ -338,6 +365,7 @@ def _render_locked(spec, out_dir, variant, progress, only, timings, announce, ba
             write_json(mpath, manifest)
             stats["render_s"] = stats.get("render_s", 0.0) + res["render_s"]
             stats["n_rendered"] = stats.get("n_rendered", 0) + 1
+            stats["reused"] = stats.get("reused", 0) + res.get("reused", 0)
             bar.update(1)
     except BaseException:
         be.close(abort=True)

@@ -29,7 +29,7 @@ def test_saturated_fraction_is_recorded_and_warned_about(capsys):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("spec_name", ["quick", "calibration", "standard", "snr", "targets"])
+@pytest.mark.parametrize("spec_name", ["quick", "calibration", "study"])
 def test_no_shipped_spec_saturates(spec_name, fast_variant):
     """Every 3rd image of each shipped spec (and the first and last of each group), rendered
     noise-free at 1/4 resolution (radiance does not depend on the pixel size) and exposed with the

@@ -80,7 +80,7 @@ def test_black_level_keeps_dark_noise_unclipped_and_the_ptc_linear():
     curve from the dark level up is linear, slope K, intercept K² σd² + 1/12, dark mean = black level."""
     from edgetruth.render.spec import load_spec
 
-    gain_db = max(g.sensor.gain_db for name in ("snr", "standard", "targets", "quick") for g in load_spec(name).groups)
+    gain_db = max(g.sensor.gain_db for name in ("study", "quick") for g in load_spec(name).groups)
     s = SensorModel(gain_db=gain_db)
     levels = np.r_[0.0, np.linspace(0.02, 0.7, 8) * (s.max_dn - s.dark_offset_dn) / s.gain_dn_per_e]
     means, variances = [], []
