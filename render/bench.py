@@ -54,11 +54,12 @@ def psf_cost_lines(distance_m: float = 1.0) -> list[str]:
 
     from edgetruth.render.camera import load_camera
     from edgetruth.render.edge_band import band_tiles, band_width_px, render_band, tile_rig
-    from edgetruth.render.mitsuba_scene import RenderSettings, TargetRig
+    from edgetruth.render.mitsuba_scene import TargetRig
     from edgetruth.render.outline import OutlineCurve
     from edgetruth.render.pose import Pose
+    from edgetruth.render.spec import load_spec
 
-    settings = RenderSettings()
+    settings = load_spec("study").render  # the shipped full-resolution settings
     pose = Pose(distance_m, 0.02, -0.01, 2.0, -1.5)
     out, cost = [], {}
     for label, cam in (("with PSF", load_camera()), ("without PSF", load_camera().ideal_optics())):

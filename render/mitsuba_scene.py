@@ -42,16 +42,16 @@ _PARKED = np.diag([1e-3, 1e-3, 1e-3, 1.0]) @ np.array(  # tiny, far behind the c
 
 @dataclass(frozen=True)
 class RenderSettings:
-    """Monte-Carlo settings (the shipped specs' values; docs/optics.md has the measured noise):
-    flat regions at ``spp``, the band around a target's outline at ``edge_spp``."""
+    """Monte-Carlo settings: flat regions at ``spp``, the band around a target's outline at ``edge_spp``
+    (the defaults of a spec; the shipped specs use the orthogonal sampler at 25/2209 spp: docs/optics.md)."""
 
-    spp: int = 25
-    sampler: str = "orthogonal"
+    spp: int = 64
+    sampler: str = "multijitter"
     samples_per_pass: int = 0  # 0: all in one pass (JIT memory ~ pixels × spp)
     #: the shutter time rays are spread over (a moving camera only; 0: static)
     exposure_s: float = 0.0
     #: spp of the pixels near a target's outline (``edgetruth.render.edge_band``); 0: none
-    edge_spp: int = 2209
+    edge_spp: int = 1024
 
     def to_dict(self) -> dict:
         d = {"spp": self.spp, "sampler": self.sampler, "samples_per_pass": self.samples_per_pass,

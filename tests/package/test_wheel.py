@@ -71,11 +71,11 @@ def test_wheel_renders_and_locates_exactly_like_the_checkout(installed, tmp_path
 
     py, work = installed
     edgetruth = py.parent / "edgetruth"
-    r = _run([edgetruth, "render", "quick", "--no-progress"], work)
+    r = _run([edgetruth, "render", "quick", "--only", "0-1", "--no-progress"], work)  # 2 of its 155 images
     out = work / "runs" / "render" / "quick"  # the default output: under the current directory
     assert (out / "manifest.json").is_file(), r.stdout
     wheel_ds = open_dataset(out)
-    assert len(wheel_ds) == 20 and "variant " + fast_variant in r.stdout
+    assert len(wheel_ds) == 2 and "variant " + fast_variant in r.stdout
     first = wheel_ds.targets()[0]
     _run([edgetruth, "locate", out / f"{first.name}.png", "-m", "dynamic_erf_4p", "-o", work / "pts.csv"], work)
 

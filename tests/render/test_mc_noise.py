@@ -29,10 +29,10 @@ def variant(fast_variant):
                                         pytest.param(2.5, marks=pytest.mark.slow)])
 def test_mc_noise_of_the_shipped_settings(distance_m):
     from edgetruth.render.mc_noise import edge_mc_noise
-    from edgetruth.render.mitsuba_scene import RenderSettings
     from edgetruth.render.sensor import SensorModel
+    from edgetruth.render.spec import load_spec
 
-    settings = RenderSettings()  # what the shipped specs use
+    settings = load_spec("study").render  # what the shipped full-resolution spec uses
     noise = edge_mc_noise(load_camera(), settings, distance_m)
     dark = SensorModel().dark_noise_e
     print(f"{distance_m} m, {settings.spp}/{settings.edge_spp} spp {settings.sampler}: " + "; ".join(
