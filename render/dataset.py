@@ -129,7 +129,7 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
         render_s = time.perf_counter() - t0
         band = None
         if job.kind == "target" and settings.edge_spp:  # part of the unit's radiance: the cells reuse it too
-            band = _edge_band(radiance, camera, settings, job, pose, gt, crop, e_render)
+            band = render_edge_band(radiance, camera, settings, job, pose, gt, crop, e_render)
             render_s += band.pop("render_s")
         reused = False
         if job.slot is not None:
@@ -173,8 +173,9 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
     return radiance, image, full
 
 
-def _edge_band(radiance, camera, settings, job, pose, gt, crop, irradiance_w_m2) -> dict:
-    """Re-render the pixels near the target's outline at ``settings.edge_spp`` (in place)."""
+def render_edge_band(radiance, camera, settings, job, pose, gt, crop, irradiance_w_m2) -> dict:
+    """Re-render the pixels near the target's outline at ``settings.edge_spp`` (in place; the tiles'
+    seeds come from ``job.render_seed``); returns the JSON's ``edge_band`` block plus ``render_s``."""
     from edgetruth.render.edge_band import TILE_PX, band_tiles, band_width_px, render_band, tile_rig
 
     outlines = [np.asarray(gt["outline"]["polyline_distorted_px"])]

@@ -55,9 +55,10 @@ def edge_mc_noise(camera, settings, distance_m: float, sensor=None, irradiance_w
     return out
 
 
-def convergence_table(distances_m=(1.0, 1.5), edge_spps=(121, 361, 961, 2209), camera=None) -> list[str]:
-    """Lines: MC noise per |d| band for each edge_spp (orthogonal sampler, base 49 spp), and the
-    spp extrapolated (power law through the two largest) to reach a quarter of the dark noise."""
+def convergence_table(distances_m=(1.0, 1.5), edge_spps=(256, 1024, 2304, 4096), camera=None, spp: int = 25,
+                      sampler: str = "multijitter") -> list[str]:
+    """Lines: MC noise per |d| band for each edge_spp (frame at ``spp``), and the spp extrapolated
+    (power law through the two largest) to reach a quarter of the dark noise."""
     from edgetruth.render.camera import load_camera
     from edgetruth.render.mitsuba_scene import RenderSettings
     from edgetruth.render.sensor import SensorModel
@@ -66,7 +67,7 @@ def convergence_table(distances_m=(1.0, 1.5), edge_spps=(121, 361, 961, 2209), c
     target = SensorModel().dark_noise_e / 4
     lines = []
     for z in distances_m:
-        rows = {n: edge_mc_noise(camera, RenderSettings(spp=49, edge_spp=n, sampler="orthogonal"), z)
+        rows = {n: edge_mc_noise(camera, RenderSettings(spp=spp, edge_spp=n, sampler=sampler), z)
                 for n in edge_spps}
         for n, r in rows.items():
             lines.append(f"{z} m edge_spp {n:5d}: " + "; ".join(f"|d| {lo:g}-{hi:g} px {mc:.1f} e-"

@@ -51,7 +51,9 @@ SPEC_KEYS = [
     Key("edge_spp", "int", RenderSettings.edge_spp, "samples/px", "samples per pixel near a target's outline "
         "(within the PSF, defocus and motion reach; the rest of the frame uses spp); 0 = spp everywhere", 0,
         MAX_SPP),
-    Key("sampler", "str", RenderSettings.sampler, "", "Mitsuba sampler", choices=SAMPLERS),
+    Key("sampler", "str", RenderSettings.sampler, "", "Mitsuba sampler (orthogonal takes a prime squared spp and "
+        "is not bit-reproducible in Mitsuba 3.9: its renders differ in the last bit from run to run)",
+        choices=SAMPLERS),
     Key("target_size_m", "float", 0.13, "m", "target side (square) or diameter (circle)", 1e-3, 10.0),
     Key("checkerboard", "table", {}, "", "the calibration board {cols, rows, square_m, margin_m}"),
 ]

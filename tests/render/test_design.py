@@ -73,8 +73,8 @@ def test_cells_share_the_pose_slots(tmp_path):
 
 def test_reused_radiance_equals_a_direct_render_bit_for_bit(tmp_path, fast_variant):
     from edgetruth.render import open_dataset
-    from edgetruth.render.dataset import get_rig, job_pose, render_spec
-    from edgetruth.render.ground_truth import target_outline_local
+    from edgetruth.render.dataset import get_rig, job_pose, render_edge_band, render_spec
+    from edgetruth.render.ground_truth import target_ground_truth, target_outline_local
     from edgetruth.render.spec import load_spec
 
     spec = load_spec(_spec(tmp_path))
@@ -90,9 +90,11 @@ def test_reused_radiance_equals_a_direct_render_bit_for_bit(tmp_path, fast_varia
         # a direct render of the L2 level with the same sampler seed: exactly half of L1 (power of two)
         job = spec.jobs[b.index]
         rig = get_rig("target", job.camera, spec.render, spec.target_size_m)
-        rig.set_state("T1", job_pose(job, job.camera, target_outline_local("square", spec.target_size_m)),
-                      job.irradiance_w_m2)
+        pose = job_pose(job, job.camera, target_outline_local("square", spec.target_size_m))
+        rig.set_state("T1", pose, job.irradiance_w_m2)
         direct = rig.render(job.render_seed)
+        gt = target_ground_truth(job.camera, pose, "T1", spec.target_size_m)  # and its edge band, as render_job does
+        render_edge_band(direct, job.camera, spec.render, job, pose, gt, None, job.irradiance_w_m2)
         assert np.array_equal(direct, b.radiance)
         assert np.array_equal(a.radiance * np.float32(0.5), b.radiance)
         assert not np.array_equal(a.image, b.image)  # independent sensor noise per level
