@@ -92,6 +92,7 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
     import mitsuba as mi
 
     from edgetruth.render.capture import capture
+    from edgetruth.render.edge_band import render_edge_band
     from edgetruth.render.optics import field_height, predicted_mtf50
 
     camera = job.camera
@@ -171,28 +172,6 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
         "versions": versions(mi.variant()),
     }
     return radiance, image, full
-
-
-def render_edge_band(radiance, camera, settings, job, pose, gt, crop, irradiance_w_m2) -> dict:
-    """Re-render the pixels near the target's outline at ``settings.edge_spp`` (in place; the tiles'
-    seeds come from ``job.render_seed``); returns the JSON's ``edge_band`` block plus ``render_s``."""
-    from edgetruth.render.edge_band import TILE_PX, band_tiles, band_width_px, render_band, tile_rig
-
-    outlines = [np.asarray(gt["outline"]["polyline_distorted_px"])]
-    motion_px = 0.0
-    if "motion" in gt:
-        start, end = (np.asarray(gt["motion"][k]) for k in ("outline_start_distorted_px", "outline_end_distorted_px"))
-        outlines += [start, end]
-        motion_px = float(np.max(np.linalg.norm(end - start, axis=1)))
-    width = band_width_px(camera, gt["defocus_radius_px"], motion_px)
-    frame = tuple(crop) if crop else (0, 0, camera.width_px, camera.height_px)
-    tiles = band_tiles(outlines, frame, width)
-    trig = tile_rig(camera, replace(settings, spp=settings.edge_spp), float(gt["target"]["size_m"]))
-    trig.set_state(job.target, pose, irradiance_w_m2)
-    n, render_s = render_band(radiance, frame[:2], trig, tiles, job.render_seed)
-    return {"render_s": render_s, "spp": settings.edge_spp, "band_px": width, "tile_px": TILE_PX, "tiles": len(tiles), "pixels": n,
-            "meaning": "pixels within band_px of the outline (at any time of the exposure) rendered at spp, "
-                       "in tiles with their own seeds; the rest of the frame at render.spp"}
 
 
 # --- datasets -----------------------------------------------------------------------

@@ -14,8 +14,10 @@ the tile's position), so the image is still a pure function of the job.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -23,15 +25,21 @@ TILE_PX = 16
 _rigs: dict = {}
 
 
+@functools.lru_cache(maxsize=64)
+def _kernel_reach_px(params) -> float:
+    from edgetruth.render.psf import psf_table
+
+    table = psf_table(params)
+    return math.sqrt(0.5) if table is None else table.half_width_px + table.step_px
+
+
 def band_width_px(camera, defocus_px: float, motion_px: float = 0.0) -> float:
     """Half-width of the band around the outline: the sampled kernel's reach (pixel ⊗ PSF, the
     table's half-width; the pixel box alone without a PSF), plus the defocus disk and the motion
     path, plus 1 px."""
-    from edgetruth.render.psf import psf_params, psf_table
+    from edgetruth.render.psf import psf_params
 
-    table = psf_table(psf_params(camera))
-    reach = math.sqrt(0.5) if table is None else table.half_width_px + table.step_px
-    return reach + float(defocus_px) + float(motion_px) + 1.0
+    return _kernel_reach_px(psf_params(camera)) + float(defocus_px) + float(motion_px) + 1.0
 
 
 def tile_seed(seed: int, x0: int, y0: int) -> int:
@@ -93,3 +101,23 @@ def render_band(radiance: np.ndarray, frame_origin: tuple[int, int], rig, tiles:
         radiance[ya - oy:yb - oy, xa - ox:xb - ox] = tile[ya - y0:yb - y0, xa - x0:xb - x0]
         n += (xb - xa) * (yb - ya)
     return n, render_s
+
+
+def render_edge_band(radiance, camera, settings, job, pose, gt, crop, irradiance_w_m2) -> dict:
+    """Re-render the pixels near the target's outline at ``settings.edge_spp`` (in place; the tiles'
+    seeds come from ``job.render_seed``); returns the JSON's ``edge_band`` block plus ``render_s``."""
+    outlines = [np.asarray(gt["outline"]["polyline_distorted_px"])]
+    motion_px = 0.0
+    if "motion" in gt:
+        start, end = (np.asarray(gt["motion"][k]) for k in ("outline_start_distorted_px", "outline_end_distorted_px"))
+        outlines += [start, end]
+        motion_px = float(np.max(np.linalg.norm(end - start, axis=1)))
+    width = band_width_px(camera, gt["defocus_radius_px"], motion_px)
+    frame = tuple(crop) if crop else (0, 0, camera.width_px, camera.height_px)
+    tiles = band_tiles(outlines, frame, width)
+    trig = tile_rig(camera, replace(settings, spp=settings.edge_spp), float(gt["target"]["size_m"]))
+    trig.set_state(job.target, pose, irradiance_w_m2)
+    n, render_s = render_band(radiance, frame[:2], trig, tiles, job.render_seed)
+    return {"render_s": render_s, "spp": settings.edge_spp, "band_px": width, "tile_px": TILE_PX,
+            "tiles": len(tiles), "pixels": n, "meaning": "pixels within band_px of the outline (at any time of the exposure) rendered at spp, "
+                       "in tiles with their own seeds; the rest of the frame at render.spp"}
