@@ -27,13 +27,14 @@ Extras: A, B, width (w, px), offset, rss, iterations, status, se.
 from __future__ import annotations
 
 from edgetruth.locate import curve_fit_kernels as CF
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 
 MAXIT = 100
 TOL_PX = 1e-7  # accepted step (px); quadratic convergence leaves far less, as in locate.methods.erf
 
 
-@register("arctan_fit2016", "ArctanFit2016", family="baseline")
+@register("arctan_fit2016", "ArctanFit2016", family="baseline", footprint=FP.profile(5))
 def arctan_fit2016(image, cand, maxit: int = MAXIT, tol_px: float = TOL_PX):
     """ArctanFit2016: 4-parameter arctangent fit of the 11-sample normal profile."""
     return CF.refine_step_model(image, cand, CF.ARCTAN, maxit, tol_px)

@@ -41,6 +41,7 @@ import numpy as np
 from edgetruth.errors import InputError
 from edgetruth.locate import curve_fit_kernels as CF
 from edgetruth.locate.profiles import profile_offsets, sample_profiles
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
 
@@ -77,7 +78,7 @@ def log_parabola(g, tg):
     return mu, w, a, ok
 
 
-@register("gaussian_fit2014", "GaussianFit2014", family="baseline")
+@register("gaussian_fit2014", "GaussianFit2014", family="baseline", footprint=FP.profile(5))
 def gaussian_fit2014(image, cand, variant: str = "lsq", maxit: int = MAXIT, tol_px: float = TOL_PX):
     """GaussianFit2014: Gaussian fit of the profile differences along the normal; peak = edge."""
     if variant not in VARIANTS:

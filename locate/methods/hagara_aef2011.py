@@ -38,13 +38,14 @@ rss, iterations, status, se.
 from __future__ import annotations
 
 from edgetruth.locate import curve_fit_kernels as CF
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 
 MAXIT = 100
 TOL_PX = 1e-7  # accepted step (px); quadratic convergence leaves far less, as in locate.methods.erf
 
 
-@register("hagara_aef2011", "HagaraAEF2011", family="baseline")
+@register("hagara_aef2011", "HagaraAEF2011", family="baseline", footprint=FP.profile(5))
 def hagara_aef2011(image, cand, maxit: int = MAXIT, tol_px: float = TOL_PX):
     """HagaraAEF2011: 4-parameter erf fit of the whole 11-sample normal profile."""
     r = CF.refine_step_model(image, cand, CF.ERF, maxit, tol_px)

@@ -79,6 +79,7 @@ import numba
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
 
@@ -480,7 +481,22 @@ def pae_refine(image, cand, variant: str = "floating", order: int = 2, a01: floa
         "moved": step.astype(np.int64)})
 
 
-@register("pae2013", "PAE2013", family="baseline")
+def pae_footprint(cand, variant: str = "floating", **options):
+    """basic: the 3 x 5 window in the candidate's orientation.  floating: the three lines +-6 rows around
+    the (possibly moved, +-1) pixel -- windows to +-4, derivative comparisons to +-5, centred
+    differences one further; smoothed: +-2 lines (second-edge test) and the patch, widened by the
+    3x3 mask.  The floating variants' orientation comes from their own derivatives: both orientations."""
+    variant = ALIASES.get(variant, variant)
+    n = len(cand)
+    if variant == "basic":
+        xi, yi = cand.x.astype(np.int64), cand.y.astype(np.int64)
+        horiz = np.abs(cand.grad_y[yi, xi]) >= np.abs(cand.grad_x[yi, xi])
+        return np.where(horiz[:, None, None], FP.block_masks(n, 2, 1), FP.block_masks(n, 1, 2))
+    along, across = (1, 7) if variant == "floating" else (3, 8)
+    return FP.block_masks(n, across, along) | FP.block_masks(n, along, across)
+
+
+@register("pae2013", "PAE2013", family="baseline", footprint=pae_footprint)
 def pae2013(image, cand, variant: str = "floating", order: int = 2, a01: float = A01_DEFAULT,
             a11: float = A11_DEFAULT, threshold: float | None = None) -> Refinement:
     """PAE2013: the authors' floating-window partial-area detector (variant="smoothed": on the 3x3-smoothed

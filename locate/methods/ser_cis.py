@@ -71,6 +71,7 @@ import numpy as np
 from edgetruth.errors import InputError
 from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
 from edgetruth.locate.profiles import sample_profiles
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
 
@@ -155,7 +156,7 @@ def cis_batch(profiles, h_min, segment, tol_abs, flat_rel, out):
         cis_one(profiles[i], h_min, segment, tol_abs, flat_rel, out[i])
 
 
-@register("ser_cis", "SER-CIS", family="baseline")
+@register("ser_cis", "SER-CIS", family="baseline", footprint=FP.profile(5))
 def ser_cis(image, cand, noise_sigma: float | None = None, k_noise: float = K_NOISE, flat_rel: float = FLAT_REL,
             h_min: int = H_MIN, segment: int = SEGMENT):
     """SER-CIS: converted intensity summation over the smallest stable centred region of the normal profile."""

@@ -27,13 +27,14 @@ Extras: A, B, width (w, px), offset, rss, iterations, status, se.
 from __future__ import annotations
 
 from edgetruth.locate import curve_fit_kernels as CF
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 
 MAXIT = 100
 TOL_PX = 1e-7  # accepted step (px); quadratic convergence leaves far less, as in locate.methods.erf
 
 
-@register("sigmoid_logistic_fit2023", "SigmoidLogisticFit2023", family="baseline")
+@register("sigmoid_logistic_fit2023", "SigmoidLogisticFit2023", family="baseline", footprint=FP.profile(5))
 def sigmoid_logistic_fit2023(image, cand, maxit: int = MAXIT, tol_px: float = TOL_PX):
     """SigmoidLogisticFit2023: 4-parameter logistic fit of the 11-sample normal profile."""
     return CF.refine_step_model(image, cand, CF.LOGISTIC, maxit, tol_px)
