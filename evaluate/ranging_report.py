@@ -78,6 +78,8 @@ def _table(header, body) -> str:
 # --- claims ---------------------------------------------------------------------------
 def _kendall(order_a, order_b) -> float:
     from scipy.stats import kendalltau
+    if len(order_a) < 2:
+        return float("nan")
     pos = {m: i for i, m in enumerate(order_b)}
     return float(kendalltau(range(len(order_a)), [pos[m] for m in order_a]).statistic)
 
@@ -279,7 +281,7 @@ def figures(rows, methods, examples, fig_dir: Path) -> dict:
 
 # --- the report ---------------------------------------------------------------------------
 def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), header: dict | None = None,
-                 synthetic_report: str | None = None) -> Path:
+                 synthetic_report: str | None = None, title: str = "ranging report") -> Path:
     """Write ``report.md`` (+ ``figures/``, ``ranging_summary.json``) and return its path."""
     out_dir = Path(out_dir)
     all_rows = rows
@@ -287,7 +289,7 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     per = by_method(rows, methods)
     st = {m: method_stats(per[m]) for m in methods}
     figs = figures(all_rows, methods, list(examples), out_dir / "figures")
-    L = ["# edgetruth run report", ""]
+    L = [f"# edgetruth {title}", ""]
     for k, v in (header or {}).items():
         L.append(f"- **{k}**: {v}")
     if synthetic_report:
@@ -309,9 +311,11 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
         c = calibration.to_dict()
         t = c.get("truth") or {}
         e = c.get("errors") or {}
-        L += ["", "## Calibration (Zhang, OpenCV)", "",
-              f"{c['n_views']} boards used ({len(c['rejected'])} rejected); reprojection RMS {c['reprojection_rms_px']:.4f} px; "
-              f"corner detection error vs truth: RMS {_f(c['corner_detection_error_px'].get('rms', np.nan), 4)} px.", "",
+        how = (f"{c['n_views']} boards used ({len(c['rejected'])} rejected); reprojection RMS "
+               f"{c['reprojection_rms_px']:.4f} px; corner detection error vs truth: RMS "
+               f"{_f(c['corner_detection_error_px'].get('rms', np.nan), 4)} px." if c["n_views"] else
+               "Given (not estimated here): the values below were loaded, with no boards.")
+        L += ["", "## Calibration (Zhang, OpenCV)", "", how, "",
               _table(["parameter", "calibrated", "true", "error"],
                      [["fx (px)", _f(c["fx_px"], 3), _f(t.get("fx_px", np.nan), 3), f"{_f(e.get('fx_rel_pct', np.nan), 4)} %"],
                       ["fy (px)", _f(c["fy_px"], 3), _f(t.get("fy_px", np.nan), 3), f"{_f(e.get('fy_rel_pct', np.nan), 4)} %"],
