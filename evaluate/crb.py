@@ -68,8 +68,8 @@ def continuous_mu_only_bound(blur_px: float, noise_rel: float) -> float:
 #
 # Per candidate p and per method: the Fisher information of the pixels the method reads
 # (its footprint, ``edgetruth.locate.footprints``) about the edge's position, under the true
-# pixel-integrated edge.  Unknowns theta = (rho, phi, A, B, s) -- s split into (s_dark, s_bright)
-# when the two sides' blurs differ -- with rho = d(p), the signed distance of the candidate's
+# pixel-integrated edge.  Unknowns theta = (rho, phi, A, B, s) -- s the blur scale (both sides'
+# blurs scale together; ``blur_unknowns="both"`` frees them separately) -- with rho = d(p), the signed distance of the candidate's
 # pixel centre to the true edge (what every method's error measures), phi the direction of the
 # edge normal (the circle turns about p with it), A the dark level, B the contrast.  Pixel i's
 # mean is m_i = A + B M_i + (known background), M_i the exact area mean of the unit profile
@@ -238,13 +238,16 @@ def bound_from_fisher(F: np.ndarray, drop_rel: float = 1e-9) -> np.ndarray:
 
 
 def footprint_bounds(geometry: dict, A, B, s_dark, s_bright, masks: dict, noise_var=None,
-                     variance_fn=None, background=0.0) -> dict:
+                     variance_fn=None, background=0.0, blur_unknowns: str = "scale") -> dict:
     """The per-point bound (px) of each footprint in ``masks`` (name -> (N, SIZE, SIZE) bool).
 
     Noise: ``noise_var`` (gray levels^2, scalar or per point) for Gaussian noise, or ``variance_fn``
     mapping the pixel means (N, P) to their variances (a sensor's signal-dependent noise, e.g.
-    K^2 (sigma_d^2 + mu_e) + 1/12 in DN^2; ``background`` is added to the means first).  Blur:
-    one unknown s when s_dark == s_bright for a point, else two."""
+    K^2 (sigma_d^2 + mu_e) + 1/12 in DN^2; ``background`` is added to the means first).
+    Blur: ``"scale"`` (default) -- one unknown, the scale of both sides' blurs, their ratio known
+    (for a symmetric edge: the blur s); ``"both"`` -- s_dark and s_bright unknown separately."""
+    if blur_unknowns not in ("scale", "both"):
+        raise ValueError(f"blur_unknowns={blur_unknowns!r}: 'scale' or 'both'")
     if not masks:
         return {}
     stack = np.stack([np.asarray(m, bool) for m in masks.values()])
@@ -256,18 +259,16 @@ def footprint_bounds(geometry: dict, A, B, s_dark, s_bright, masks: dict, noise_
         w = 1.0 / np.asarray(variance_fn(mean), float)
     else:
         w = np.broadcast_to(1.0 / np.asarray(noise_var, float).reshape(-1, 1), M.shape)
-    sym = np.broadcast_to(np.asarray(s_dark, float) == np.asarray(s_bright, float), (n,))
-    # symmetric blur: one s column (both sides move together)
-    Js = J.copy()
-    Js[sym, :, 4] = J[sym, :, 4] + J[sym, :, 5]
+    if blur_unknowns == "scale":
+        # d m / d lambda at lambda = 1 for (s_dark, s_bright) = lambda (s_dark0, s_bright0)
+        sd = np.broadcast_to(np.asarray(s_dark, float), (n,))[:, None]
+        sb = np.broadcast_to(np.asarray(s_bright, float), (n,))[:, None]
+        Jp = np.concatenate([J[:, :, :4], (sd * J[:, :, 4] + sb * J[:, :, 5])[:, :, None]], axis=2)
+    else:
+        Jp = J
     out = {}
     for name, m in zip(masks, stack):
         wm = w * m.reshape(n, -1)
-        F = np.einsum("np,npk,npl->nkl", wm, Js, Js)
-        b = np.empty(n)
-        if sym.any():
-            b[sym] = bound_from_fisher(F[sym][:, :5, :5])
-        if (~sym).any():
-            b[~sym] = bound_from_fisher(F[~sym])
-        out[name] = b
+        F = np.einsum("np,npk,npl->nkl", wm, Jp, Jp)
+        out[name] = bound_from_fisher(F)
     return out

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import time
+from functools import lru_cache
 
 import numba
 import numpy as np
@@ -43,14 +44,29 @@ def bench_image(shape=BENCH_SHAPE, tile: int = 128, seed: int = 0) -> np.ndarray
     return img
 
 
-def _time_refine(img, cand, method, repeats):
-    locate.refine(img, cand, method)  # compile / warm caches
+def _time_refine(img, cand, method, repeats, options=None):
+    options = options or {}
+    locate.refine(img, cand, method, **options)  # compile / warm caches
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        locate.refine(img, cand, method)
+        locate.refine(img, cand, method, **options)
         times.append(time.perf_counter() - t0)
     return float(np.median(times))
+
+
+@lru_cache(maxsize=2)
+def _bench_candidates(shape):
+    img = bench_image(shape)
+    return img, locate.candidates(img)
+
+
+def batch_throughput(methods, options: dict | None = None, repeats: int = 5, shape=BENCH_SHAPE) -> dict:
+    """Points per second of each method's refinement over all candidates of the bench mosaic in one
+    call (median of ``repeats``), with the study's per-method ``options``: the studies' time per point."""
+    img, cand = _bench_candidates(tuple(shape))
+    options = options or {}
+    return {m: len(cand) / _time_refine(img, cand, m, repeats, options.get(m)) for m in methods}
 
 
 def scipy_reference(profiles, windows, four_param: bool):
