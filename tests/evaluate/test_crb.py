@@ -131,8 +131,8 @@ def _ml_footprint_fit(img, edge, px, py, mask, s):
 def test_monte_carlo_an_efficient_estimator_reaches_the_footprint_bound():
     """Straight noisy edges at random angles (blur 1, sigma_n/B = 0.02), the 11-sample profile's footprint
     (11 pixels on axis, 23-27 oblique): the ML fit over exactly those pixels has RMSE / bound = 1.022
-    (measured, 1272 fits); asserted
-    within [0.97, 1.10] -- the bound is attained, so it is neither too low nor too high."""
+    (measured, 1272 fits); asserted within [0.97, 1.10] -- the bound is attained, so it is neither too
+    low nor too high."""
     rng = np.random.default_rng(5)
     err, bnd = [], []
     for k in range(24):
