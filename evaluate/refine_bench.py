@@ -71,13 +71,19 @@ def _bench_candidates(shape):
     return img, locate.candidates(img)
 
 
-def batch_throughput(methods, options: dict | None = None, repeats: int = 5, shape=BENCH_SHAPE) -> dict:
+def batch_throughput(methods, options: dict | None = None, repeats: int = 7, shape=BENCH_SHAPE,
+                     reference: str | None = None):
     """Points per second of each method's refinement over all candidates of the bench mosaic in one
     call (median of ``repeats`` interleaved rounds), with the study's per-method ``options``: the
-    studies' time per point."""
+    studies' time per point.  With ``reference``: also the median per-round ratio of each method's
+    throughput to the reference's (robust to the machine's load changing between rounds)."""
     img, cand = _bench_candidates(tuple(shape))
-    times = interleaved_times(img, cand, list(methods), repeats, options)
-    return {m: len(cand) / float(np.median(t)) for m, t in times.items()}
+    methods = list(methods)
+    times = interleaved_times(img, cand, methods, repeats, options)
+    rates = {m: len(cand) / float(np.median(t)) for m, t in times.items()}
+    if reference is None:
+        return rates
+    return rates, (ratio_medians(times, reference) if reference in times else {})
 
 
 REFERENCE = "erf4p_fixed11"
