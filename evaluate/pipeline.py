@@ -23,7 +23,7 @@ from edgetruth.fileio import check_output_dir, read_json, write_json
 RUN_MARKER = "run.json"
 STUDIES = {
     "quick": {"calibration": "quick", "targets": ["quick"]},
-    "full": {"calibration": "calibration", "targets": ["standard", "snr", "targets"]},
+    "full": {"calibration": "calibration", "targets": ["study"]},
 }
 
 

@@ -4,6 +4,7 @@ checkout does; site-packages holds `edgetruth` only (no top-level render/locate/
 from __future__ import annotations
 
 import hashlib
+import shutil
 import subprocess
 import sys
 import venv
@@ -25,7 +26,11 @@ def _run(cmd, cwd, timeout=900):
 def installed(tmp_path_factory):
     """(python of a clean venv with the wheel installed, a working directory outside the checkout)."""
     d = tmp_path_factory.mktemp("wheel")
-    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", d / "wh", ROOT], d)
+    # build from a copy: setuptools leaves build/ in the source tree, and stale files there would ship
+    src = d / "src"
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(".venv", "build", "runs", ".git", "__pycache__",
+                                                             "*.egg-info", "results", ".pytest_cache", "*.nb[ic]"))
+    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", d / "wh", src], d)
     wheels = list((d / "wh").glob("edgetruth-*.whl"))
     assert len(wheels) == 1
     venv.create(d / "v", with_pip=True)
