@@ -18,7 +18,7 @@ Gaussian-blurred edge, which costs precision, not bias, on symmetric edges.
 Choices left open: window 11 samples (t = -5..5); initial A = min,
 B = max - min, mu and a width from the positive profile differences, w
 matched to that width by equal central slope (w = sd sqrt(2/pi)); stopping
-|d mu|, |d w| < 1e-7 px, 100 iterations; failure (converged=False,
+|d mu| < 1e-7 px and |d w| < 1e-5 px per step, 100 iterations; failure (converged=False,
 candidate pixel kept) when there is no contrast, no convergence, mu outside
 [-5, 5], w outside (0.05, 20) px or B <= 0.
 

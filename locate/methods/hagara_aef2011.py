@@ -24,13 +24,14 @@ Choices the paper leaves open here:
   * initial values: A = min, B = max - min of the profile, mu and sigma
     from the mean and spread of the positive profile differences (the
     paper's own closed-form starting estimates are not reproduced).
-  * stopping: |d mu|, |d sigma| < 1e-7 px per accepted step, 100 iterations.
+  * stopping: |d mu| < 1e-7 px and |d sigma| < 1e-5 px per step, 100 iterations.
   * failure (converged=False, candidate pixel kept): no contrast, no
     convergence, mu outside [-5, 5], sigma outside (0.05, 20) px or B <= 0.
 
 Mathematically this is the same estimator as ERF4P-fixed11 (BRIEF §2); the
-two differ only in starting values and stopping rule, so on well-posed
-profiles they agree to the LM tolerance.
+two differ only in starting values, stopping rule and Phi (A&S 7.1.26 there,
+|error| 1.5e-7; ``locate.normal_cdf`` here, 2e-13), so on well-posed profiles
+they agree to the LM tolerance.
 
 Extras: A, B, width (= sigma, px), a, b (the paper's parametrisation), offset,
 rss, iterations, status, se.

@@ -18,7 +18,7 @@ performs close to the erf fits.
 Choices left open (the reference's exact fitting procedure is not available
 here): window 11 samples; initial A = min, B = max - min, mu and a width
 from the positive profile differences, w matched by equal central slope
-(w = sd sqrt(2 pi)/4); stopping |d mu|, |d w| < 1e-7 px, 100 iterations;
+(w = sd sqrt(2 pi)/4); stopping |d mu| < 1e-7 px and |d w| < 1e-5 px per step, 100 iterations;
 failure (converged=False, candidate pixel kept) when there is no contrast,
 no convergence, mu outside [-5, 5], w outside (0.05, 20) px or B <= 0.
 
