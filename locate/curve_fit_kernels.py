@@ -278,9 +278,27 @@ def initial_guess(model, t, y, n, p):
     return ok
 
 
+# Reassociation and fused multiply-adds (no NaN/Inf assumptions: the checks keep their meaning) let LLVM
+# schedule the per-sample sums freely: 10-50 % faster, answers unchanged beyond rounding -- except on
+# the erf model's flat near-step fits (w ~ 0.1 px), where rounding can pick another of its minima
+# within the pixel: the erf model keeps strict arithmetic.
+_FAST = {"contract", "reassoc"}
+
+
 @numba.njit(cache=True)
 def fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out):
     """LM fit of a step model to (t[:n], y[:n]) from (A, B, mu, w); out as in the module docstring."""
+    _fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out)
+
+
+@numba.njit(cache=True, fastmath=_FAST)
+def fit_step_fast(model, t, y, n, A, B, mu, w, maxit, tol, out):
+    """``fit_step`` with reassociated sums (the arctangent and logistic models)."""
+    _fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out)
+
+
+@numba.njit(cache=True, inline="always")
+def _fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out):
     lam = 1e-4
     c, h00, h10, h11, h20, h21, h22, h30, h31, h32, h33, g0, g1, g2, g3 = _eval_step(model, t, y, n, A, B, mu, w)
     status = NOT_CONVERGED
@@ -339,7 +357,7 @@ def fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out):
     out[7] = status
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, fastmath=_FAST)
 def fit_gauss(t, y, n, a, mu, w, maxit, tol, out):
     """LM fit of a * exp(-((t - mu)/w)^2 / 2) to (t[:n], y[:n]) from (a, mu, w)."""
     lam = 1e-4
@@ -418,7 +436,10 @@ def fit_auto(model, t, y, n, maxit, tol, out):
     if not ok:
         _no_contrast(out)
         return
-    fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out)
+    if model == ERF:
+        fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out)
+    else:
+        fit_step_fast(model, t, y, n, A, B, mu, w, maxit, tol, out)
 
 
 @numba.njit(cache=True, parallel=True)
@@ -435,8 +456,10 @@ def _fit_batch_from(model, t, ys, p0s, maxit, tol, out):
         p = p0s[i]
         if model == GAUSS:
             fit_gauss(t, ys[i], n, p[0], p[1], p[2], maxit, tol, out[i])
-        else:
+        elif model == ERF:
             fit_step(model, t, ys[i], n, p[0], p[1], p[2], p[3], maxit, tol, out[i])
+        else:
+            fit_step_fast(model, t, ys[i], n, p[0], p[1], p[2], p[3], maxit, tol, out[i])
 
 
 @numba.njit(cache=True, parallel=True)
