@@ -93,15 +93,16 @@ def image_noise_sigma(image, cand) -> float:
     return float(math.sqrt(math.pi / 2.0) / 6.0 * total / count)
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True)
 def _immerkaer_sums(img, gx, gy, low):
     """Sum and count of |I * L| over the interior pixels with smoothed gradient magnitude below ``low``
-    (all interior pixels when low <= 0), and over all interior pixels: one pass, rows in parallel."""
+    (all interior pixels when low <= 0), and over all interior pixels: one serial pass (memory-bound; a
+    short parallel region waits for both threads, which on a loaded machine costs more than it saves)."""
     h, w = img.shape
     rows_sum = np.zeros(h)
     rows_n = np.zeros(h)
     rows_sum_all = np.zeros(h)
-    for r in numba.prange(1, h - 1):
+    for r in range(1, h - 1):
         acc = 0.0
         n = 0.0
         acc_all = 0.0
