@@ -104,7 +104,14 @@ class _Rig:
         return self.mi.ScalarTransform4f(np.asarray(m, dtype=np.float64).tolist())
 
     def _set_transform(self, key: str, m: np.ndarray) -> None:
-        self.params[key] = self.mi.Transform4f(np.asarray(m, dtype=np.float64).tolist())
+        # opaque: a literal transform is baked into the kernel (the area light's is, inside the
+        # emitter's sample_direction), so every new pose would cost an LLVM compile (~80 ms) and
+        # 20 KB of kernel cache on disk; opaque, one kernel serves every pose
+        import drjit as dr
+
+        t = self.mi.Transform4f(np.asarray(m, dtype=np.float64).tolist())
+        dr.make_opaque(t)
+        self.params[key] = t
 
     def _set_light(self, pose: Pose, irradiance_w_m2: float) -> float:
         pos = LIGHT_OFFSET_M
