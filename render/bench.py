@@ -36,7 +36,7 @@ def _window_throughput(variant: str, spec) -> tuple[float, float]:
 
 def run_bench(spec_name: str = "quick") -> list[str]:
     """Printable lines: quick-spec images/s and wall/render ratio on the best variant; per-variant throughput."""
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
     from edgetruth.render.spec import load_spec
     from edgetruth.render.variants import ORDER, choose_variant, probe
 

@@ -99,6 +99,7 @@ class _Rig:
         self.scene_dict.update(self._shapes())
         self.scene = mi.load_dict(self.scene_dict)
         self.params = mi.traverse(self.scene)
+        self._last: dict = {}  # the transform last set per parameter key
 
     def _T(self, m: np.ndarray):
         return self.mi.ScalarTransform4f(np.asarray(m, dtype=np.float64).tolist())
@@ -109,7 +110,12 @@ class _Rig:
         # 20 KB of kernel cache on disk; opaque, one kernel serves every pose
         import drjit as dr
 
-        t = self.mi.Transform4f(np.asarray(m, dtype=np.float64).tolist())
+        m = np.asarray(m, dtype=np.float64)
+        last = self._last.get(key)
+        if last is not None and np.array_equal(last, m):
+            return  # e.g. a parked target: no update, no rebuild
+        self._last[key] = m.copy()
+        t = self.mi.Transform4f(m.tolist())
         dr.make_opaque(t)
         self.params[key] = t
 

@@ -55,7 +55,7 @@ def _cmd(spec: Path, out: Path, workers: int) -> list[str]:
 
 
 def test_sigkill_at_random_moments_then_resume_is_byte_identical(tmp_path):
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
 
     spec = write_tiny_spec(tmp_path, spp=8)
     spec.write_text(spec.read_text().replace("count = 2", "count = 5"))  # 6 images
