@@ -148,9 +148,9 @@ class PoolBackend(Backend):
         try:
             while pending:
                 done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for args in itertools.islice(todo, len(done)):  # refill first: workers stay busy
-                    pending.add(self._pool.submit(fn, *args))
                 for fut in done:
+                    for args in itertools.islice(todo, 1):  # one in, one out: the workers stay busy
+                        pending.add(self._pool.submit(fn, *args))
                     yield fut.result()
         finally:
             for fut in pending:
