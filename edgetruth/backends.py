@@ -206,6 +206,8 @@ class RayBackend(Backend):
         self._initializer, self._initargs = initializer, initargs
         # a worker on another node may not see this machine's files
         self.shares_filesystem = len([n for n in ray.nodes() if n.get("Alive")]) <= 1
+        #: finished tasks per Ray node id
+        self.tasks_per_node: dict[str, int] = {}
 
     def map_unordered(self, fn, args_list, window=None):
         import itertools
@@ -231,7 +233,9 @@ class RayBackend(Backend):
                     checked = time.monotonic()
                 want = (window or self.window()) - len(refs)
                 refs += [remote.remote(fn, init, args) for args in itertools.islice(todo, max(0, want))]
-                yield ray.get(done[0])
+                node, result = ray.get(done[0])
+                self.tasks_per_node[node] = self.tasks_per_node.get(node, 0) + 1
+                yield result
         finally:
             for r in refs:
                 ray.cancel(r, force=True)
@@ -252,16 +256,16 @@ _initialised: set = set()
 
 def _ray_call(fn, init, args):
     """In a Ray worker: run the map's initializer once per process (``init`` = (token, [ref to
-    (initializer, initargs)])), then ``fn(*args)``."""
+    (initializer, initargs)])), then ``fn(*args)``; returns (this node's id, the result)."""
+    import ray
+
     if init is not None:
         token, (ref,) = init
         if token not in _initialised:
-            import ray
-
             initializer, initargs = ray.get(ref)
             initializer(*initargs)
             _initialised.add(token)
-    return fn(*args)
+    return ray.get_runtime_context().get_node_id(), fn(*args)
 
 
 def check_backend_args(backend: str = "local", workers: int | None = None, address: str | None = None) -> None:

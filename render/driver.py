@@ -109,7 +109,8 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
 
     ``only`` restricts to those job indices; ``timings`` (a dict) accumulates ``render_s``
     (inside ``mi.render``, summed over workers), ``stage_s`` (per stage of a task, summed),
-    ``journal_s``, ``wall_s``, ``n_rendered`` and ``n_complete``.
+    ``journal_s``, ``wall_s``, ``n_rendered``, ``n_written_by_driver`` (images whose file bytes came
+    back to this process), ``n_complete`` and, on Ray, ``tasks_per_node`` (node id -> images).
 
     ``backend``/``workers``/``address``: where images render (see ``edgetruth.backends``);
     the default renders in this process.  ``files``: who writes the image files (see
@@ -255,11 +256,14 @@ def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, 
                           enabled=progress)
         tasks = ((spec_key, int(i), used, worker_dir) for i in todo)
         stage = stats.setdefault("stage_s", {})
+        if hasattr(be, "tasks_per_node"):
+            stats["tasks_per_node"] = be.tasks_per_node  # live: a watcher sees where images render
         for res in be.map_unordered(render_indexed, tasks, window=window):
             t0 = time.perf_counter()
             name, entry = res["name"], res["entry"]
             if res["payload"] is not None:
                 write_files(out_dir, name, res["payload"])
+                stats["n_written_by_driver"] = stats.get("n_written_by_driver", 0) + 1
             writer.append(name, entry)
             done[entry["index"]] = True
             stats["journal_s"] = stats.get("journal_s", 0.0) + time.perf_counter() - t0
