@@ -204,8 +204,9 @@ class RayBackend(Backend):
         self.num_cpus = num_cpus_per_task
         self.concurrency = int(self.n_gpus) if self.num_gpus else max(1, int(self.n_cpus // max(num_cpus_per_task, 1e-9)))
         self._initializer, self._initargs = initializer, initargs
-        # a worker on another node may not see this machine's files
-        self.shares_filesystem = len([n for n in ray.nodes() if n.get("Alive")]) <= 1
+        # only a Ray instance this process started has no other node, now or later (an existing
+        # cluster may have or gain nodes that do not see this machine's files)
+        self.shares_filesystem = self._owns and not address and not os.environ.get("RAY_ADDRESS")
         #: finished tasks per Ray node id
         self.tasks_per_node: dict[str, int] = {}
 
@@ -217,13 +218,19 @@ class RayBackend(Backend):
         ray = self._ray
         # a task that dies with its node (or worker) runs again elsewhere
         remote = ray.remote(num_cpus=self.num_cpus, num_gpus=self.num_gpus, max_retries=3)(_ray_call)
-        # the initializer's arguments (a spec) go to the object store once; each worker process
-        # fetches them once (a list around the ref keeps Ray from fetching them for every task)
-        init = None
+        # the initializer and its arguments (a spec) go to the object store once, pickled into a
+        # uint8 array: every task names it, each node receives it once, a task reads it without a
+        # copy, and each worker process unpickles it once (the token says whether it has)
+        token = blob = None
         if self._initializer is not None:
-            init = (uuid.uuid4().hex, [ray.put((self._initializer, self._initargs))])
+            import pickle
+
+            import numpy as np
+
+            token = uuid.uuid4().hex
+            blob = ray.put(np.frombuffer(pickle.dumps((self._initializer, self._initargs), protocol=5), np.uint8))
         todo = iter(args_list)
-        refs = [remote.remote(fn, init, args) for args in itertools.islice(todo, window or self.window())]
+        refs = [remote.remote(fn, token, blob, args) for args in itertools.islice(todo, window or self.window())]
         checked = time.monotonic()
         try:
             while refs:
@@ -232,7 +239,7 @@ class RayBackend(Backend):
                     self._refresh_concurrency()
                     checked = time.monotonic()
                 want = (window or self.window()) - len(refs)
-                refs += [remote.remote(fn, init, args) for args in itertools.islice(todo, max(0, want))]
+                refs += [remote.remote(fn, token, blob, args) for args in itertools.islice(todo, max(0, want))]
                 node, result = ray.get(done[0])
                 self.tasks_per_node[node] = self.tasks_per_node.get(node, 0) + 1
                 yield result
@@ -254,17 +261,18 @@ class RayBackend(Backend):
 _initialised: set = set()
 
 
-def _ray_call(fn, init, args):
-    """In a Ray worker: run the map's initializer once per process (``init`` = (token, [ref to
-    (initializer, initargs)])), then ``fn(*args)``; returns (this node's id, the result)."""
+def _ray_call(fn, token, blob, args):
+    """In a Ray worker: run the map's initializer once per process (``blob``: the pickled
+    (initializer, initargs), read-only from the object store), then ``fn(*args)``; returns
+    (this node's id, the result)."""
     import ray
 
-    if init is not None:
-        token, (ref,) = init
-        if token not in _initialised:
-            initializer, initargs = ray.get(ref)
-            initializer(*initargs)
-            _initialised.add(token)
+    if token is not None and token not in _initialised:
+        import pickle
+
+        initializer, initargs = pickle.loads(memoryview(blob))
+        initializer(*initargs)
+        _initialised.add(token)
     return ray.get_runtime_context().get_node_id(), fn(*args)
 
 

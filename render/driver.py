@@ -285,6 +285,9 @@ def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, 
 
             dr.set_thread_count(threads_before)
     be.close()
+    per_node = stats.get("tasks_per_node") or {}
+    if len(per_node) > 1:
+        announce("render: images per Ray node: " + ", ".join(f"{k[:12]} {v}" for k, v in sorted(per_node.items())))
     t0 = time.perf_counter()
     compact(out_dir)
     stats["compact_s"] = stats.get("compact_s", 0.0) + time.perf_counter() - t0

@@ -1,24 +1,28 @@
 """A real two-node Ray cluster on this machine: a head and a second node started with ``ray start``
-(separate raylets, one CPU each, their own temporary directory), a render across both with the file
-bytes sent back to the driver (the mode for workers that do not share its disk), the second node
-killed mid-run: the run finishes on the survivor, the dataset is byte-identical to a local run, and
-every process the test started is gone afterwards.
+(separate raylets, one CPU each, a private temporary directory), ``edgetruth render --backend ray
+--files driver`` across both (the file bytes come back to the driver, as when workers do not share
+its disk), the second node killed mid-run: the run finishes on the survivor, the dataset is
+byte-identical to a local run, and every process the test started is gone afterwards.
 
-Clean-up is by process: the nodes run with ``ray start --block`` in process groups of their own,
-which are killed, then anything still naming the cluster's private temporary directory.  (``ray
-stop`` is not used: it stops every Ray process on the machine, other users' too, whatever the
-temporary directory.)  Ray rewrites a 127.0.0.1 node address to the host's own address
-(``resolve_ip_for_localhost``); traffic to that address stays on this machine."""
+Clean-up is by process: each node runs ``ray start --block`` in a process group of its own; a
+reaper process kills those groups, every process still naming the cluster's private directory,
+and all their descendants (Ray gives each worker a process group of its own), when the test ends
+or when this test process dies first.  (``ray stop`` is not used: it stops every Ray
+process on the machine, other users' too, whatever their temporary directory.)  Ray rewrites a
+127.0.0.1 node address to the host's own address (``resolve_ip_for_localhost``); traffic to it
+stays on this machine.  The driver is a fresh process: Ray 2.60 fails object transfers between
+nodes for a driver that already ran an earlier Ray session in the same process (``OwnerDiedError``).
+"""
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import socket
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -26,18 +30,48 @@ import pytest
 
 from edgetruth.render.testing import write_patch_spec
 
-N_IMAGES = 400
-KILL_AFTER = 20  # images the second node has rendered when it is killed
+N_IMAGES = 600
+KILL_AT = 150  # images recorded when the second node is killed
 
-
-def _warm_worker() -> str:
-    import ray
-
-    import edgetruth.render.task  # noqa: F401
-    import edgetruth.render.variants  # noqa: F401 -- before Mitsuba
-    import mitsuba  # noqa: F401
-
-    return ray.get_runtime_context().get_node_id()
+# When its stdin closes (the test says so, or the test process died): kills the processes given
+# (one pid a line: each ``ray start``, leader of its process group), their groups, every process
+# naming ROOT, and all their descendants; then deletes ROOT and prints how many are left.
+_REAPER = r"""
+import os, shutil, signal, sys, time
+root, groups = sys.argv[1], set()
+for line in sys.stdin:
+    groups.add(int(line))
+def ours():
+    procs = {}
+    for p in os.listdir("/proc"):
+        if p.isdigit() and int(p) != os.getpid():
+            try:
+                st = open(f"/proc/{p}/stat").read().rsplit(")", 1)[1].split()
+                cmd = open(f"/proc/{p}/cmdline", "rb").read().decode(errors="replace")
+            except (OSError, IndexError):
+                continue
+            if st[0] != "Z":
+                procs[int(p)] = (int(st[1]), int(st[2]), cmd)
+    out = {p for p, (pp, g, cmd) in procs.items() if p in groups or g in groups or root in cmd}
+    while True:  # and their descendants
+        more = {p for p, (pp, g, cmd) in procs.items() if pp in out and p not in out}
+        if not more:
+            return out
+        out |= more
+for _ in range(100):
+    for g in groups:
+        try: os.killpg(g, signal.SIGKILL)
+        except OSError: pass
+    left = ours()
+    if not left:
+        break
+    for p in left:
+        try: os.kill(p, signal.SIGKILL)
+        except OSError: pass
+    time.sleep(0.1)
+shutil.rmtree(root, ignore_errors=True)
+print(len(ours()))
+"""
 
 
 def _free_port() -> int:
@@ -46,28 +80,9 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def _processes_of(pgids: set[int], marker: str | None = None) -> dict[int, str]:
-    """Live processes in the given process groups or naming ``marker`` (our temp dir) in their command line."""
-    out = {}
-    for p in Path("/proc").iterdir():
-        if not p.name.isdigit():
-            continue
-        try:
-            stat = (p / "stat").read_text()
-            if stat.rsplit(")", 1)[1].split()[0] == "Z":
-                continue
-            pgid = int(stat.rsplit(")", 1)[1].split()[2])
-            cmd = (p / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
-        except (OSError, IndexError, ValueError):
-            continue
-        if pgid in pgids or (marker and marker in cmd):
-            out[int(p.name)] = cmd[:120]
-    return out
-
-
 def _ray_start(args: list[str], log: Path, env: dict) -> subprocess.Popen:
     ray_cli = str(Path(sys.executable).with_name("ray"))
-    # --block: the node's processes stay children of this one, in a process group of their own
+    # --block: the node's processes stay in this one's process group (start_new_session)
     return subprocess.Popen([ray_cli, "start", "--block", "--num-cpus", "1", "--node-ip-address", "127.0.0.1",
                              "--disable-usage-stats", *args], stdout=log.open("w"), stderr=subprocess.STDOUT,
                             env=env, start_new_session=True)
@@ -83,10 +98,57 @@ def _wait(cond, timeout_s: float, what: str, logs=()) -> None:
     raise AssertionError(f"{what} not within {timeout_s:.0f} s\n{tails}")
 
 
+def _tree(roots: set[int]) -> dict[int, str]:
+    """{pid: command line} of ``roots`` and all their descendants (Ray puts its worker processes
+    in process groups of their own, so a group does not hold a node's workers; its raylet does)."""
+    procs = {}
+    for p in Path("/proc").iterdir():
+        try:
+            if p.name.isdigit():
+                st = (p / "stat").read_text().rsplit(")", 1)[1].split()
+                if st[0] != "Z":
+                    procs[int(p.name)] = (int(st[1]), (p / "cmdline").read_bytes().decode(errors="replace"))
+        except (OSError, IndexError, ValueError):
+            pass
+    out, frontier = {}, set(roots)
+    while frontier:
+        out.update({pid: procs[pid][1] for pid in frontier if pid in procs})
+        frontier = {pid for pid, (ppid, _) in procs.items() if ppid in frontier and pid not in out}
+    return out
+
+
+def _titles(root: int) -> str:
+    """The command lines of a process tree (Ray sets a worker's to ``ray::TASK`` while it runs one)."""
+    return "\n".join(_tree({root}).values())
+
+
+def _kill_tree(root: int) -> None:
+    for pid in _tree({root}):  # everything at once: orphans would leave the tree
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def _recorded(out: Path) -> int:
+    try:
+        return max(0, (out / "journal.jsonl").read_bytes().count(b"\n") - 1)
+    except OSError:
+        return 0
+
+
+def _alive_nodes(address: str, env: dict) -> list[tuple[str, bool]]:
+    """(node id, is head) of the live nodes, asked in a short-lived process (no Ray session here)."""
+    code = ("import ray, sys; ray.init(address=sys.argv[1], log_to_driver=False); "
+            "[print(n['NodeID'], 'node:__internal_head__' in n['Resources']) for n in ray.nodes() if n['Alive']]")
+    r = subprocess.run([sys.executable, "-c", code, address], capture_output=True, text=True, env=env, timeout=120)
+    return [(a, b == "True") for a, b in re.findall(r"^([0-9a-f]{56}) (True|False)$", r.stdout, re.M)]
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="finds and kills the cluster's processes via /proc")
-def test_two_node_render_survives_losing_a_node_and_matches_a_local_run(tmp_path, monkeypatch):
-    ray = pytest.importorskip("ray", reason="ray is not installed: pip install 'edgetruth[test]'")
+def test_two_node_render_survives_losing_a_node_and_matches_a_local_run(tmp_path):
+    pytest.importorskip("ray", reason="ray is not installed: pip install 'edgetruth[test]'")
     if not Path(sys.executable).with_name("ray").exists():
         pytest.skip("the `ray` command is not installed next to this Python")
     from edgetruth.render.driver import render_spec
@@ -96,101 +158,87 @@ def test_two_node_render_survives_losing_a_node_and_matches_a_local_run(tmp_path
     render_spec(spec, tmp_path / "local", progress=False, announce=lambda s: None)
     t_local = time.perf_counter() - t0
 
-    # a short private root: Ray's socket paths must stay under ~107 characters, and nothing of
-    # another Ray user on this machine is touched (`ray stop` would stop every Ray process here)
+    # a short private root: Ray's socket paths must stay under ~107 characters
     root = Path(tempfile.mkdtemp(prefix="etray-", dir="/tmp"))
-    env = dict(os.environ, RAY_AUTH_MODE="disabled", RAY_USAGE_STATS_ENABLED="0",
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    env.update(RAY_AUTH_MODE="disabled", RAY_USAGE_STATS_ENABLED="0",
                # notice a dead node in ~1 s, not ~30 s
                RAY_health_check_period_ms="200", RAY_health_check_failure_threshold="5",
                RAY_health_check_initial_delay_ms="0", RAY_health_check_timeout_ms="500")
-    for k in ("RAY_AUTH_MODE", "RAY_USAGE_STATS_ENABLED"):
-        monkeypatch.setenv(k, env[k])
-    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    reaper = subprocess.Popen([sys.executable, "-c", _REAPER, str(root)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True, start_new_session=True)
     port = _free_port()
     address = f"127.0.0.1:{port}"
     logs = [root / "head.log", root / "node.log"]
-    head = node = None
     try:
         t0 = time.perf_counter()
         head = _ray_start(["--head", "--port", str(port), "--temp-dir", str(root / "head"),
                            "--include-dashboard", "false"], logs[0], env)
+        reaper.stdin.write(f"{head.pid}\n")
+        reaper.stdin.flush()
 
         def gcs_up():
             try:
                 socket.create_connection(("127.0.0.1", port), 0.5).close()
                 return True
             except OSError:
-                return head.poll() is not None  # (reported below)
+                return head.poll() is not None
 
         _wait(gcs_up, 120, "the head node", logs)
         assert head.poll() is None, logs[0].read_text()[-2000:]
         node = _ray_start(["--address", address, "--temp-dir", str(root / "node")], logs[1], env)
-        ray.init(address=address, include_dashboard=False, log_to_driver=False)
-        _wait(lambda: len([n for n in ray.nodes() if n["Alive"]]) == 2, 120, "the second node", logs)
-        t_cluster = time.perf_counter() - t0
-        assert ray.cluster_resources().get("CPU") == 2.0
-        second = next(n["NodeID"] for n in ray.nodes() if "node:__internal_head__" not in n["Resources"])
-        # start a worker process on the second node (Python, edgetruth, Mitsuba imported) so that it
-        # takes its share from the first images on; the render's tasks reuse it
-        from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+        reaper.stdin.write(f"{node.pid}\n")
+        reaper.stdin.flush()
+        nodes: list = []
 
-        warm = ray.remote(num_cpus=1)(_warm_worker).options(
-            scheduling_strategy=NodeAffinitySchedulingStrategy(second, soft=False))
-        assert ray.get(warm.remote(), timeout=120) == second
+        def both_up():
+            nodes[:] = _alive_nodes(address, env)
+            return len(nodes) == 2
+
+        _wait(both_up, 120, "the second node", logs)
+        second = next(n for n, is_head in nodes if not is_head)
+        t_cluster = time.perf_counter() - t0
 
         out = tmp_path / "cluster"
-        seen: dict = {}
-
-        t: dict = {}
-
-        def kill_second_node():  # once the second node has rendered KILL_AFTER images
-            while t.get("tasks_per_node", {}).get(second, 0) < KILL_AFTER:
-                time.sleep(0.005)
-            os.killpg(node.pid, signal.SIGKILL)
-            seen["killed_at"] = (out / "journal.jsonl").read_bytes().count(b"\n") - 1
-            seen["second_at_kill"] = t["tasks_per_node"][second]
-
-        killer = threading.Thread(target=kill_second_node, daemon=True)
-        killer.start()
         t0 = time.perf_counter()
-        render_spec(spec, out, progress=False, announce=lambda s: None, backend="ray", files="driver", timings=t)
+        logs += [root / "driver.out", root / "driver.err"]
+        with logs[2].open("w") as fo, logs[3].open("w") as fe:
+            driver = subprocess.Popen([sys.executable, "-m", "edgetruth", "render", str(spec), "-o", str(out),
+                                       "--backend", "ray", "--address", address, "--files", "driver", "--no-progress"],
+                                      stdout=fo, stderr=fe, env=env)
+        # kill the second node once it renders too (its worker process started cold) and the
+        # journal holds KILL_AT images: when a task has been running there for 0.5 s
+        busy_since: list = []
+
+        def second_node_rendering():
+            if driver.poll() is not None:
+                return True
+            if not busy_since and "ray::_ray_call" in _titles(node.pid):
+                busy_since.append(time.monotonic())
+            return bool(busy_since) and time.monotonic() - busy_since[0] > 0.5 and _recorded(out) >= KILL_AT
+
+        _wait(second_node_rendering, 300, "the second node to render", logs)
+        assert driver.poll() is None, logs[3].read_text()[-3000:]
+        _kill_tree(node.pid)  # its raylet, workers, agents: the whole node, at once
+        killed_at = _recorded(out)
+        driver.wait(timeout=300)
         t_render = time.perf_counter() - t0
-        killer.join(timeout=1)
-        per_node = dict(t["tasks_per_node"])
-        assert "killed_at" in seen, f"the run ended before the second node rendered {KILL_AFTER} images: {per_node}"
-        assert seen["killed_at"] < N_IMAGES - 50, "the second node was killed too late to matter"
-        assert per_node[second] >= KILL_AFTER and sum(per_node.values()) == N_IMAGES
-        assert t["n_rendered"] == N_IMAGES and t["n_written_by_driver"] == N_IMAGES
-        _wait(lambda: len([n for n in ray.nodes() if n["Alive"]]) == 1, 60, "the dead node to be noticed")
+        stdout = logs[2].read_text()
+        assert driver.returncode == 0, logs[3].read_text()[-3000:]
+        assert killed_at < N_IMAGES - 100, "the second node was killed too late to matter"
+        per_node = dict((k, int(v)) for k, v in re.findall(r"([0-9a-f]{12}) (\d+)", stdout.split("per Ray node:")[-1]))
+        assert per_node.get(second[:12], 0) > 0, f"the second node rendered nothing before it died: {stdout}"
+        assert sum(per_node.values()) == N_IMAGES, stdout
+        assert f"{N_IMAGES}/{N_IMAGES} images" in stdout
         a = {p.name: p.read_bytes() for p in sorted((tmp_path / "local").iterdir())}
         b = {p.name: p.read_bytes() for p in sorted(out.iterdir())}
         assert a.keys() == b.keys() and a == b  # every file, manifest included
-        print(f"{N_IMAGES} tiny images: local {t_local:.1f} s; two-node cluster up in {t_cluster:.1f} s; "
-              f"render {t_render:.1f} s, the second node killed when {seen['killed_at']} images were recorded "
-              f"({seen['second_at_kill']} of them its own); images per node: head "
-              f"{N_IMAGES - per_node[second]}, second {per_node[second]}")
+        print(f"{N_IMAGES} tiny images: local {t_local:.1f} s; two-node cluster up in {t_cluster:.1f} s; render "
+              f"{t_render:.1f} s (driver start included), the second node killed at {killed_at} images recorded; "
+              f"images per node: head {N_IMAGES - per_node[second[:12]]}, second {per_node[second[:12]]}")
     finally:
-        if ray.is_initialized():
-            ray.shutdown()
-        groups = {p.pid for p in (head, node) if p is not None}
-        for g in groups:
-            try:
-                os.killpg(g, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-        for p in (head, node):
-            if p is not None:
-                p.wait(timeout=30)
-        # anything else of this cluster (e.g. a worker that left the group) is found by its temp dir
-        for _ in range(50):
-            left = _processes_of(groups, str(root))
-            if not left:
-                break
-            for pid in left:
-                try:
-                    os.kill(pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
-            time.sleep(0.2)
+        reaper.stdin.close()  # kill the cluster, wait for it to be gone
+        left = reaper.stdout.read().strip()
+        reaper.wait(timeout=60)
         shutil.rmtree(root, ignore_errors=True)
-    assert not _processes_of(groups, str(root)), "processes of the test cluster are still running"
+    assert left == "0", f"{left} processes of the test cluster are still running"
