@@ -299,8 +299,8 @@ def capacity_lines(patches: dict, frames: dict) -> list[str]:
         f"capacity: a GPU worker still spends the fixed CPU part per image ({fixed_ms:.2f} ms of a tiny patch: "
         f"pose, scene update, sensor, encoding, hashing, writing): at most {3.6e6 / fixed_ms:,.0f} tiny images/h "
         "per GPU worker process, whatever the GPU (GPU render time not measured: no GPU here)",
-        f"capacity: driver: {driver_ms:.2f} ms per image (journal line + fdatasync {big['journal']:.2f}, writing "
-        f"files sent back {big['write']:.2f}) = ~{1e3 / driver_ms:,.0f} images/s per driver"
+        f"capacity: driver: {driver_ms:.2f} ms per image (journal line {big['journal']:.2f}, synced in the "
+        f"background; writing files sent back {big['write']:.2f}) = ~{1e3 / driver_ms:,.0f} images/s per driver"
         + (f"; Ray: {frames['ray_tasks_per_s']:,.0f} trivial tasks/s through one driver (local instance, "
            f"{_cores()} cores)" if frames.get("ray_tasks_per_s") else "") + "; network: "
         f"{big['image_bytes'] / 1e3:.1f} kB per tiny image, {frames['bytes'] / 1e6:.1f} MB per full frame back "

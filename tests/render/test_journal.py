@@ -121,3 +121,34 @@ def test_older_whole_json_manifest_is_read_and_compacted_to_the_line_layout(tmp_
     assert compact(tmp_path) and ManifestReader(tmp_path / MANIFEST).streamable
     m = json.loads((tmp_path / MANIFEST).read_text())
     assert m["images"] == dict(sorted(entries.items())) and m["n_images"] == 10
+
+
+def test_lines_are_synced_in_the_background_in_groups_and_a_failed_sync_is_raised(tmp_path):
+    import time
+
+    d = _new(tmp_path)
+    w = JournalWriter(d / JOURNAL, KEY)
+    for i in range(200):
+        w.append(*_entry(i % 10))
+    end = time.monotonic() + 10
+    while w.n_syncs == 0 and time.monotonic() < end:
+        time.sleep(0.01)
+    assert 1 <= w.n_syncs <= 200  # group commit: one sync covers the lines written meanwhile
+    w.close()
+    assert sum(1 for _ in iter_journal(d / JOURNAL, 10, JournalScan())) == 200
+
+    w = JournalWriter(d / JOURNAL, KEY, (d / JOURNAL).stat().st_size)
+
+    def broken(fd):
+        raise OSError(5, "Input/output error")
+
+    w._sync = broken
+    w.append(*_entry(1))
+    end = time.monotonic() + 10
+    while w._error is None and time.monotonic() < end:
+        time.sleep(0.01)
+    with pytest.raises(OSError, match="cannot sync the journal"):
+        w.append(*_entry(2))
+    with pytest.raises(OSError):
+        w.close()
+    assert w.fd is None
