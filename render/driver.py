@@ -23,8 +23,8 @@ import numpy as np
 from edgetruth import console
 from edgetruth.errors import InputError
 from edgetruth.fileio import is_temporary, make_output_dir, sha256_file
-from edgetruth.render.journal import (JOURNAL, MANIFEST, JournalWriter, ManifestReader, compact, journal_positions,
-                                      merged_entries, new_header, write_manifest)
+from edgetruth.render.journal import (JOURNAL, MANIFEST, JournalScan, JournalWriter, ManifestReader, compact,
+                                      journal_positions, merged_entries, new_header, write_manifest)
 from edgetruth.render.spec import Spec, load_spec
 from edgetruth.render.task import init_worker, render_indexed, write_files
 
@@ -151,27 +151,32 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
         lock.release()
 
 
-def _open_dataset(spec: Spec, spec_key: str, out_dir: Path, announce):
-    """Check the directory holds this spec (before touching anything), clear a killed run's
-    temporaries, start the manifest if new.  Returns (header, reader, journal positions, scan)."""
+def _open_dataset(spec: Spec, spec_key: str, out_dir: Path, selected: np.ndarray, announce):
+    """Check the directory holds this spec and read its record (manifest + journal, every file
+    re-hashed) before touching anything; then clear a killed run's temporaries and start the
+    manifest if new.  Returns (header, which images are complete, the journal scan)."""
     mpath = out_dir / MANIFEST
-    reader = ManifestReader(mpath) if mpath.is_file() else None
-    if reader is not None:
-        h = reader.header
-        if h.get("spec") != spec.name or h.get("spec_sha256") != spec_key or h.get("n_images") != spec.n_images:
+    scan = JournalScan()
+    done = np.zeros(spec.n_images, dtype=bool)
+    if mpath.is_file():
+        reader = ManifestReader(mpath)
+        header = reader.header
+        if (header.get("spec") != spec.name or header.get("spec_sha256") != spec_key
+                or header.get("n_images") != spec.n_images):
             raise InputError(f"{out_dir} holds renders of another spec (or another version of {spec.name!r}); "
                              "choose a new output directory or delete it")
-    pos, scan = journal_positions(out_dir, spec.n_images, spec_key)  # a foreign journal: InputError
+        pos, scan = journal_positions(out_dir, spec.n_images, spec_key)  # a foreign journal: InputError
+        done = _complete_images(out_dir, reader, pos, selected)  # a damaged manifest: InputError
+    else:  # a new dataset (a journal without a manifest is not trusted: it is started afresh)
+        header = new_header(spec.name, spec_key, spec.n_images)
     for p in os.scandir(out_dir):  # temporaries of a killed run (we hold the lock: no writer is alive)
         if is_temporary(Path(p.name)) and p.is_file():
             os.unlink(p.path)
-    header = reader.header if reader is not None else new_header(spec.name, spec_key, spec.n_images)
-    if reader is None:
+    if not mpath.is_file():
         write_manifest(mpath, header, [])
-        reader = ManifestReader(mpath)
     if scan.problem():
         announce(f"render: {out_dir / JOURNAL}: {scan.problem()}")
-    return header, reader, pos, scan
+    return header, done, scan
 
 
 def _entry_complete(out_dir: Path, entry: dict) -> bool:
@@ -224,8 +229,7 @@ def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, 
 
     t_start = time.perf_counter()
     spec_key = spec.identity_sha256  # computed once: it hashes every image's distance
-    header, reader, pos, scan = _open_dataset(spec, spec_key, out_dir, announce)
-    done = _complete_images(out_dir, reader, pos, selected)
+    header, done, scan = _open_dataset(spec, spec_key, out_dir, selected, announce)
     todo = np.flatnonzero(selected & ~done)  # index order, so the journal is nearly sorted
     n_sel = int(selected.sum())
     stats["resume_check_s"] = stats.get("resume_check_s", 0.0) + time.perf_counter() - t_start

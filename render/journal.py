@@ -129,16 +129,20 @@ def write_manifest(path: Path, header: dict, entries) -> int:
     """Write ``entries`` (``(name, entry)`` in index order) atomically and durably; returns how many."""
     tmp = tmp_path(path)
     n = 0
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(json.dumps(header)[:-1] + _IMAGES_OPEN + "\n")
-        sep = ""
-        for name, entry in entries:
-            fh.write(sep + _entry_line(name, entry))
-            sep = ",\n"
-            n += 1
-        fh.write(("\n" if n else "") + _FOOTER)
-        fh.flush()
-        os.fsync(fh.fileno())
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(json.dumps(header)[:-1] + _IMAGES_OPEN + "\n")
+            sep = ""
+            for name, entry in entries:  # streamed: may find the old manifest damaged half-way
+                fh.write(sep + _entry_line(name, entry))
+                sep = ",\n"
+                n += 1
+            fh.write(("\n" if n else "") + _FOOTER)
+            fh.flush()
+            os.fsync(fh.fileno())
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     os.replace(tmp, path)
     _fsync_dir(path.parent)
     return n

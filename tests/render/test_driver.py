@@ -77,7 +77,7 @@ def test_killed_run_journal_resumes_and_is_compacted(tmp_path):
     assert _files(out) == _files(ref)
 
 
-def test_verify_reads_a_journal_and_compacts_it_unless_a_render_holds_the_directory(tmp_path, capsys):
+def test_verify_and_open_dataset_read_a_journal_verify_compacts_it_unless_a_render_holds_the_dir(tmp_path, capsys):
     from edgetruth.cli import main
     from edgetruth.render.driver import DirLock, render_spec
     from edgetruth.render.journal import JOURNAL, MANIFEST, JournalWriter, write_manifest
@@ -92,6 +92,10 @@ def test_verify_reads_a_journal_and_compacts_it_unless_a_render_holds_the_direct
     for name, e in m["images"].items():
         w.append(name, e)
     w.close()
+    from edgetruth.render import open_dataset
+
+    ds = open_dataset(d)  # reads the journal form too
+    assert ds.names() == list(m["images"]) and ds[2].truth["index"] == 2
     lock = DirLock(d)  # a render running now
     try:
         assert main(["verify", str(d)]) == 0
@@ -102,6 +106,24 @@ def test_verify_reads_a_journal_and_compacts_it_unless_a_render_holds_the_direct
     out = capsys.readouterr().out
     assert "compacted" in out and "OK, 3/3" in out and not (d / JOURNAL).exists()
     assert _files(d) == ref
+
+
+def test_damaged_manifest_stops_render_and_verify_in_one_line_touching_nothing(tmp_path, capsys):
+    from edgetruth.cli import main
+    from edgetruth.render.driver import render_spec
+
+    spec = write_tiny_spec(tmp_path, spp=4)
+    d = tmp_path / "d"
+    render_spec(spec, d, only=[0], progress=False, announce=lambda s: None)
+    text = (d / "manifest.json").read_text()
+    (d / "manifest.json").write_text(text[: len(text) // 2])  # damaged from outside (cut in half)
+    (d / "journal.jsonl").write_text('{"journal": 1}\n')
+    before = _files(d)
+    for argv in (["render", str(spec), "-o", str(d), "--workers", "1", "--no-progress"], ["verify", str(d)]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "manifest.json" in err and "Traceback" not in err
+    assert _files(d) == before
 
 
 @pytest.mark.slow
