@@ -32,3 +32,4 @@ bench: $(STAMP)
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache
+	find . -not -path "./$(VENV)/*" -name "*.nb[ic]" -delete  # numba JIT caches

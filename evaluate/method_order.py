@@ -1,6 +1,8 @@
 """Canonical order and study options of the methods in tables and figures."""
 from __future__ import annotations
 
+from pathlib import Path
+
 from edgetruth import locate
 from edgetruth.locate import registry as _registry_mod
 
@@ -25,10 +27,12 @@ def study_options(thresholds=None) -> dict:
 
 
 def thresholds_in_use(thresholds=None) -> dict:
-    """{'2p': tau, '4p': tau, 'source': path} of the thresholds a study uses."""
+    """{'2p': tau, '4p': tau, 'source': path, 'label': for reports} of the thresholds a study uses."""
     from edgetruth.locate import thresholds as thr
 
-    return {**{m: thr.load(m, thresholds) for m in thr.MODELS}, "source": str(thr.source(thresholds))}
+    src = thr.source(thresholds)
+    label = "shipped, assets/entropy_thresholds.json" if thresholds is None else f"from {Path(thresholds).name}"
+    return {**{m: thr.load(m, thresholds) for m in thr.MODELS}, "source": str(src), "label": label}
 
 REFERENCE = "dynamic_erf_4p"
 

@@ -23,7 +23,7 @@ from edgetruth.fileio import check_output_dir, read_json, write_json
 RUN_MARKER = "run.json"
 STUDIES = {
     "quick": {"calibration": "quick", "targets": ["quick"]},
-    "full": {"calibration": "calibration", "targets": ["standard", "snr", "targets"]},
+    "full": {"calibration": "calibration", "targets": ["study"]},
 }
 
 
@@ -31,8 +31,8 @@ def utc_stamp() -> str:
     return datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
 
 
-def prepare_run_dir(out: str | Path, kind: str, settings: dict, option: str = "-o") -> Path:
-    """Create (or re-open, to resume) a run directory; refuse a file or a foreign non-empty directory."""
+def check_run_dir(out: str | Path, kind: str, option: str = "-o") -> Path:
+    """Refuse (without creating anything) a file, or a non-empty directory that is not a ``kind`` run."""
     out = check_output_dir(out, option)
     marker = out / RUN_MARKER
     if out.is_dir() and any(out.iterdir()):
@@ -46,6 +46,13 @@ def prepare_run_dir(out: str | Path, kind: str, settings: dict, option: str = "-
         if old.get("kind") != kind:
             raise InputError(f"{option} {out}: holds an `edgetruth {old.get('kind')}` run, not `{kind}`; "
                              "choose a new directory")
+    return out
+
+
+def prepare_run_dir(out: str | Path, kind: str, settings: dict, option: str = "-o") -> Path:
+    """Create (or re-open, to resume) a run directory; refuse a file or a foreign non-empty directory."""
+    out = check_run_dir(out, kind, option)
+    marker = out / RUN_MARKER
     out.mkdir(parents=True, exist_ok=True)
     write_json(marker, {"kind": kind, "edgetruth": __version__, "settings": settings, "updated_utc": utc_stamp()})
     return out
@@ -70,7 +77,7 @@ def select_jobs(spec, limit: int | None, kind: str) -> list[int]:
 def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None, thresholds=None,
                       progress: bool = True, names: dict | None = None, backend: str = "local",
                       workers: int | None = 1, address: str | None = None, header: dict | None = None,
-                      synthetic_report: Path | None = None) -> Path:
+                      synthetic_report: Path | None = None, title: str = "evaluation report") -> Path:
     """Range every target image of ``datasets`` with every method and write ``report.md`` into ``out``."""
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.ranging import run_ranging
@@ -83,9 +90,9 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
     head = dict(header or {})
     head.setdefault("target images", len({(r.get("spec"), r["image"]) for r in result["rows"]}))
     head.setdefault("methods", len(result["methods"]))
-    head["entropy thresholds"] = f"2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} from {tau['source']}"
+    head["entropy thresholds"] = f"2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']})"
     return write_report(out, result["rows"], result["methods"], calibration, result["examples"], head,
-                        str(synthetic_report) if synthetic_report else None)
+                        str(synthetic_report) if synthetic_report else None, title=title)
 
 
 def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int | None = None,
@@ -178,7 +185,8 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     if synthetic_failed:
         header["synthetic study"] = "FAILED (see the console)"
     report = evaluate_datasets(datasets, cal, out, methods=methods, thresholds=thresholds, progress=progress,
-                               names=names, workers=workers, header=header, synthetic_report=synthetic_report)
+                               names=names, workers=workers, header=header, synthetic_report=synthetic_report,
+                               title=f"run report (study {study})")
     timing["ranging_s"] = time.perf_counter() - t
     console.say(f"run: report {report} ({time.perf_counter() - t0:.1f} s in all: "
                 + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + ")")

@@ -60,15 +60,40 @@ class ImageResult:
     error: str = ""
 
 
-def size_of(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float) -> dict:
-    """Image size l (pixels, in fx units) of the target from refined points."""
+def size_of(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float, K=None, size_m: float | None = None) -> dict:
+    """Image size l (pixels, in fx units) of the target from refined points; with ``K`` and ``size_m``
+    also the pose-based distance ``z_pose_m`` (``edgetruth.evaluate.pose_ranging``)."""
+    from edgetruth.evaluate.pose_ranging import pose_distance
+
     if shape == "square":
         fit = fit_square(x, y, nx, ny)
-        return {"size_px": fit.width_px, "size_tb_px": fit.height_px * fx / fy, "size_seed_px": fit.width_seed_px,
-                "n_used": int(fit.used.sum()), "fit_rms_px": float(np.nanmean([ln.rms_px for ln in fit.lines.values()]))}
-    fit = fit_circle(x, y, aspect=fx / fy, cy_px=cy)
-    return {"size_px": fit.diameter_px, "size_tb_px": float("nan"), "size_seed_px": float("nan"),
-            "n_used": int(fit.used.sum()), "fit_rms_px": fit.rms_px}
+        out = {"size_px": fit.width_px, "size_tb_px": fit.height_px * fx / fy, "size_seed_px": fit.width_seed_px,
+               "n_used": int(fit.used.sum()),
+               "fit_rms_px": float(np.nanmean([ln.rms_px for ln in fit.lines.values()]))}
+        pose_args = {"corners_px": fit.corners}
+    else:
+        fit = fit_circle(x, y, aspect=fx / fy, cy_px=cy)
+        out = {"size_px": fit.diameter_px, "size_tb_px": float("nan"), "size_seed_px": float("nan"),
+               "n_used": int(fit.used.sum()), "fit_rms_px": fit.rms_px}
+        pose_args = {"x": np.asarray(x)[fit.used], "y": np.asarray(y)[fit.used]}
+    if K is not None and size_m is not None:
+        try:
+            out["z_pose_m"] = pose_distance(shape, size_m, K, **pose_args)
+        except InputError:
+            out["z_pose_m"] = float("nan")
+    return out
+
+
+def true_pose_distance(gt: dict) -> float:
+    """The pose-based estimate on the TRUE undistorted outline with the true K (its model floor)."""
+    from edgetruth.evaluate.pose_ranging import pose_distance
+
+    pts = np.asarray(gt["outline"]["undistorted_px"], float)
+    K = np.asarray(gt["camera"]["K"], float)
+    size_m = float(gt["target"]["size_m"])
+    if gt["target"]["shape"] == "square":
+        return pose_distance("square", size_m, K, corners_px=pts[:4])
+    return pose_distance("circle", size_m, K, x=pts[:, 0], y=pts[:, 1])
 
 
 def true_size_px(gt: dict) -> float:
@@ -88,6 +113,17 @@ def true_size_px(gt: dict) -> float:
     return 2.0 * circle_taubin(pts[:, 0], pts[:, 1])[2]
 
 
+def design_fields(gt: dict) -> dict:
+    """Row fields of a paired design cell: its pose slot, its levels (``f1=L1;f2=L2``) and the factors
+    it moves off the base cell (``off_base``; empty for the base cell)."""
+    d = gt.get("design")
+    if not d:
+        return {"slot": "", "levels": "", "off_base": ""}
+    lv, base = d.get("levels") or {}, d.get("base_levels") or {}
+    return {"slot": d["slot"], "levels": ";".join(f"{k}={v}" for k, v in lv.items()),
+            "off_base": ",".join(k for k, v in lv.items() if base.get(k) != v)}
+
+
 def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[str], keep_points: bool = False,
                   name: str = "image", options: dict | None = None) -> ImageResult:
     """Run steps 1-5 on one image; ``gt`` supplies only the target's shape/size (and the scoring truth)."""
@@ -100,10 +136,11 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
     fx, fy, cy = cal.fx, cal.fy, cal.cy
     base = {"image": name, "spec": gt.get("spec", ""), "group": gt.get("group", ""),
             "target": gt["target"]["id"], "shape": shape, "true_distance_m": z_true,
-            "interval": interval_label(100 * z_true)}
+            "interval": interval_label(100 * z_true), **design_fields(gt)}
     floor_l = true_size_px(gt)
     f_true = float(gt["camera"]["fx_px"])
     base["model_floor_cm"] = 100.0 * (distance_from_size(f_true, size_m, floor_l) - z_true)
+    base["pose_floor_cm"] = 100.0 * (true_pose_distance(gt) - z_true)
     und = undistorter(image)
     try:
         tc = target_candidates(und, undistorter.valid_mask())
@@ -125,11 +162,11 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
         try:
             pts = locate.refine(tc.crop, tc.candidates, m, **(options or {}).get(m, {}))
             x, y = pts.x + x0, pts.y + y0
-            s = size_of(shape, x, y, pts.nx, pts.ny, fx, fy, cy)
+            s = size_of(shape, x, y, pts.nx, pts.ny, fx, fy, cy, K=cal.K, size_m=size_m)
             z = distance_from_size(fx, size_m, s["size_px"])
             row.update(s, status="ok", converged_frac=float(np.mean(pts.converged)), time_s=pts.elapsed_s,
                        z_hat_m=z, error_cm=100.0 * (z - z_true), rel_error_pct=100.0 * abs(z - z_true) / z_true,
-                       size_error_px=s["size_px"] - floor_l)
+                       size_error_px=s["size_px"] - floor_l, error_pose_cm=100.0 * (s["z_pose_m"] - z_true))
             if keep_points:
                 res.points[m] = (x, y)
         except InputError as exc:
@@ -139,9 +176,11 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
     return res
 
 
-ROW_FIELDS = ("dataset", "image", "spec", "group", "target", "shape", "true_distance_m", "interval", "method", "status",
+ROW_FIELDS = ("dataset", "image", "spec", "group", "slot", "levels", "off_base", "target", "shape", "true_distance_m",
+              "interval", "method", "status",
               "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px", "size_seed_px", "size_error_px",
-              "model_floor_cm", "n_points", "n_used", "fit_rms_px", "converged_frac", "time_s")
+              "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm", "n_points", "n_used", "fit_rms_px",
+              "converged_frac", "time_s")
 
 
 def write_rows(path: Path, rows: list[dict]) -> None:
@@ -161,7 +200,8 @@ def read_rows(path: Path) -> list[dict]:
     with open(path, newline="") as fh:
         for r in csv.DictReader(fh):
             for k in ("true_distance_m", "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px",
-                      "size_seed_px", "size_error_px", "model_floor_cm", "fit_rms_px", "converged_frac", "time_s"):
+                      "size_seed_px", "size_error_px", "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm",
+                      "fit_rms_px", "converged_frac", "time_s"):
                 if k in r:
                     r[k] = float(r[k]) if r[k] not in ("", None) else float("nan")
             out.append(r)

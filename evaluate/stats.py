@@ -44,3 +44,99 @@ def wilcoxon_paired(a, b, alpha: float = 0.05) -> dict:
     res = _st.wilcoxon(a, b, zero_method="wilcox", alternative="two-sided")
     out.update(statistic=float(res.statistic), p_value=float(res.pvalue), significant=bool(res.pvalue < alpha))
     return out
+
+
+# --- paired designs: effect sizes, multiple comparisons, bootstrap intervals -------------------------
+def rank_biserial(a, b) -> float:
+    """Matched-pairs rank-biserial correlation of a - b, in [-1, 1]: (W+ - W-) / (W+ + W-) over the
+    non-zero differences (the Wilcoxon signed-rank test's effect size; > 0: a tends to be larger)."""
+    d = np.asarray(a, float) - np.asarray(b, float)
+    d = d[np.isfinite(d) & (d != 0)]
+    if d.size == 0:
+        return 0.0
+    r = _st.rankdata(np.abs(d))
+    wp, wm = r[d > 0].sum(), r[d < 0].sum()
+    return float((wp - wm) / (wp + wm))
+
+
+def holm(p_values) -> np.ndarray:
+    """Holm–Bonferroni adjusted p-values (same order as given; family-wise error control)."""
+    p = np.asarray(p_values, float)
+    order = np.argsort(p)
+    m = p.size
+    adj = np.empty(m)
+    running = 0.0
+    for rank, i in enumerate(order):
+        running = max(running, min(1.0, (m - rank) * p[i]))
+        adj[i] = running
+    return adj
+
+
+def bootstrap_ci(statistic, *samples, n_boot: int = 2000, alpha: float = 0.05, seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap CI of ``statistic(*samples)``; paired samples are resampled together
+    (the same indices for every sample, so pairs stay pairs)."""
+    arrs = [np.asarray(s, float) for s in samples]
+    n = arrs[0].size
+    if n < 2 or any(a.size != n for a in arrs):
+        return float("nan"), float("nan")
+    rng = np.random.Generator(np.random.PCG64(seed))
+    idx = rng.integers(0, n, size=(n_boot, n))
+    vals = np.array([statistic(*(a[i] for a in arrs)) for i in idx])
+    vals = vals[np.isfinite(vals)]
+    if vals.size == 0:
+        return float("nan"), float("nan")
+    lo, hi = np.percentile(vals, [100 * alpha / 2, 100 * (1 - alpha / 2)])
+    return float(lo), float(hi)
+
+
+def rmse(e) -> float:
+    e = np.asarray(e, float)
+    e = e[np.isfinite(e)]
+    return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
+
+
+def rmse_ci(errors, **kw) -> tuple[float, float]:
+    """Bootstrap CI of the RMSE of ``errors``."""
+    e = np.asarray(errors, float)
+    return bootstrap_ci(rmse, e[np.isfinite(e)], **kw)
+
+
+def rmse_difference_ci(a, b, **kw) -> tuple[float, float]:
+    """Bootstrap CI of RMSE(a) - RMSE(b) for errors paired element by element."""
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    ok = np.isfinite(a) & np.isfinite(b)
+    return bootstrap_ci(lambda x, y: rmse(x) - rmse(y), a[ok], b[ok], **kw)
+
+
+def friedman(blocks) -> dict:
+    """Friedman test over an (n_blocks, k_levels) array of paired measurements (e.g. |error| per
+    pose slot and illumination level); rows with a missing value are dropped."""
+    m = np.asarray(blocks, float)
+    m = m[np.all(np.isfinite(m), axis=1)] if m.ndim == 2 else m
+    out = {"n_blocks": int(m.shape[0]) if m.ndim == 2 else 0, "k": int(m.shape[1]) if m.ndim == 2 else 0}
+    if m.ndim != 2 or m.shape[0] < 2 or m.shape[1] < 3:
+        out.update(statistic=float("nan"), p_value=float("nan"), kendall_w=float("nan"))
+        return out
+    res = _st.friedmanchisquare(*m.T)
+    n, k = m.shape
+    out.update(statistic=float(res.statistic), p_value=float(res.pvalue),
+               kendall_w=float(res.statistic / (n * (k - 1))))  # effect size: Kendall's W in [0, 1]
+    return out
+
+
+def paired_comparisons(blocks, labels, alpha: float = 0.05) -> list[dict]:
+    """Wilcoxon signed-rank between consecutive levels of a paired (n_blocks, k) design, Holm-adjusted,
+    with the rank-biserial effect size and the median difference (later level minus earlier)."""
+    m = np.asarray(blocks, float)
+    rows = []
+    for j in range(m.shape[1] - 1):
+        w = wilcoxon_paired(m[:, j + 1], m[:, j], alpha)
+        rows.append({"from": labels[j], "to": labels[j + 1], "n_pairs": w["n_pairs"],
+                     "median_difference": w["median_difference"], "p_value": w["p_value"],
+                     "rank_biserial": rank_biserial(m[:, j + 1], m[:, j])})
+    adj = holm([r["p_value"] for r in rows]) if rows else []
+    for r, p in zip(rows, adj):
+        r["p_holm"] = float(p)
+        r["significant"] = bool(p < alpha)
+    return rows

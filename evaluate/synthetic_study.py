@@ -354,7 +354,7 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
         f"lines and circles alternating; {d.scenario.size} on-edge candidate points "
         f"(|candidate − true edge| ≤ {MATCH_RADIUS_PX} px), {d.off_edge} off-edge candidates excluded for every method. "
         "Seeds: test split (disjoint from the threshold calibration split). "
-        f"Entropy thresholds: 2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({_thresholds_label(tau['source'])}). "
+        f"Entropy thresholds: 2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']}). "
         f"Study options: { {m: {k: v for k, v in o.items() if k != 'tau'} for m, o in d.options.items()} }. Errors are signed distances to the true edge along the true normal; "
         "failed refinements count with the candidate pixel (see 'converged %').",
         "",
@@ -412,16 +412,6 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
     return report
 
 
-def _thresholds_label(source: str) -> str:
-    from edgetruth.resources import shipped_thresholds
-
-    try:
-        shipped = Path(source).resolve() == shipped_thresholds().resolve()
-    except Exception:
-        shipped = False
-    return "shipped: assets/entropy_thresholds.json" if shipped else f"from {Path(source).name}"
-
-
 def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: bool = True,
                         images_per_scenario: int | None = None, backend: str = "local", workers: int = 1,
                         address: str | None = None, thresholds=None) -> Path:
@@ -439,6 +429,10 @@ def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: 
 
     check_backend_args(backend, workers, address)
     options = mo.study_options(thresholds)
+    out_dir = Path(out_dir)
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not (out_dir / "cache" / "key.json").is_file():
+        raise InputError(f"-o {out_dir}: exists, is not empty and holds no synthetic study (no cache/key.json); "
+                         "choose a new directory, or an earlier study's to resume it")
     out_dir = make_output_dir(out_dir)
     t0 = time.perf_counter()
     d = collect(out_dir, n_per, methods, progress=progress, backend=backend, workers=workers, address=address,

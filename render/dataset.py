@@ -27,6 +27,7 @@ FORMAT_VERSION = 1
 POSE_STREAM, SENSOR_STREAM = 1, 2
 VIEW_MARGIN_PX = 12.0  # full-size frames; small test frames use 2 % of their width
 _rigs: dict = {}
+_radiance_cache: dict = {}  # the last design-slot radiance this process rendered (its cells reuse it)
 
 
 # --- scene objects ----------------------------------------------------------------
@@ -50,7 +51,7 @@ def _half_view_m(camera: Camera, distance_m: float) -> np.ndarray:
 def job_pose(job: Job, camera: Camera, outline_local: np.ndarray) -> Pose:
     """The pose of a job: distance from the spec, lateral offset and tilts drawn from the job seed,
     redrawn (deterministically) until the outline lies inside the image."""
-    rng = make_rng(job.seed, POSE_STREAM)
+    rng = make_rng(job.pose_seed, POSE_STREAM)
     d = job.distance_cm / 100.0
     extent = float(np.max(np.abs(outline_local[:, :2])))
     for attempt in range(200):
@@ -85,29 +86,52 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
     camera = job.camera
     settings = spec.render
     sensor = job.sensor
+    # a design cell renders its unit's radiance at the unit's irradiance and scales it (light transport
+    # is linear in emitted power): every cell of a unit shares one render, whatever order they come in
+    e_render = job.unit_irradiance_w_m2 if job.unit_irradiance_w_m2 is not None else job.irradiance_w_m2
     if job.kind == "target":
         size_m = spec.target_size_m
-        pose = job_pose(job, camera, target_outline_local(TARGETS[job.target]["shape"], size_m))
+        # paired cells share the pose whatever the target: the view check uses the square (it bounds the circle)
+        shape = "square" if job.slot is not None else TARGETS[job.target]["shape"]
+        pose = job_pose(job, camera, target_outline_local(shape, size_m))
         rig = get_rig("target", camera, settings, size_m, crop)
-        le = rig.set_state(job.target, pose, job.irradiance_w_m2)
+        le = rig.set_state(job.target, pose, e_render)
         gt = target_ground_truth(camera, pose, job.target, size_m)
     else:
         board = spec.checkerboard
         pose = job_pose(job, camera, board.plate_corners_local())
         rig = get_rig("checkerboard", camera, settings, board, crop)
-        le = rig.set_state(pose, job.irradiance_w_m2)
+        le = rig.set_state(pose, e_render)
         gt = checker_ground_truth(camera, pose, board)
+    key = (spec.identity_sha256, job.radiance_unit, job.slot, crop)
     t0 = time.perf_counter()
-    radiance = rig.render(job.seed)
+    if job.slot is not None and _radiance_cache.get("key") == key:
+        radiance = _radiance_cache["radiance"]
+        reused = True
+    else:
+        radiance = rig.render(job.render_seed)
+        reused = False
+        if job.slot is not None:
+            _radiance_cache.update(key=key, radiance=radiance)
     if timings is not None:
         timings["render_s"] = timings.get("render_s", 0.0) + time.perf_counter() - t0
+        timings["reused"] = timings.get("reused", 0) + int(reused)
+    scale = job.irradiance_w_m2 / e_render
+    if scale != 1.0:
+        radiance = (radiance * np.float32(scale)).astype(np.float32)
+        le *= scale
     dn = sensor.expose(radiance, camera.f_number, camera.pitch_um, make_rng(job.seed, SENSOR_STREAM))
     full = {
         "format": FORMAT_VERSION,
         "name": job.name, "index": job.index, "spec": spec.name, "group": job.group, "kind": job.kind,
         "seed": job.seed,
-        "seeds": {"mitsuba": job.seed, "pose_rng": [job.seed, POSE_STREAM], "sensor_rng": [job.seed, SENSOR_STREAM],
-                  "rng": "numpy PCG64 seeded with [seed, stream]"},
+        "seeds": {"mitsuba": job.render_seed, "pose_rng": [job.pose_seed, POSE_STREAM],
+                  "sensor_rng": [job.seed, SENSOR_STREAM], "rng": "numpy PCG64 seeded with [seed, stream]"},
+        "design": None if job.slot is None else {
+            "slot": job.slot, "levels": job.levels, "base_levels": job.base_levels, "radiance_unit": job.radiance_unit,
+            "unit_irradiance_w_m2": job.unit_irradiance_w_m2, "radiance_scale": scale,
+            "pairing": "every cell of the spec's design renders pose slot `slot` (same seed, same pose); cells "
+                       "of one radiance unit share one render, scaled by irradiance / unit irradiance"},
         "conventions": "pixel coordinates: OpenCV (pixel (r, c) centre at x=c, y=r); lengths in metres; "
                        "camera frame x right, y down, z forward",
         "camera": camera.ground_truth(),

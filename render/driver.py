@@ -109,7 +109,8 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
 
     ``only`` restricts to those job indices; ``timings`` (a dict) accumulates ``render_s``
     (inside ``mi.render``, summed over workers), ``stage_s`` (per stage of a task, summed),
-    ``journal_s``, ``wall_s``, ``n_rendered``, ``n_written_by_driver`` (images whose file bytes came
+    ``journal_s``, ``wall_s``, ``n_rendered``, ``reused`` (images whose radiance a worker reused from
+    another cell of their design slot), ``n_written_by_driver`` (images whose file bytes came
     back to this process), ``n_complete`` and, on Ray, ``tasks_per_node`` (node id -> images).
 
     ``backend``/``workers``/``address``: where images render (see ``edgetruth.backends``);
@@ -231,6 +232,12 @@ def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, 
     spec_key = spec.identity_sha256  # computed once: it hashes every image's distance
     header, done, scan = _open_dataset(spec, spec_key, out_dir, selected, announce)
     todo = np.flatnonzero(selected & ~done)  # index order, so the journal is nearly sorted
+    if any(g.paired for g in spec.groups):
+        # the images of one radiance unit next to each other: a worker renders the unit once and reuses it
+        rank = np.empty(spec.n_images, dtype=np.int64)
+        for u, unit in enumerate(spec.units()):
+            rank[unit] = u
+        todo = todo[np.lexsort((todo, rank[todo]))]
     n_sel = int(selected.sum())
     stats["resume_check_s"] = stats.get("resume_check_s", 0.0) + time.perf_counter() - t_start
     if not len(todo):
@@ -275,6 +282,7 @@ def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, 
             for k, v in res["stage_s"].items():
                 stage[k] = stage.get(k, 0.0) + v
             stats["n_rendered"] = stats.get("n_rendered", 0) + 1
+            stats["reused"] = stats.get("reused", 0) + res.get("reused", 0)
             bar.update(1)
     except BaseException:
         be.close(abort=True)

@@ -24,7 +24,8 @@ REQUIRED = object()
 @dataclass(frozen=True)
 class Key:
     name: str
-    type: str  # "int", "float", "str", "bool", "name", "table", "range2" (a [lo, hi] pair), "ranges" ([[lo, hi], ...])
+    type: str  # "int", "float", "str", "bool", "name", "table", "tables" (a list of tables), "range2" (a [lo, hi]
+    # pair), "ranges" ([[lo, hi], ...])
     default: Any
     unit: str
     meaning: str
@@ -92,6 +93,9 @@ def check_value(k: Key, v, where: str):
     elif k.type == "table":
         if not isinstance(v, dict):
             bad("must be a table { key = value, ... }")
+    elif k.type == "tables":
+        if not (isinstance(v, list) and v and all(isinstance(x, dict) for x in v)):
+            bad("must be a list of one or more tables [{ key = value, ... }, ...]")
     else:  # pragma: no cover - a key table bug
         raise AssertionError(k.type)
     if k.choices is not None and v not in k.choices:

@@ -18,6 +18,7 @@ so a spec of a million images costs nothing to load.
 from __future__ import annotations
 
 import bisect
+import functools
 import hashlib
 import json
 from dataclasses import asdict, dataclass, field, replace
@@ -72,10 +73,40 @@ GROUP_KEYS = [
 ]
 
 
+POSE_KEYS = ("count", "distance_range_cm", "distance_intervals_cm", "count_per_interval", "lateral_fraction",
+             "tilt_max_deg", "roll_max_deg")
+DESIGN_MODES = ("one_at_a_time", "full")
+DESIGN_KEYS = [
+    Key("kind", "str", "target", "", "what the images show", choices=KINDS),
+    Key("mode", "str", "one_at_a_time", "", "cells: one_at_a_time = the base cell (every factor's first level) "
+        "plus each other level of one factor at a time; full = every combination", choices=DESIGN_MODES),
+    *[k for k in GROUP_KEYS if k.name in POSE_KEYS],
+    Key("factor", "tables", REQUIRED, "", "[[design.factor]] tables: name + levels"),
+]
+FACTOR_KEYS = [
+    Key("name", "name", REQUIRED, "", "factor name (e.g. illumination, target)"),
+    Key("levels", "tables", REQUIRED, "", "[{name = ..., <group keys>}, ...]: each level sets any [[group]] key "
+        "except the pose keys (target, irradiance_w_m2, sensor, camera, ...)"),
+]
+#: keys a level may set: the group's own keys except its name, kind and the pose keys (shared by every cell)
+LEVEL_KEYS = [Key("name", "name", REQUIRED, "", "level name (part of the cell name)")] + [
+    k for k in GROUP_KEYS if k.name not in POSE_KEYS and k.name not in ("name", "kind")]
+
+
 def image_seed(spec_name: str, index: int) -> int:
     """A 31-bit seed from SHA-256 of (spec name, image index): stable across runs and machines."""
-    digest = hashlib.sha256(f"edgetruth/{spec_name}/{index}".encode()).digest()
+    return key_seed(spec_name, str(index))
+
+
+def key_seed(spec_name: str, key: str) -> int:
+    """A 31-bit seed from SHA-256 of (spec name, key): stable across runs and machines."""
+    digest = hashlib.sha256(f"edgetruth/{spec_name}/{key}".encode()).digest()
     return int.from_bytes(digest[:4], "little") & 0x7FFFFFFF
+
+
+def slot_seed(spec_name: str, slot: int) -> int:
+    """The seed of pose slot ``slot`` of a spec's design: every cell renders this pose."""
+    return key_seed(spec_name, f"slot/{slot}")
 
 
 @dataclass(frozen=True)
@@ -95,10 +126,21 @@ class Group:
     camera: Camera
     camera_overrides: dict = field(default_factory=dict)
     sensor_overrides: dict = field(default_factory=dict)
+    #: paired design cells only: {factor: level} and the radiance unit (cells that differ only in light
+    #: power and sensor settings share one radiance render per pose slot)
+    levels: dict | None = None
+    base_levels: dict | None = None
+    radiance_unit: int | None = None
+    unit_irradiance_w_m2: float | None = None
 
     @property
     def count(self) -> int:
         return len(self.distances_cm)
+
+    @property
+    def paired(self) -> bool:
+        """Image k of this group is pose slot k of the spec's design (shared with the other cells)."""
+        return self.levels is not None
 
 
 @dataclass(frozen=True)
@@ -118,6 +160,17 @@ class Job:
     irradiance_w_m2: float
     sensor: SensorModel
     camera: Camera
+    #: the pose's seed: the image's own, or its design slot's (shared by every cell)
+    pose_seed: int = 0
+    #: the Monte-Carlo seed of the radiance render (shared by the cells of a radiance unit)
+    render_seed: int = 0
+    slot: int | None = None
+    levels: dict | None = None
+    base_levels: dict | None = None
+    radiance_unit: int | None = None
+    #: the radiance of this image is the unit's render at ``unit_irradiance_w_m2``, scaled by
+    #: irradiance_w_m2 / unit_irradiance_w_m2 (light transport is linear in emitted power)
+    unit_irradiance_w_m2: float | None = None
 
 
 class Jobs:
@@ -141,10 +194,18 @@ class Jobs:
             raise IndexError(f"image {index} out of range: {self._spec.name!r} has images 0-{n - 1}")
         g = self._spec.groups[bisect.bisect_right(self._starts, index) - 1]
         k = index - g.first_index
+        seed = image_seed(self._spec.name, index)
+        if g.paired:
+            pose_seed = slot_seed(self._spec.name, k)
+            render_seed = key_seed(self._spec.name, f"slot/{k}/unit/{g.radiance_unit}")
+        else:
+            pose_seed = render_seed = seed
         return Job(index=index, name=f"{index:04d}_{g.name}", group=g.name, kind=g.kind,
-                   seed=image_seed(self._spec.name, index), distance_cm=float(g.distances_cm[k]), target=g.target,
+                   seed=seed, distance_cm=float(g.distances_cm[k]), target=g.target,
                    lateral_fraction=g.lateral_fraction, tilt_max_deg=g.tilt_max_deg, roll_max_deg=g.roll_max_deg,
-                   irradiance_w_m2=g.irradiance_w_m2, sensor=g.sensor, camera=g.camera)
+                   irradiance_w_m2=g.irradiance_w_m2, sensor=g.sensor, camera=g.camera, pose_seed=pose_seed,
+                   render_seed=render_seed, slot=k if g.paired else None, levels=g.levels, base_levels=g.base_levels,
+                   radiance_unit=g.radiance_unit, unit_irradiance_w_m2=g.unit_irradiance_w_m2)
 
     def __iter__(self):
         for i in range(len(self)):
@@ -192,9 +253,27 @@ class Spec:
                             "distances_cm": list(g.distances_cm), "lateral_fraction": g.lateral_fraction,
                             "tilt_max_deg": g.tilt_max_deg, "roll_max_deg": g.roll_max_deg,
                             "irradiance_w_m2": g.irradiance_w_m2, "sensor": asdict(g.sensor),
-                            "camera": g.camera.to_dict()} for g in self.groups]}
+                            "camera": g.camera.to_dict(), "levels": g.levels, "radiance_unit": g.radiance_unit,
+                            "unit_irradiance_w_m2": g.unit_irradiance_w_m2} for g in self.groups]}
 
-    @property
+    def units(self) -> list[list[int]]:
+        """Image indices that share one radiance render (a design slot of one radiance unit); every
+        other image is a unit of its own.  Rendering a unit's images together renders it once."""
+        out, by_key = [], {}
+        for g in self.groups:
+            for k in range(g.count):
+                i = g.first_index + k
+                if g.paired:
+                    key = (g.radiance_unit, k)
+                    if key not in by_key:
+                        by_key[key] = len(out)
+                        out.append([])
+                    out[by_key[key]].append(i)
+                else:
+                    out.append([i])
+        return out
+
+    @functools.cached_property  # the spec is frozen; hashing a million-image spec takes ~1 s
     def identity_sha256(self) -> str:
         """SHA-256 of the resolved spec: equal for any two specs that render the same images."""
         text = json.dumps(self.resolved(), sort_keys=True, default=float)
@@ -211,10 +290,10 @@ def resolve_spec_path(name_or_path: str | Path) -> Path:
     return Path(s).expanduser()
 
 
-def _distances_cm(spec_name: str, first_index: int, g: dict) -> tuple:
+def _distances_cm(seed: int, g: dict) -> tuple:
     """Stratified distances: one per equal sub-interval, uniform inside it, from a group-level stream
-    (seeded by the group's first image index) so the list is stable."""
-    rng = np.random.Generator(np.random.PCG64(image_seed(spec_name, -1 - first_index)))
+    so the list is stable."""
+    rng = np.random.Generator(np.random.PCG64(seed))
     if g.get("distance_intervals_cm") is not None:
         n = g["count_per_interval"]
         out = []
@@ -224,6 +303,60 @@ def _distances_cm(spec_name: str, first_index: int, g: dict) -> tuple:
     a, b = g["distance_range_cm"]
     n = g["count"]
     return tuple(float(v) for v in a + (np.arange(n) + rng.uniform(size=n)) * (b - a) / n)
+
+
+def _design_cells(design, where: str) -> list[tuple[dict, dict]]:
+    """The cells of a [design] as (group table, {factor: level}) pairs, in a stable order."""
+    import itertools
+
+    d = parse_table(design, DESIGN_KEYS, where)
+    factors = design.get("factor")
+    if not (isinstance(factors, list) and factors and all(isinstance(f, dict) for f in factors)):
+        raise InputError(f"{where}: factor: give one or more [[design.factor]] tables with a name and levels")
+    pose = {k: design[k] for k in POSE_KEYS if k in design}
+    parsed, fnames = [], set()
+    for i, f in enumerate(factors):
+        fw = f"{where} factor {f.get('name', i)!r}"
+        fv = parse_table(f, FACTOR_KEYS, fw)
+        if fv["name"] in fnames:
+            raise InputError(f"{fw}: name = {fv['name']!r}: factor names must be unique")
+        fnames.add(fv["name"])
+        levels = f["levels"]
+        if not (isinstance(levels, list) and levels and all(isinstance(v, dict) for v in levels)):
+            raise InputError(f"{fw}: levels: give a list of tables [{{name = ..., ...}}, ...]")
+        lv = []
+        for j, level in enumerate(levels):
+            lw = f"{fw} level {level.get('name', j)!r}"
+            parse_table(level, LEVEL_KEYS, lw)
+            if level["name"] in {x["name"] for x in lv}:
+                raise InputError(f"{lw}: level names must be unique within a factor")
+            lv.append(level)
+        parsed.append((fv["name"], lv))
+    if d["mode"] == "full":
+        combos = list(itertools.product(*[range(len(lv)) for _, lv in parsed]))
+    else:  # the base cell, then each other level of one factor at a time
+        combos = [tuple(0 for _ in parsed)]
+        for fi, (_, lv) in enumerate(parsed):
+            combos += [tuple(j if q == fi else 0 for q in range(len(parsed))) for j in range(1, len(lv))]
+    base = {fname: lv[0]["name"] for fname, lv in parsed}
+    cells = []
+    for combo in combos:
+        table = {"kind": d["kind"], **pose}
+        levels = {}
+        for (fname, lv), j in zip(parsed, combo):
+            level = dict(lv[j])
+            levels[fname] = level.pop("name")
+            for k, v in level.items():
+                if isinstance(v, dict) and isinstance(table.get(k), dict):  # sensor/camera: merge
+                    table[k] = {**table[k], **v}
+                elif k in table and k != "kind":
+                    raise InputError(f"{where}: key {k} is set by two factors ({', '.join(levels)}); "
+                                     "let one factor own each key")
+                else:
+                    table[k] = v
+        table["name"] = "_".join(levels.values())
+        cells.append((table, {"levels": levels, "base": base}))
+    return cells
 
 
 def _n_images(g: dict) -> int:
@@ -237,9 +370,10 @@ def load_spec(name_or_path: str | Path) -> Spec:
     path = resolve_spec_path(name_or_path)
     data = read_toml(path)
     src = str(path)
-    unknown = sorted(set(data) - {"spec", "sensor", "group"})
+    unknown = sorted(set(data) - {"spec", "sensor", "group", "design"})
     if unknown:
-        raise InputError(f"{src}: unknown table(s) {', '.join(unknown)}; a spec has [spec], [sensor] and [[group]]")
+        raise InputError(f"{src}: unknown table(s) {', '.join(unknown)}; a spec has [spec], [sensor], [[group]] "
+                         "and [design]")
     s = parse_table(data.get("spec", {}), SPEC_KEYS, f"{src} [spec]")
     name = s["name"] or path.stem
     from edgetruth.render.schema import check_value
@@ -257,12 +391,18 @@ def load_spec(name_or_path: str | Path) -> Spec:
                              "not divisible by it; choose a divisor of both")
         base_camera = base_camera.scaled(s["camera_scale"])
     base_sensor = sensor_from_dict(data.get("sensor", {}), where=f"{src} [sensor]")
-    groups_raw = data.get("group")
-    if not (isinstance(groups_raw, list) and groups_raw and all(isinstance(g, dict) for g in groups_raw)):
-        raise InputError(f"{src}: needs at least one [[group]] table (see docs/spec.md)")
+    groups_raw = data.get("group", [])
+    design_cells = _design_cells(data["design"], f"{src} [design]") if "design" in data else []
+    if not (isinstance(groups_raw, list) and all(isinstance(g, dict) for g in groups_raw)) or \
+            not (groups_raw or design_cells):
+        raise InputError(f"{src}: needs at least one [[group]] table or a [design] (see docs/spec.md)")
     groups, names, first = [], set(), 0
-    for i, raw in enumerate(groups_raw):
-        where = f"{src} group {raw.get('name', i)!r}"
+    units: dict = {}
+    for i, raw in enumerate(list(groups_raw) + [c for c, _ in design_cells]):
+        cell = design_cells[i - len(groups_raw)][1] if i >= len(groups_raw) else None
+        levels = cell["levels"] if cell else None
+        where = (f"{src} group {raw.get('name', i)!r}" if levels is None
+                 else f"{src} [design] cell {raw.get('name')!r}")
         g = parse_table(raw, GROUP_KEYS, where)
         if g["name"] in names:
             raise InputError(f"{where}: name = {g['name']!r}: group names must be unique")
@@ -278,11 +418,21 @@ def load_spec(name_or_path: str | Path) -> Spec:
         sensor = sensor_from_dict(g["sensor"], base_sensor, where=f"{where} sensor")
         cam_over = camera_overrides(g["camera"], f"{where} camera")
         camera = replace(base_camera, **cam_over) if cam_over else base_camera
+        unit = unit_e = None
+        if levels is not None:
+            # cells that differ only in light power and sensor settings share one radiance render
+            key = (g["kind"], g["target"], json.dumps(camera.to_dict(), sort_keys=True))
+            unit, unit_e = units.setdefault(key, (len(units), g["irradiance_w_m2"]))
+            dists = _distances_cm(key_seed(name, "design/distances"), g)  # the slots: one stream for all cells
+        else:
+            dists = _distances_cm(image_seed(name, -1 - first), g)  # seeded by the group's first image index
         groups.append(Group(name=g["name"], kind=g["kind"], target=g["target"] if g["kind"] == "target" else None,
-                            first_index=first, distances_cm=_distances_cm(name, first, g),
+                            first_index=first, distances_cm=dists,
                             lateral_fraction=g["lateral_fraction"], tilt_max_deg=g["tilt_max_deg"],
                             roll_max_deg=g["roll_max_deg"], irradiance_w_m2=g["irradiance_w_m2"], sensor=sensor,
-                            camera=camera, camera_overrides=cam_over, sensor_overrides=dict(g["sensor"])))
+                            camera=camera, camera_overrides=cam_over, sensor_overrides=dict(g["sensor"]),
+                            levels=levels, base_levels=cell["base"] if cell else None, radiance_unit=unit,
+                            unit_irradiance_w_m2=unit_e))
         first += n
     return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
                 camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"]),

@@ -7,15 +7,16 @@ from __future__ import annotations
 from edgetruth.render.camera import CAMERA_KEYS, DISTORTION_KEYS
 from edgetruth.render.schema import REQUIRED, Key
 from edgetruth.render.sensor import SENSOR_KEYS
-from edgetruth.render.spec import GROUP_KEYS, SPEC_KEYS
+from edgetruth.render.spec import DESIGN_KEYS, FACTOR_KEYS, GROUP_KEYS, LEVEL_KEYS, SPEC_KEYS
 from edgetruth.render.targets import CHECKERBOARD_KEYS, TARGETS
 
 INTRO = """# Render specs and cameras
 
 A **spec** (TOML) declares a dataset: `edgetruth render SPEC -o DIR` renders every image
 of it, each a pure function of (spec, index).  `SPEC` is a shipped name (`quick`,
-`standard`, `snr`, `targets`, `calibration`) or a path.  A spec has a `[spec]` table, an
-optional `[sensor]` table and one or more `[[group]]` tables; a **camera** is a TOML file
+`study`, `calibration`) or a path.  A spec has a `[spec]` table, an
+optional `[sensor]` table, `[[group]]` tables (each draws its own poses) and/or a
+`[design]` (paired cells on shared pose slots); a **camera** is a TOML file
 with a `[camera]` table, named by `[spec] camera` (a shipped name, or a path relative to
 the spec's own folder).  Every key is checked when the spec loads (type, range, choices,
 unknown keys): a bad value is one error line naming the file, the table, the key and the
@@ -93,6 +94,23 @@ def spec_markdown() -> str:
              "(deterministically) until the board's outline lies inside the image.", "",
              table(GROUP_KEYS), "",
              "Targets (`target`):", "", "| id | shape | material | Lambertian albedo |", "|---|---|---|---|", targets, "",
+             "## `[design]`: a paired design", "",
+             "Every cell of a design renders the *same pose slots* (slot k has one seed: the same distance, "
+             "offset, tilt and roll in every cell), so levels are compared on the same poses.  A cell is one "
+             "level of every factor; `mode` chooses the cells; a cell's images are named "
+             "`NNNN_<level>_<level>...`.  Cells that differ only in light power (`irradiance_w_m2`) and "
+             "sensor settings form one *radiance unit*: each slot is rendered once, at the unit's first "
+             "irradiance, and scaled for the others (light transport is linear in emitted power; bit-exact "
+             "for power-of-two steps).  Sensor noise stays independent per image.", "",
+             "```toml", "[design]", "distance_intervals_cm = [[50, 100], [100, 150]]", "count_per_interval = 10",
+             "tilt_max_deg = 3", "", "[[design.factor]]", 'name = "snr"',
+             'levels = [ { name = "G1", irradiance_w_m2 = 1.75 },',
+             '           { name = "G2", irradiance_w_m2 = 0.875, sensor = { gain_db = 6.0206 } } ]', "",
+             "[[design.factor]]", 'name = "target"',
+             'levels = [ { name = "T1", target = "T1" }, { name = "T2", target = "T2" } ]', "```", "",
+             table(DESIGN_KEYS), "",
+             "### `[[design.factor]]`", "", table(FACTOR_KEYS), "",
+             "### a level (one table of a factor's `levels`)", "", table(LEVEL_KEYS), "",
              "## `[sensor]` (and a group's `sensor = {...}`)", "",
              "EMVA 1288 linear model: electrons = QE x photons (Poisson), + dark noise, clipped at the full "
              "well, x gain K = K0 10^(G/20) DN/e-, + black level, rounded and clipped to 2^bits - 1.", "",

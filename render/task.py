@@ -97,7 +97,7 @@ def render_task(spec: Spec, index: int, variant: str, out_dir: str | None) -> di
     stage_s = {"scene_sensor_truth": t1 - t0 - render_s, "mi_render": render_s, "exr": t2 - t1, "png": t3 - t2,
                "json": t4 - t3, "sha256": t5 - t4, "write": t6 - t5}
     return {"name": name, "entry": entry, "render_s": render_s, "stage_s": stage_s,
-            "payload": None if out_dir is not None else data}
+            "reused": timings.get("reused", 0), "payload": None if out_dir is not None else data}
 
 
 def write_files(out_dir: Path, name: str, data: dict) -> None:

@@ -1,6 +1,9 @@
 """Fixtures shared by every test package."""
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import pytest
 
 
@@ -16,3 +19,24 @@ def fast_variant() -> str:
         pytest.skip("needs llvm_ad_rgb or cuda_ad_rgb (only scalar_rgb works here): install karellen-llvm-core "
                     "or libllvm >= 18")
     return v
+
+
+@pytest.fixture(scope="session")
+def tiny_dataset(tmp_path_factory) -> tuple[Path, Path]:
+    """(spec path, dataset dir) of the 3-image tiny spec, rendered in-process; copy before changing."""
+    from edgetruth.render.driver import render_spec
+    from edgetruth.render.testing import write_tiny_spec
+
+    root = tmp_path_factory.mktemp("tiny")
+    spec = write_tiny_spec(root, spp=8)
+    out = root / "data"
+    render_spec(spec, out, progress=False, announce=lambda s: None)
+    return spec, out
+
+
+@pytest.fixture
+def dataset_copy(tiny_dataset, tmp_path) -> tuple[Path, Path]:
+    spec, out = tiny_dataset
+    dst = tmp_path / "data"
+    shutil.copytree(out, dst)
+    return spec, dst

@@ -3,6 +3,7 @@ no traceback, and existing outputs untouched."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -14,7 +15,7 @@ import pytest
 
 from edgetruth.cli import build_parser, main
 
-from .conftest import tree_hash
+from tests.support.files import tree_hash
 
 # --- bad files -----------------------------------------------------------------------------------
 GOOD = np.zeros((40, 40), np.uint8)
@@ -70,6 +71,18 @@ def _make_bad_images(d: Path) -> None:
     (d / "thr_bad.json").write_text("{not json")
     (d / "thr_tau.json").write_text(json.dumps({"models": {"4p": {"tau": [0.9, 0.2, 0.1]}}}))
     (d / "thr_nokey.json").write_text(json.dumps({"models": {}}))
+    # a PNG whose header claims 60000 x 60000 pixels (decoding it would allocate gigabytes)
+    import struct
+    import zlib
+
+    ihdr = struct.pack(">IIBBBBB", 60000, 60000, 8, 0, 0, 0, 0)
+    chunk = b"IHDR" + ihdr
+    (d / "huge.png").write_bytes(b"\x89PNG\r\n\x1a\n" + struct.pack(">I", len(ihdr)) + chunk
+                                 + struct.pack(">I", zlib.crc32(chunk)) + png[33:])
+    os.mkfifo(d / "fifo.png")  # a named pipe: reading it would block forever
+    os.mkfifo(d / "fifo.toml")
+    os.mkfifo(d / "fifo.json")
+    (d / "afile").write_text("a regular file, not a directory")
 
 
 @pytest.fixture(scope="module")
@@ -89,6 +102,7 @@ LOCATE_FILES = [
     ("complex.npy", "complex"), ("object.npy", ".npy"), ("2x2.npy", "too small"), ("bad.npy", ".npy"),
     ("colour.png", "colour"), ("1x1.png", "too small"), ("image.txt", "cannot be decoded"),
     ("adir", "is a directory"), ("missing.png", "no such image"),
+    ("huge.png", "60000 x 60000"), ("fifo.png", "not a regular file"),
 ]
 CASES = [(f"locate-{f}", ["locate", "{B}/" + f, "-o", "{O}/points.csv"], msg) for f, msg in LOCATE_FILES]
 CASES += [
@@ -113,6 +127,13 @@ CASES += [
     ("locate-out-parent", ["locate", "{B}/good.png", "-o", "{O}/no/such/points.csv"], "does not exist"),
     ("locate-out-unwritable", ["locate", "{B}/good.png", "-o", "/proc/points.csv"], "cannot write"),
     ("locate-no-output", ["locate", "{B}/good.png"], "-o"),
+    ("locate-out-is-input", ["locate", "{B}/good.png", "-o", "{B}/good.png"], "also the input"),
+    ("locate-out-is-input-relative", ["locate", "{B}/good.png", "-o", "{B}/adir/../good.png"], "also the input"),
+    ("locate-out-parent-file", ["locate", "{B}/good.png", "-o", "{B}/afile/points.csv"], "is a file"),
+    ("locate-thr-fifo", ["locate", "{B}/good.png", "--thresholds", "{B}/fifo.json", "-o", "{O}/points.csv"],
+     "not a regular file"),
+    ("locate-plugin-missing", ["locate", "{B}/good.png", "--plugin", "{B}/none.py", "-o", "{O}/points.csv"],
+     "no such file"),
     # render: options and outputs (specs are below)
     ("render-only-text", ["render", "{SPEC}", "-o", "{O}", "--only", "x"], "--only"),
     ("render-only-range", ["render", "{SPEC}", "-o", "{O}", "--only", "999"], "out of range"),
@@ -131,6 +152,8 @@ CASES += [
     ("render-other-spec", ["render", "{OTHER}", "-o", "{O}"], "another spec"),
     ("render-spec-missing", ["render", "no-such-spec", "-o", "{O}"], "not found"),
     ("render-spec-dir", ["render", "{B}/adir/", "-o", "{O}"], "is a directory"),
+    ("render-spec-fifo", ["render", "{B}/fifo.toml", "-o", "{O}"], "not a regular file"),
+    ("render-out-parent-file", ["render", "{SPEC}", "-o", "{B}/afile/data"], "is a file"),
     # verify
     ("verify-missing", ["verify", "{B}/no-such-dir"], "no such directory"),
     ("verify-file", ["verify", "{B}/good.png"], "not a directory"),
@@ -149,6 +172,30 @@ CASES += [
      "--images-per-scenario"),
     ("calib-out-parent", ["calibrate-thresholds", "-o", "{O}/no/such/t.json", "--images-per-scenario", "1"],
      "does not exist"),
+    # the output is checked before the calibration runs (it used to fail after it)
+    ("calib-out-parent-file", ["calibrate-thresholds", "-o", "{B}/afile/t.json"], "is a file"),
+    ("calib-out-dir", ["calibrate-thresholds", "-o", "{O}"], "is a directory"),
+    # run: the output must be a new directory or an earlier run's
+    ("run-out-file", ["run", "-o", "{B}/good.png"], "is a file"),
+    ("run-out-parent-file", ["run", "-o", "{B}/afile/run"], "is a file"),
+    ("run-out-dataset", ["run", "-o", "{O}"], "not an edgetruth run directory"),
+    ("run-thr-missing", ["run", "-o", "{O}/../newrun", "--thresholds", "{B}/none.json"], "does not exist"),
+    ("run-plugin-bad", ["run", "--plugin", "no_such_module_xyz", "-o", "{O}/../newrun"], "import failed"),
+    ("study-out-dataset", ["study", "synthetic", "-o", "{O}"], "holds no synthetic study"),
+    ("study-out-file", ["study", "synthetic", "-o", "{B}/good.png"], "is a file"),
+    ("study-thr-bad", ["study", "synthetic", "-o", "{O}/../s", "--thresholds", "{B}/thr_tau.json"], "thr_tau.json"),
+    # evaluate
+    ("evaluate-not-dataset", ["evaluate", "{B}/adir"], "no manifest.json"),
+    ("evaluate-missing", ["evaluate", "{B}/nothere"], "no such directory"),
+    ("evaluate-no-boards", ["evaluate", "{O}/../boardless"], "--calibration"),
+    ("evaluate-cal-missing", ["evaluate", "{O}", "--calibration", "{B}/none.json", "-o", "{O}/../ev"], "no such"),
+    ("evaluate-cal-bad", ["evaluate", "{O}", "--calibration", "{B}/thr_bad.json", "-o", "{O}/../ev"], "JSON"),
+    ("evaluate-cal-shape", ["evaluate", "{O}", "--calibration", "{B}/thr_tau.json", "-o", "{O}/../ev"],
+     "not an edgetruth calibration"),
+    ("evaluate-cal-fifo", ["evaluate", "{O}", "--calibration", "{B}/fifo.json", "-o", "{O}/../ev"],
+     "not a regular file"),
+    ("evaluate-out-dataset", ["evaluate", "{O}", "-o", "{O}"], "not an edgetruth run directory"),
+    ("evaluate-method", ["evaluate", "{O}", "--methods", "nope"], "unknown method"),
     ("bench-only", ["bench", "--only", "nothing"], "invalid choice"),
 ]
 
@@ -229,6 +276,11 @@ def env(tmp_path, bad, dataset_copy):
     (out / "points.csv").write_text("x,y\n1,2\n")  # an existing locate output
     other = tmp_path / "other.toml"
     other.write_text(spec.read_text().replace("count = 2", "count = 1"))
+    boardless = out.parent / "boardless"  # the dataset without its checkerboard: nothing to calibrate from
+    shutil.copytree(out, boardless)
+    m = json.loads((boardless / "manifest.json").read_text())
+    m["images"] = {k: v for k, v in m["images"].items() if v["kind"] != "checkerboard"}
+    (boardless / "manifest.json").write_text(json.dumps(m))
     return {"B": str(bad), "O": str(out), "SPEC": str(spec), "OTHER": str(other),
             "BADMAN": str(_bad_manifests(tmp_path)), "out": out}
 

@@ -63,19 +63,23 @@ def test_dynamic_erf_4p_ranges_clean_renders_within_0p1_percent(target):
     from edgetruth.evaluate.calibration import Calibration
     from edgetruth.evaluate.ranging import process_image
 
-    errs = []
+    errs, pose_errs = [], []
     for d in DISTANCES_M:
         img, (x0, y0), gt, cam = render_clean(target, d)
-        cal = Calibration(K=cam.K, dist=np.zeros(5), image_size=(cam.width_px, cam.height_px), rms_px=0.0,
-                          n_views=0)
-        # shift the truth's outline into crop coordinates (the model floor uses it)
+        K = cam.K - np.array([[0, 0, x0], [0, 0, y0], [0, 0, 0]])  # the crop's own camera matrix
+        cal = Calibration(K=K, dist=np.zeros(5), image_size=(cam.width_px, cam.height_px), rms_px=0.0, n_views=0)
+        # the truth in crop coordinates (the model floors use it)
         for k in ("distorted_px", "undistorted_px"):
             gt["outline"][k] = (np.asarray(gt["outline"][k]) - [x0, y0]).tolist()
+        gt["camera"]["K"] = K.tolist()
         gt.update(spec="sanity", group=target)
         r = process_image(img, gt, cal, _Identity(), ["dynamic_erf_4p"], name=f"{target}_{d}")
         row = r.rows[0]
         assert row["status"] == "ok", row["status"]
         errs.append(row["rel_error_pct"])
+        pose_errs.append(100 * abs(row["error_pose_cm"]) / (100 * d))
         assert abs(row["model_floor_cm"]) < 1e-6  # fronto-parallel: the model itself is exact
-    print(target, dict(zip(DISTANCES_M, np.round(errs, 4))))
+        assert abs(row["pose_floor_cm"]) < 1e-3  # the pose fit on the true outline (10 um stand-off aside)
+    print(target, dict(zip(DISTANCES_M, np.round(errs, 4))), dict(zip(DISTANCES_M, np.round(pose_errs, 4))))
     assert max(errs) <= 0.1, dict(zip(DISTANCES_M, errs))
+    assert max(pose_errs) <= 0.1, dict(zip(DISTANCES_M, pose_errs))

@@ -10,9 +10,12 @@ def test_select_jobs_spreads_the_limit_over_each_group():
     from edgetruth.evaluate.pipeline import select_jobs
     from edgetruth.render.spec import load_spec
 
-    spec = load_spec("snr")
+    spec = load_spec("study")
     sel = select_jobs(spec, 2, "target")
-    assert len(sel) == 8  # 2 per group G1..G4
+    assert len(sel) == 14  # 2 per cell, 7 cells
+    cells = [g for g in spec.groups if g.paired]
+    picked = [{i - g.first_index for i in sel if g.first_index <= i < g.first_index + g.count} for g in cells]
+    assert all(p == picked[0] for p in picked)  # the same pose slots in every cell: the pairs survive
     by_group = {}
     for j in spec.jobs:
         if j.index in sel:

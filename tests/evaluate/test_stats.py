@@ -34,3 +34,59 @@ def test_wilcoxon_detects_a_consistent_shift_and_not_noise():
     c = a + rng.normal(0, 1e-3, 60)
     assert wilcoxon_paired(b, c)["p_value"] > 0.01
     assert wilcoxon_paired(a, a)["p_value"] == 1.0
+
+
+def test_holm_matches_its_definition():
+    from edgetruth.evaluate.stats import holm
+
+    p = [0.01, 0.04, 0.03, 0.005]
+    # sorted: 0.005*4, 0.01*3, 0.03*2, 0.04*1 -> 0.02, 0.03, 0.06, 0.06 (monotone)
+    np.testing.assert_allclose(holm(p), [0.03, 0.06, 0.06, 0.02])
+    assert holm([0.9, 0.8]).max() <= 1.0
+
+
+def test_rank_biserial_extremes_and_symmetry():
+    from edgetruth.evaluate.stats import rank_biserial
+
+    a = np.arange(10.0)
+    assert rank_biserial(a + 1, a) == 1.0 and rank_biserial(a, a + 1) == -1.0
+    rng = np.random.default_rng(0)
+    x, y = rng.normal(size=50), rng.normal(size=50)
+    assert rank_biserial(x, y) == pytest.approx(-rank_biserial(y, x))
+
+
+def test_bootstrap_ci_covers_the_true_rmse():
+    """Coverage of the 95 % percentile interval of the RMSE of N(0, 1) samples: near 95 %."""
+    from edgetruth.evaluate.stats import rmse_ci
+
+    rng = np.random.default_rng(1)
+    hits = sum(lo <= 1.0 <= hi for lo, hi in (rmse_ci(rng.normal(size=200), n_boot=400, seed=k)
+                                             for k in range(120)))
+    assert 0.88 <= hits / 120 <= 0.99
+
+
+def test_paired_difference_ci_keeps_pairs():
+    """A shared per-image nuisance cancels in a paired difference: the CI is much narrower than the
+    CI of either RMSE alone."""
+    from edgetruth.evaluate.stats import rmse_ci, rmse_difference_ci
+
+    rng = np.random.default_rng(2)
+    common = rng.normal(0, 1.0, 300)
+    a, b = common + rng.normal(0, 0.05, 300), common + rng.normal(0, 0.05, 300) + 0.02
+    lo, hi = rmse_difference_ci(a, b)
+    la, ha = rmse_ci(a)
+    assert (hi - lo) < 0.3 * (ha - la)
+
+
+def test_friedman_detects_a_monotone_effect_and_not_noise():
+    from edgetruth.evaluate.stats import friedman, paired_comparisons
+
+    rng = np.random.default_rng(3)
+    base = rng.uniform(0, 1, (40, 1))
+    grows = base + np.array([0.0, 0.1, 0.2, 0.3]) + rng.normal(0, 0.02, (40, 4))
+    f = friedman(grows)
+    assert f["p_value"] < 1e-6 and f["kendall_w"] > 0.5 and f["n_blocks"] == 40
+    rows = paired_comparisons(grows, ["G1", "G2", "G3", "G4"])
+    assert all(r["significant"] and r["median_difference"] > 0 and r["rank_biserial"] > 0.8 for r in rows)
+    flat = base + rng.normal(0, 0.02, (40, 4))
+    assert friedman(flat)["p_value"] > 0.01

@@ -11,15 +11,7 @@ from edgetruth.render.spec import load_spec
 
 ROOT = Path(__file__).resolve().parents[2]
 
-CAMERA = """
-[camera]
-width_px = 64
-height_px = 48
-pitch_um = 96.0
-focal_length_mm = 8.0
-f_number = 4.0
-focus_distance_m = 1.5
-"""
+from edgetruth.render.testing import TINY_CAMERA as CAMERA  # 64 x 48 px, f/4, focus 1.5 m, mild barrel
 
 SPEC = """
 [spec]
@@ -114,7 +106,7 @@ def test_shipped_specs_load():
     from edgetruth.resources import shipped_spec_names
 
     names = shipped_spec_names()
-    assert {"quick", "standard", "snr", "targets", "calibration"} <= set(names)
+    assert {"quick", "study", "calibration"} <= set(names)
     for n in names:
         assert load_spec(n).n_images > 0
 

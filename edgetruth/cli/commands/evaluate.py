@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from edgetruth.errors import InputError
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.calibration import calibrate, load_calibration
-    from edgetruth.evaluate.pipeline import evaluate_datasets, prepare_run_dir, utc_stamp
+    from edgetruth.evaluate.pipeline import check_run_dir, evaluate_datasets, prepare_run_dir, utc_stamp
     from edgetruth.fileio import write_json
     from edgetruth.render.reader import open_dataset
     from edgetruth.resources import default_runs_dir
@@ -60,9 +60,7 @@ def run(args: argparse.Namespace) -> int:
         p = Path(args.calibration)
         if not p.is_dir():
             check_input_file(p, "calibration JSON")
-    out = prepare_run_dir(args.output or default_runs_dir() / f"{utc_stamp()}-evaluate", "evaluate",
-                          {"datasets": [str(d) for d in args.datasets], "calibration": args.calibration,
-                           "methods": methods, "thresholds": args.thresholds})
+    out = check_run_dir(args.output or default_runs_dir() / f"{utc_stamp()}-evaluate", "evaluate")
     if args.calibration is not None:
         cal = load_calibration(args.calibration, progress=not args.no_progress)
         source = str(args.calibration)
@@ -73,6 +71,9 @@ def run(args: argparse.Namespace) -> int:
                         float(b["square_m"]), [s.truth for s in boards],
                         progress=lambda it: console.track(it, "calibrate", "board", enabled=not args.no_progress))
         source = f"{len(boards)} checkerboards of the datasets"
+    out = prepare_run_dir(out, "evaluate", {"datasets": [str(d) for d in args.datasets],
+                                            "calibration": args.calibration, "methods": methods,
+                                            "thresholds": args.thresholds})
     write_json(out / "calibration.json", cal.to_dict())
     header = {"datasets": ", ".join(f"{d} ({ds.spec_name})" for d, ds in zip(args.datasets, sets)),
               "calibration": source, "UTC": utc_stamp()}

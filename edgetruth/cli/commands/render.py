@@ -14,7 +14,7 @@ def register(subparsers) -> None:
                     "DIR: NAME.exr (radiance), NAME.png (16-bit sensor image), NAME.json (ground truth) and "
                     "manifest.json (formats in docs/formats.md).  Images already complete (hashes verified) "
                     "are skipped, so an interrupted run resumes.")
-    p.add_argument("spec", metavar="SPEC", help="spec name (quick, standard, snr, targets, calibration) or TOML path")
+    p.add_argument("spec", metavar="SPEC", help="spec name (quick, study, calibration) or TOML path")
     p.add_argument("-o", "--output", metavar="DIR", type=Path, default=None,
                    help="output directory (default: ./runs/render/SPEC)")
     p.add_argument("--variant", default=None,

@@ -1,0 +1,114 @@
+"""User methods: registered by a plug-in module, an entry point or in the calling script; they run in
+pool workers and appear in every table next to the built-in methods."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from edgetruth.cli import main
+
+SUPPORT = Path(__file__).resolve().parents[1] / "support"
+PLUGIN = SUPPORT / "plugin_method.py"
+
+
+def _true_calibration(dataset: Path, path: Path) -> Path:
+    """A calibration.json with the true intrinsics (the tiny dataset has one board: too few for Zhang)."""
+    from edgetruth.render import open_dataset
+
+    cam = open_dataset(dataset)[0].truth["camera"]
+    path.write_text(json.dumps({"K": cam["K"], "dist_coeffs_opencv": cam["dist_coeffs_opencv"],
+                                "image_size": [cam["width_px"], cam["height_px"]]}))
+    return path
+
+
+def test_plugin_method_runs_in_two_pool_workers_and_fills_the_synthetic_tables(tmp_path, capsys):
+    out = tmp_path / "study"
+    rc = main(["study", "synthetic", "--images-per-scenario", "2", "-j", "2", "--plugin", str(PLUGIN),
+               "--methods", "canny_pixel,user_gradient_centroid,dynamic_erf_4p", "-o", str(out), "--no-progress"])
+    assert rc == 0, capsys.readouterr().err
+    report = (out / "report.md").read_text()
+    table6 = report.split("## Table 6")[1].split("## ")[0]
+    table8 = report.split("## Table 8")[1].split("## ")[0]
+    assert "UserGradientCentroid" in table6 and "UserGradientCentroid" in table8 and "CannyPixel" in table6
+    rows = (out / "tables" / "table6_all_methods.csv").read_text()
+    assert "user_gradient_centroid" in rows
+
+
+def test_plugin_method_in_the_ranging_report_with_two_workers(tiny_dataset, tmp_path, capsys):
+    _, data = tiny_dataset
+    cal = _true_calibration(data, tmp_path / "cal.json")
+    out = tmp_path / "eval"
+    rc = main(["evaluate", str(data), "--calibration", str(cal), "-j", "2", "--plugin", str(PLUGIN),
+               "--methods", "canny_pixel,user_gradient_centroid,dynamic_erf_4p", "-o", str(out), "--no-progress"])
+    assert rc == 0, capsys.readouterr().err
+    table13 = (out / "report.md").read_text().split("## Table 13")[1].split("## ")[0]
+    assert "UserGradientCentroid" in table13 and "ProposedDynamicERF_4P" in table13
+    rows = (out / "ranging_rows.csv").read_text().splitlines()
+    assert sum(",user_gradient_centroid," in r for r in rows) == 2  # one per target image
+
+
+def test_entry_point_method_is_found_by_every_process(tiny_dataset, tmp_path):
+    """A package declaring an `edgetruth.methods` entry point: no --plugin needed, in the driver or in
+    its workers (a subprocess, so the entry point is seen from a clean start)."""
+    site = tmp_path / "site"
+    dist = site / "user_edges-1.0.dist-info"
+    dist.mkdir(parents=True)
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: user-edges\nVersion: 1.0\n")
+    (dist / "entry_points.txt").write_text("[edgetruth.methods]\nuser_ep_centroid = user_edges:refine\n")
+    (site / "user_edges.py").write_text(
+        PLUGIN.read_text().replace('@locate.register("user_gradient_centroid", label="UserGradientCentroid")\n', "")
+        .replace("def user_gradient_centroid(", "def refine("))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]))
+    cmd = [sys.executable, "-m", "edgetruth"]
+    r = subprocess.run(cmd + ["methods"], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0 and "user_ep_centroid" in r.stdout, r.stderr
+    _, data = tiny_dataset
+    cal = _true_calibration(data, tmp_path / "cal.json")
+    out = tmp_path / "eval"
+    r = subprocess.run(cmd + ["-q", "evaluate", str(data), "--calibration", str(cal), "-j", "2", "--methods",
+                              "canny_pixel,user_ep_centroid", "-o", str(out)], capture_output=True, text=True,
+                       env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout == "" and r.stderr == "", "-q prints nothing on success"
+    assert "user_ep_centroid" in (out / "report.md").read_text().split("## Table 13")[1]
+
+
+SCRIPT = '''
+import sys
+import numpy as np
+from edgetruth import locate
+from edgetruth.evaluate.synthetic_study import run_synthetic_study
+
+if __name__ == "__main__":
+    @locate.register("main_half_offset", label="MainHalfOffset")   # defined only in __main__
+    def main_half_offset(image, cand):
+        return locate.Refinement.from_offset(cand, np.full(len(cand), 0.5))
+
+    rep = run_synthetic_study(sys.argv[1], images_per_scenario=2, workers=2, progress=False,
+                              methods=["canny_pixel", "main_half_offset"])
+    print(open(rep).read().count("MainHalfOffset"))
+'''
+
+
+def test_method_registered_under_main_runs_in_spawn_workers(tmp_path):
+    script = tmp_path / "user_script.py"
+    script.write_text(SCRIPT)
+    r = subprocess.run([sys.executable, str(script), str(tmp_path / "s")], capture_output=True, text=True,
+                       timeout=300, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert int(r.stdout.strip().splitlines()[-1]) >= 2  # in Table 6 and Table 8
+
+
+@pytest.mark.parametrize("argv, expect", [
+    (["methods", "--plugin", "no_such_module_xyz"], "import failed"),
+    (["methods", "--plugin", "/no/such/file.py"], "no such file"),
+])
+def test_bad_plugin_is_one_line(argv, expect, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and expect in err[0]
