@@ -10,7 +10,8 @@ and all their descendants (Ray gives each worker a process group of its own), wh
 or when this test process dies first.  (``ray stop`` is not used: it stops every Ray
 process on the machine, other users' too, whatever their temporary directory.)  Ray rewrites a
 127.0.0.1 node address to the host's own address (``resolve_ip_for_localhost``); traffic to it
-stays on this machine.  The driver is a fresh process: Ray 2.60 fails object transfers between
+stays on this machine.  While the second node renders, another driver's task holds the head's one
+CPU, so the kill lands after a known share of the second node; the driver is a fresh process: Ray 2.60 fails object transfers between
 nodes for a driver that already ran an earlier Ray session in the same process (``OwnerDiedError``).
 """
 from __future__ import annotations
@@ -74,6 +75,27 @@ print(len(ours()))
 """
 
 
+# Another Ray driver holding the head node's CPU with one task until a file appears.
+_HOLD = r"""
+import os, sys, time
+import ray
+from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+address, head, held, release = sys.argv[1:5]
+ray.init(address=address, log_to_driver=False)
+
+
+@ray.remote(num_cpus=1)
+def hold(held, release):
+    open(held, "w").close()
+    while not os.path.exists(release):
+        time.sleep(0.02)
+
+
+ray.get(hold.options(scheduling_strategy=NodeAffinitySchedulingStrategy(head, soft=False)).remote(held, release))
+"""
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -115,11 +137,6 @@ def _tree(roots: set[int]) -> dict[int, str]:
         out.update({pid: procs[pid][1] for pid in frontier if pid in procs})
         frontier = {pid for pid, (ppid, _) in procs.items() if ppid in frontier and pid not in out}
     return out
-
-
-def _titles(root: int) -> str:
-    """The command lines of a process tree (Ray sets a worker's to ``ray::TASK`` while it runs one)."""
-    return "\n".join(_tree({root}).values())
 
 
 def _kill_tree(root: int) -> None:
@@ -199,6 +216,15 @@ def test_two_node_render_survives_losing_a_node_and_matches_a_local_run(tmp_path
         second = next(n for n, is_head in nodes if not is_head)
         t_cluster = time.perf_counter() - t0
 
+        # hold the head's one CPU with a task of another driver until the second node has rendered
+        # KILL_AT images: then the second node dies, the hold ends, and the head renders the rest
+        head_id = next(n for n, is_head in nodes if is_head)
+        hold = subprocess.Popen([sys.executable, "-c", _HOLD, address, head_id, str(root / "held"), str(root / "release")],
+                                env=env, start_new_session=True, stdout=subprocess.DEVNULL,
+                                stderr=(root / "hold.log").open("w"))
+        reaper.stdin.write(f"{hold.pid}\n")
+        reaper.stdin.flush()
+        _wait(lambda: (root / "held").exists(), 120, "the head's CPU to be held", logs + [root / "hold.log"])
         out = tmp_path / "cluster"
         t0 = time.perf_counter()
         logs += [root / "driver.out", root / "driver.err"]
@@ -206,28 +232,21 @@ def test_two_node_render_survives_losing_a_node_and_matches_a_local_run(tmp_path
             driver = subprocess.Popen([sys.executable, "-m", "edgetruth", "render", str(spec), "-o", str(out),
                                        "--backend", "ray", "--address", address, "--files", "driver", "--no-progress"],
                                       stdout=fo, stderr=fe, env=env)
-        # kill the second node once it renders too (its worker process started cold) and the
-        # journal holds KILL_AT images: when a task has been running there for 0.5 s
-        busy_since: list = []
-
-        def second_node_rendering():
-            if driver.poll() is not None:
-                return True
-            if not busy_since and "ray::_ray_call" in _titles(node.pid):
-                busy_since.append(time.monotonic())
-            return bool(busy_since) and time.monotonic() - busy_since[0] > 0.5 and _recorded(out) >= KILL_AT
-
-        _wait(second_node_rendering, 300, "the second node to render", logs)
+        # the head's CPU is held, so every image recorded so far is the second node's
+        _wait(lambda: _recorded(out) >= KILL_AT or driver.poll() is not None, 300, "the second node to render", logs)
         assert driver.poll() is None, logs[3].read_text()[-3000:]
         _kill_tree(node.pid)  # its raylet, workers, agents: the whole node, at once
         killed_at = _recorded(out)
+        (root / "release").touch()  # the head takes over
+        hold.wait(timeout=120)
         driver.wait(timeout=300)
         t_render = time.perf_counter() - t0
         stdout = logs[2].read_text()
         assert driver.returncode == 0, logs[3].read_text()[-3000:]
         assert killed_at < N_IMAGES - 100, "the second node was killed too late to matter"
         per_node = dict((k, int(v)) for k, v in re.findall(r"([0-9a-f]{12}) (\d+)", stdout.split("per Ray node:")[-1]))
-        assert per_node.get(second[:12], 0) > 0, f"the second node rendered nothing before it died: {stdout}"
+        assert per_node.get(second[:12], 0) >= KILL_AT, f"the second node's share is missing: {stdout}"
+        assert per_node.get(head_id[:12], 0) >= N_IMAGES - per_node[second[:12]] > 0, stdout  # the rest: the head
         assert sum(per_node.values()) == N_IMAGES, stdout
         assert f"{N_IMAGES}/{N_IMAGES} images" in stdout
         a = {p.name: p.read_bytes() for p in sorted((tmp_path / "local").iterdir())}
