@@ -4,15 +4,17 @@
 its disk), the second node killed mid-run: the run finishes on the survivor, the dataset is
 byte-identical to a local run, and every process the test started is gone afterwards.
 
-Clean-up is by process: each node runs ``ray start --block`` in a process group of its own; a
-reaper process kills those groups, every process still naming the cluster's private directory,
-and all their descendants (Ray gives each worker a process group of its own), when the test ends
-or when this test process dies first.  (``ray stop`` is not used: it stops every Ray
-process on the machine, other users' too, whatever their temporary directory.)  Ray rewrites a
-127.0.0.1 node address to the host's own address (``resolve_ip_for_localhost``); traffic to it
-stays on this machine.  While the second node renders, another driver's task holds the head's one
-CPU, so the kill lands after a known share of the second node; the driver is a fresh process: Ray 2.60 fails object transfers between
-nodes for a driver that already ran an earlier Ray session in the same process (``OwnerDiedError``).
+- While the second node renders its first images, another driver's task holds the head's one
+  CPU, so the kill lands after a known share on the second node; then the head renders the rest.
+- Clean-up is by process: each node runs ``ray start --block`` in a process group of its own; a
+  reaper process kills those groups, every process still naming the cluster's private
+  directory, and all their descendants (Ray gives each worker a process group of its own), when
+  the test ends or when this test process dies first.  ``ray stop`` is not used: it stops every
+  Ray process on the machine, other users' too, whatever their temporary directory.
+- Ray rewrites a 127.0.0.1 node address to the host's own address (``resolve_ip_for_localhost``);
+  traffic to it stays on this machine.
+- The driver is a fresh process: Ray 2.60 fails object transfers between nodes for a driver that
+  already ran an earlier Ray session in the same process (``OwnerDiedError``).
 """
 from __future__ import annotations
 
