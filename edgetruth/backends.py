@@ -223,12 +223,11 @@ class RayBackend(Backend):
         # copy, and each worker process unpickles it once (the token says whether it has)
         token = blob = None
         if self._initializer is not None:
-            import pickle
-
+            import cloudpickle  # as Ray would: an initializer defined in __main__ travels too
             import numpy as np
 
             token = uuid.uuid4().hex
-            blob = ray.put(np.frombuffer(pickle.dumps((self._initializer, self._initargs), protocol=5), np.uint8))
+            blob = ray.put(np.frombuffer(cloudpickle.dumps((self._initializer, self._initargs)), np.uint8))
         todo = iter(args_list)
         refs = [remote.remote(fn, token, blob, args) for args in itertools.islice(todo, window or self.window())]
         checked = time.monotonic()
