@@ -67,7 +67,7 @@ def test_wheel_renders_and_locates_exactly_like_the_checkout(installed, tmp_path
     from edgetruth import locate
     from edgetruth.image_io import read_gray
     from edgetruth.render import open_dataset
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
 
     py, work = installed
     edgetruth = py.parent / "edgetruth"
@@ -75,7 +75,9 @@ def test_wheel_renders_and_locates_exactly_like_the_checkout(installed, tmp_path
     out = work / "runs" / "render" / "quick"  # the default output: under the current directory
     assert (out / "manifest.json").is_file(), r.stdout
     wheel_ds = open_dataset(out)
-    assert len(wheel_ds) == 20 and "variant " + fast_variant in r.stdout
+    from edgetruth.render.spec import load_spec
+
+    assert len(wheel_ds) == load_spec("quick").n_images and "variant " + fast_variant in r.stdout
     first = wheel_ds.targets()[0]
     _run([edgetruth, "locate", out / f"{first.name}.png", "-m", "dynamic_erf_4p", "-o", work / "pts.csv"], work)
 

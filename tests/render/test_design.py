@@ -73,7 +73,8 @@ def test_cells_share_the_pose_slots(tmp_path):
 
 def test_reused_radiance_equals_a_direct_render_bit_for_bit(tmp_path, fast_variant):
     from edgetruth.render import open_dataset
-    from edgetruth.render.dataset import get_rig, job_pose, render_spec
+    from edgetruth.render.dataset import get_rig, job_pose
+    from edgetruth.render.driver import render_spec
     from edgetruth.render.ground_truth import target_outline_local
     from edgetruth.render.spec import load_spec
 
