@@ -232,12 +232,17 @@ def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, 
     spec_key = spec.identity_sha256  # computed once: it hashes every image's distance
     header, done, scan = _open_dataset(spec, spec_key, out_dir, selected, announce)
     todo = np.flatnonzero(selected & ~done)  # index order, so the journal is nearly sorted
+    # one task per radiance unit: the images that share one render (a design slot's cells) go to one
+    # worker together, which renders the unit once; every other image is a unit of its own
     if any(g.paired for g in spec.groups):
-        # the images of one radiance unit next to each other: a worker renders the unit once and reuses it
         rank = np.empty(spec.n_images, dtype=np.int64)
         for u, unit in enumerate(spec.units()):
             rank[unit] = u
         todo = todo[np.lexsort((todo, rank[todo]))]
+        cuts = np.flatnonzero(np.diff(rank[todo])) + 1
+        task_indices = [tuple(int(i) for i in part) for part in np.split(todo, cuts)]
+    else:
+        task_indices = None
     n_sel = int(selected.sum())
     stats["resume_check_s"] = stats.get("resume_check_s", 0.0) + time.perf_counter() - t_start
     if not len(todo):
@@ -265,11 +270,14 @@ def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, 
         writer = JournalWriter(out_dir / JOURNAL, spec_key, scan.good_end)
         bar = console.bar(total=n_sel, initial=n_sel - len(todo), unit="img", desc=f"render {spec.name}",
                           enabled=progress)
-        tasks = ((spec_key, int(i), used, worker_dir) for i in todo)
+        if task_indices is None:
+            tasks = ((spec_key, (int(i),), used, worker_dir) for i in todo)
+        else:
+            tasks = ((spec_key, ix, used, worker_dir) for ix in task_indices)
         stage = stats.setdefault("stage_s", {})
         if hasattr(be, "tasks_per_node"):
             stats["tasks_per_node"] = be.tasks_per_node  # live: a watcher sees where images render
-        for res in be.map_unordered(render_indexed, tasks, window=window):
+        for res in (r for batch in be.map_unordered(render_indexed, tasks, window=window) for r in batch):
             t0 = time.perf_counter()
             name, entry = res["name"], res["entry"]
             if res["payload"] is not None:

@@ -3,7 +3,7 @@
 ``render_task(spec, index, variant, out_dir)`` is a pure function of (spec, index).  The
 driver does not send the spec with every task: ``init_worker`` receives it once per
 worker process and keeps it under its identity hash, and ``render_indexed(spec_key,
-index, ...)`` looks it up.  A task that ran returns the image's manifest entry (with the
+indices, ...)`` looks it up (one task per radiance unit).  A task that ran returns the image's manifest entry (with the
 SHA-256 of every file) and, when the worker does not see the driver's disk, the file
 bytes for the driver to write.
 """
@@ -52,12 +52,13 @@ def init_worker(variant: str, threads: int | None = None, spec: Spec | None = No
         _specs[spec_key or spec.identity_sha256] = spec
 
 
-def render_indexed(spec_key: str, index: int, variant: str, out_dir: str | None) -> dict:
-    """``render_task`` for the spec this worker was given by ``init_worker``."""
+def render_indexed(spec_key: str, indices: tuple, variant: str, out_dir: str | None) -> list[dict]:
+    """``render_task`` of each of ``indices`` (one radiance unit: rendered once, in this worker) for the
+    spec this worker was given by ``init_worker``."""
     spec = _specs.get(spec_key)
     if spec is None:
         raise RuntimeError(f"worker has no spec {spec_key[:12]}: the backend's initializer did not run here")
-    return render_task(spec, index, variant, out_dir)
+    return [render_task(spec, int(i), variant, out_dir) for i in indices]
 
 
 def encode_json(obj) -> bytes:
