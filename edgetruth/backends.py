@@ -12,6 +12,13 @@ scenes), because each worker process lives for the whole map.  Results are
 consumed by the *driver* (the calling process), which is therefore the only
 place that should write shared state such as a manifest.
 
+``args_list`` may be any iterable, even a lazy one of a million tuples: it is consumed
+as tasks finish, with at most ``window`` tasks in flight (default
+``WINDOW_PER_WORKER`` x the workers), so the driver's memory does not grow with the
+number of tasks.  Large data every task needs (a spec) goes to each worker *once*,
+through the initializer (``initializer(*initargs)`` runs once per worker process),
+not with every task.
+
 Backends:
 
 - ``local`` with ``workers=1``: runs in the calling process (no pool, no pickling).
@@ -32,6 +39,9 @@ from typing import Any, Callable, Iterable, Iterator
 from edgetruth.errors import InputError
 
 BACKENDS = ("local", "ray")
+#: Tasks in flight per worker: enough that no worker waits for the driver, few enough that
+#: the driver holds almost nothing.
+WINDOW_PER_WORKER = 4
 RAY_INSTALL_HINT = "Ray is not installed; install it with: pip install 'edgetruth[cluster]'"
 
 
@@ -72,6 +82,8 @@ class Backend:
     concurrency = 1
     #: Whether tasks run in processes that see this machine's file system.
     shares_filesystem = True
+    #: Whether tasks run in the calling process (its global state, e.g. thread pools, is theirs).
+    in_process = False
 
     _initializer: Callable | None = None
     _initargs: tuple = ()
@@ -90,18 +102,23 @@ class Backend:
     def close(self, abort: bool = False) -> None:
         """Release the workers; ``abort`` stops running tasks instead of waiting for them."""
 
-    def map_unordered(self, fn: Callable, args_list: Iterable[tuple]) -> Iterator[Any]:
+    def window(self) -> int:
+        """How many tasks ``map_unordered`` keeps in flight by default."""
+        return max(2, WINDOW_PER_WORKER * self.concurrency)
+
+    def map_unordered(self, fn: Callable, args_list: Iterable[tuple], window: int | None = None) -> Iterator[Any]:
         raise NotImplementedError
 
 
 class SerialBackend(Backend):
     name = "local"
+    in_process = True
 
     def __init__(self, initializer=None, initargs=()):
         self.set_initializer(initializer, initargs)
         self._ran_init = False
 
-    def map_unordered(self, fn, args_list):
+    def map_unordered(self, fn, args_list, window=None):
         if self._initializer is not None and not self._ran_init:
             self._initializer(*self._initargs)
             self._ran_init = True
@@ -117,7 +134,8 @@ class PoolBackend(Backend):
         self.set_initializer(initializer, initargs)
         self._pool = None
 
-    def map_unordered(self, fn, args_list):
+    def map_unordered(self, fn, args_list, window=None):
+        import itertools
         import multiprocessing as mp
         from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
@@ -125,11 +143,14 @@ class PoolBackend(Backend):
             self._pool = ProcessPoolExecutor(max_workers=self.concurrency, mp_context=mp.get_context("spawn"),
                                              initializer=_worker_init,
                                              initargs=(os.getpid(), self._initializer, self._initargs))
-        pending = {self._pool.submit(fn, *args) for args in args_list}
+        todo = iter(args_list)
+        pending = {self._pool.submit(fn, *args) for args in itertools.islice(todo, window or self.window())}
         try:
             while pending:
                 done, pending = wait(pending, return_when=FIRST_COMPLETED)
                 for fut in done:
+                    for args in itertools.islice(todo, 1):  # one in, one out: the workers stay busy
+                        pending.add(self._pool.submit(fn, *args))
                     yield fut.result()
         finally:
             for fut in pending:
@@ -183,20 +204,52 @@ class RayBackend(Backend):
         self.num_cpus = num_cpus_per_task
         self.concurrency = int(self.n_gpus) if self.num_gpus else max(1, int(self.n_cpus // max(num_cpus_per_task, 1e-9)))
         self._initializer, self._initargs = initializer, initargs
-        # a worker on another node may not see this machine's files
-        self.shares_filesystem = len([n for n in ray.nodes() if n.get("Alive")]) <= 1
+        # only a Ray instance this process started has no other node, now or later (an existing
+        # cluster may have or gain nodes that do not see this machine's files)
+        self.shares_filesystem = self._owns and not address and not os.environ.get("RAY_ADDRESS")
+        #: finished tasks per Ray node id
+        self.tasks_per_node: dict[str, int] = {}
 
-    def map_unordered(self, fn, args_list):
+    def map_unordered(self, fn, args_list, window=None):
+        import itertools
+        import time
+        import uuid
+
         ray = self._ray
-        remote = ray.remote(num_cpus=self.num_cpus, num_gpus=self.num_gpus, max_retries=2)(_ray_call)
-        refs = [remote.remote(fn, self._initializer, self._initargs, args) for args in args_list]
+        # a task that dies with its node (or worker) runs again elsewhere
+        remote = ray.remote(num_cpus=self.num_cpus, num_gpus=self.num_gpus, max_retries=3)(_ray_call)
+        # the initializer and its arguments (a spec) go to the object store once, pickled into a
+        # uint8 array: every task names it, each node receives it once, a task reads it without a
+        # copy, and each worker process unpickles it once (the token says whether it has)
+        token = blob = None
+        if self._initializer is not None:
+            import cloudpickle  # as Ray would: an initializer defined in __main__ travels too
+            import numpy as np
+
+            token = uuid.uuid4().hex
+            blob = ray.put(np.frombuffer(cloudpickle.dumps((self._initializer, self._initargs)), np.uint8))
+        todo = iter(args_list)
+        refs = [remote.remote(fn, token, blob, args) for args in itertools.islice(todo, window or self.window())]
+        checked = time.monotonic()
         try:
             while refs:
                 done, refs = ray.wait(refs, num_returns=1)
-                yield ray.get(done[0])
+                if window is None and time.monotonic() - checked > 5.0:  # nodes join or leave
+                    self._refresh_concurrency()
+                    checked = time.monotonic()
+                want = (window or self.window()) - len(refs)
+                refs += [remote.remote(fn, token, blob, args) for args in itertools.islice(todo, max(0, want))]
+                node, result = ray.get(done[0])
+                self.tasks_per_node[node] = self.tasks_per_node.get(node, 0) + 1
+                yield result
         finally:
             for r in refs:
                 ray.cancel(r, force=True)
+
+    def _refresh_concurrency(self) -> None:
+        res = self._ray.cluster_resources()  # the live nodes'
+        n = float(res.get("GPU", 0) or 0) if self.num_gpus else float(res.get("CPU", 1) or 1) / max(self.num_cpus, 1e-9)
+        self.concurrency = max(1, int(n))
 
     def close(self, abort: bool = False) -> None:
         if self._owns and self._ray.is_initialized():
@@ -207,14 +260,19 @@ class RayBackend(Backend):
 _initialised: set = set()
 
 
-def _ray_call(fn, initializer, initargs, args):
-    """Run ``initializer(*initargs)`` once per Ray worker process, then ``fn(*args)``."""
-    if initializer is not None:
-        key = (initializer.__module__, initializer.__qualname__, repr(initargs))
-        if key not in _initialised:
-            initializer(*initargs)
-            _initialised.add(key)
-    return fn(*args)
+def _ray_call(fn, token, blob, args):
+    """In a Ray worker: run the map's initializer once per process (``blob``: the pickled
+    (initializer, initargs), read-only from the object store), then ``fn(*args)``; returns
+    (this node's id, the result)."""
+    import ray
+
+    if token is not None and token not in _initialised:
+        import pickle
+
+        initializer, initargs = pickle.loads(memoryview(blob))
+        initializer(*initargs)
+        _initialised.add(token)
+    return ray.get_runtime_context().get_node_id(), fn(*args)
 
 
 def check_backend_args(backend: str = "local", workers: int | None = None, address: str | None = None) -> None:

@@ -9,8 +9,9 @@ from edgetruth.locate import registry as _registry_mod
 ORDER = _registry_mod.CANONICAL_ORDER
 
 #: Options the studies pass to a method (documented in every report).
-#: PAE2013: the paper's smoothed variant (its Sec. 5, for noisy images); the study's images are
-#: blurred and noisy, where the first-order case is biased by design.
+#: PAE2013: the authors' released detector for noisy images (3x3-smoothed, floating windows, A and B
+#: from the smoothed image; their "iters=1"): the study's images are noisy, where the unsmoothed
+#: floating windows stop at noise-made maxima (tests/locate/test_pae2013.py).
 STUDY_OPTIONS = {"pae2013": {"variant": "smoothed"}}
 
 

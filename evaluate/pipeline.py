@@ -103,7 +103,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     from edgetruth.backends import default_workers
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.calibration import calibrate_dataset
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
     from edgetruth.render.spec import load_spec
     from edgetruth.resources import default_runs_dir
 

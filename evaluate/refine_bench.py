@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import time
+from functools import lru_cache
 
 import numba
 import numpy as np
@@ -43,14 +44,52 @@ def bench_image(shape=BENCH_SHAPE, tile: int = 128, seed: int = 0) -> np.ndarray
     return img
 
 
-def _time_refine(img, cand, method, repeats):
-    locate.refine(img, cand, method)  # compile / warm caches
-    times = []
+def interleaved_times(img, cand, methods, repeats: int, options: dict | None = None) -> dict:
+    """Wall times (s) of one refinement call per method, ``repeats`` rounds, every method once per round:
+    a change of machine load hits all methods alike, so per-round ratios compare like with like."""
+    options = options or {}
+    for m in methods:
+        locate.refine(img, cand, m, **options.get(m, {}))  # compile / warm caches
+    times = {m: [] for m in methods}
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        locate.refine(img, cand, method)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
+        for m in methods:
+            t0 = time.perf_counter()
+            locate.refine(img, cand, m, **options.get(m, {}))
+            times[m].append(time.perf_counter() - t0)
+    return times
+
+
+def ratio_medians(times: dict, reference: str) -> dict:
+    """Median over rounds of (reference time / method time): throughput relative to ``reference``."""
+    ref = np.asarray(times[reference])
+    return {m: float(np.median(ref / np.asarray(t))) for m, t in times.items()}
+
+
+@lru_cache(maxsize=2)
+def _bench_candidates(shape):
+    img = bench_image(shape)
+    return img, locate.candidates(img)
+
+
+def batch_throughput(methods, options: dict | None = None, repeats: int = 7, shape=BENCH_SHAPE,
+                     reference: str | None = None):
+    """Points per second of each method's refinement over all candidates of the bench mosaic in one
+    call (median of ``repeats`` interleaved rounds), with the study's per-method ``options``: the
+    studies' time per point.  With ``reference``: also the median per-round ratio of each method's
+    throughput to the reference's (robust to the machine's load changing between rounds)."""
+    img, cand = _bench_candidates(tuple(shape))
+    methods = list(methods)
+    times = interleaved_times(img, cand, methods, repeats, options)
+    rates = {m: len(cand) / float(np.median(t)) for m, t in times.items()}
+    if reference is None:
+        return rates
+    return rates, (ratio_medians(times, reference) if reference in times else {})
+
+
+REFERENCE = "erf4p_fixed11"
+#: the curve-fit baselines that must keep up with the ERF kernels (>= 2/3 of REFERENCE's points/s)
+CURVE_FITS = ("hagara_aef2011", "gaussian_fit2014", "arctan_fit2016", "sigmoid_logistic_fit2023", "ser_cis")
+MIN_RATIO = 2.0 / 3.0
 
 
 def scipy_reference(profiles, windows, four_param: bool):
@@ -74,18 +113,25 @@ def scipy_reference(profiles, windows, four_param: bool):
 
 
 def run_bench(repeats: int = 7, scipy_points: int = 400, methods=None) -> list[str]:
-    img = bench_image()
-    cand = locate.candidates(img)
+    img, cand = _bench_candidates(BENCH_SHAPE)
     n = len(cand)
+    methods = list(locate.METHODS) if methods is None else list(methods)
+    times = interleaved_times(img, cand, methods, repeats)
+    ratios = ratio_medians(times, REFERENCE) if REFERENCE in times else {}
     lines = [f"refinement throughput, {BENCH_SHAPE[1]}x{BENCH_SHAPE[0]} mosaic, {n} candidates, "
-             f"numba threads={numba.get_num_threads()} (cpus={os.cpu_count()}), median of {repeats}"]
-    lines.append(f"{'method':28s} {'points/s':>12s} {'us/point':>9s}")
-    methods = list(locate.METHODS) if methods is None else methods
+             f"numba threads={numba.get_num_threads()} (cpus={os.cpu_count()}), median of {repeats} interleaved rounds"]
+    lines.append(f"{'method':28s} {'points/s':>12s} {'us/point':>9s} {'/' + REFERENCE:>15s}")
     rates = {}
     for m in methods:
-        dt = _time_refine(img, cand, m, repeats)
+        dt = float(np.median(times[m]))
         rates[m] = n / dt
-        lines.append(f"{m:28s} {n / dt:12,.0f} {1e6 * dt / n:9.2f}")
+        r = f"{ratios[m]:15.2f}" if m in ratios else ""
+        lines.append(f"{m:28s} {n / dt:12,.0f} {1e6 * dt / n:9.2f} {r}")
+    fits = [m for m in CURVE_FITS if m in ratios]
+    if fits:
+        ok = all(ratios[m] >= MIN_RATIO for m in fits)
+        lines.append(f"curve-fit baselines vs {REFERENCE} (median per-round ratio, target >= {MIN_RATIO:.2f}): "
+                     + ", ".join(f"{m} {ratios[m]:.2f}" for m in fits) + (" -- all keep up" if ok else " -- BELOW TARGET"))
     for m, four in (("dynamic_erf_2p", False), ("dynamic_erf_4p", True)):
         if m not in rates:
             continue

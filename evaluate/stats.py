@@ -46,6 +46,61 @@ def wilcoxon_paired(a, b, alpha: float = 0.05) -> dict:
     return out
 
 
+# ---- coverage and the common subset (shared by the synthetic and ranging reports) ----
+#
+# A method that declines a candidate answers with the candidate pixel (converged=False).  Three
+# figures keep accuracy and coverage apart: *coverage*, the share of candidates a method refines;
+# accuracy on the points it *refines*; accuracy on the *common subset*, the candidates every compared
+# method refines (the like-with-like comparison); and the whole set with failures scored as the
+# pixel centre (what a user of the method gets if they keep every point).
+
+SUBSETS = ("refined", "common", "all")
+SUBSET_LABELS = {"refined": "refined points", "common": "common subset",
+                 "all": "all candidates (failures as pixel centre)"}
+
+
+def coverage(converged) -> float:
+    """Share of candidates a method refines."""
+    c = np.asarray(converged, bool)
+    return float(c.mean()) if c.size else float("nan")
+
+
+def common_subset(converged: dict, methods=None) -> np.ndarray:
+    """Candidates that every method in ``methods`` (default: all keys) refines."""
+    methods = list(converged) if methods is None else list(methods)
+    if not methods:
+        raise ValueError("common_subset: no methods")
+    out = np.ones(np.asarray(converged[methods[0]]).shape, bool)
+    for m in methods:
+        out &= np.asarray(converged[m], bool)
+    return out
+
+
+def subset_masks(converged, common) -> dict:
+    """{'refined': converged, 'common': common, 'all': every point} for one method."""
+    c = np.asarray(converged, bool)
+    return {"refined": c, "common": np.asarray(common, bool), "all": np.ones(c.shape, bool)}
+
+
+def subset_summaries(errors, converged, common) -> dict:
+    """``summary`` of a method's errors on each of SUBSETS."""
+    e = np.asarray(errors, float)
+    return {k: summary(e[m]) for k, m in subset_masks(converged, common).items()}
+
+
+def per_image_mae(errors, image, n_images: int, mask=None) -> np.ndarray:
+    """Mean |e| per image over the points in ``mask`` (NaN for an image without such points)."""
+    a = np.abs(np.asarray(errors, float))
+    image = np.asarray(image, np.int64)
+    if mask is not None:
+        m = np.asarray(mask, bool)
+        a, image = a[m], image[m]
+    s = np.bincount(image, weights=a, minlength=n_images)
+    c = np.bincount(image, minlength=n_images)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return s / c
+
+
 # --- paired designs: effect sizes, multiple comparisons, bootstrap intervals -------------------------
 def rank_biserial(a, b) -> float:
     """Matched-pairs rank-biserial correlation of a - b, in [-1, 1]: (W+ - W-) / (W+ + W-) over the

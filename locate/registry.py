@@ -22,6 +22,17 @@ class Method:
     family: str  # "proposed", "erf-fixed", "baseline" or "user"
     fn: Callable[..., Refinement]
     summary: str = ""
+    #: ``footprint(cand, **options) -> (N, SIZE, SIZE) bool``: the pixels the method reads per candidate
+    #: (``edgetruth.locate.footprints``); None: not declared (the Cramér-Rao bound then assumes every
+    #: pixel within ``footprints.RADIUS``).
+    footprint: Callable[..., np.ndarray] | None = None
+
+    def footprint_masks(self, cand: Candidates, **options) -> np.ndarray:
+        """The pixels the method reads for each candidate (its declaration, or the whole neighbourhood)."""
+        from edgetruth.locate import footprints
+
+        fp = self.footprint or footprints.neighbourhood
+        return fp(cand, **options)
 
     @property
     def builtin(self) -> bool:
@@ -51,14 +62,16 @@ def sort_registry() -> None:
     METHODS.update(items)
 
 
-def register(method_id: str, label: str | None = None, family: str = "user", summary: str = ""):
+def register(method_id: str, label: str | None = None, family: str = "user", summary: str = "",
+             footprint: Callable[..., np.ndarray] | None = None):
     """Decorator: register ``fn(image, cand, **options) -> Refinement`` under ``method_id``.
 
     ``image`` is the float64 (H, W) image, ``cand`` the shared ``Candidates``; return one
     ``Refinement`` entry per candidate (``Refinement.from_offset(cand, mu_px)`` for an offset
     along each normal).  Keyword options after ``cand`` become the method's options.
     Registering the same function again under its id is a no-op (a module imported twice);
-    another function under a taken id is an error."""
+    another function under a taken id is an error.  ``footprint``: the pixels the method reads
+    (``edgetruth.locate.footprints``), used by the per-point Cramér-Rao bound."""
     if not (isinstance(method_id, str) and _ID.match(method_id)):
         raise InputError(f"method id {method_id!r}: use 1-64 lowercase letters, digits and '_', starting with a letter")
 
@@ -71,7 +84,7 @@ def register(method_id: str, label: str | None = None, family: str = "user", sum
             raise InputError(f"method {method_id!r} is registered twice (by {old.fn.__module__} and "
                              f"{getattr(fn, '__module__', '?')}); give the new one another id")
         doc = (fn.__doc__ or "").strip().split("\n")[0]
-        METHODS[method_id] = Method(method_id, label or method_id, family, fn, summary or doc)
+        METHODS[method_id] = Method(method_id, label or method_id, family, fn, summary or doc, footprint)
         return fn
 
     return deco

@@ -1,34 +1,28 @@
-"""Render a spec into a dataset directory, resumably; read images back.
+"""One image of a dataset: its scene, pose, render, sensor image and ground truth.
 
-Per image ``NAME``: ``NAME.exr`` (linear radiance, float32), ``NAME.png`` (sensor
-image: 16-bit raw DN, or 8-bit sRGB/JPEG pixels per the sensor's ``output``) and
-``NAME.json`` (ground truth).  ``manifest.json`` lists
-every image with the SHA-256 of each file; an image counts as done only when its
-manifest entry says so *and* its files still hash to the recorded values.
+``render_job(spec, job)`` -> (radiance, image file pixels, ground-truth dict) for one job of a
+spec: the image is the sensor's 16-bit raw DN, or 8-bit sRGB/JPEG pixels per its ``output``.
+Writing datasets (the driver loop, journal and manifest) lives in
+``edgetruth.render.driver`` / ``edgetruth.render.journal``; a worker's task (encode,
+hash, write) in ``edgetruth.render.task``; reading datasets back in
+``edgetruth.render.reader``.
 """
 from __future__ import annotations
 
-import hashlib
-import json
-import os
 import platform
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
-from edgetruth import __version__, console
+from edgetruth import __version__
 from edgetruth.errors import InputError
-from edgetruth.fileio import atomic_write_bytes, is_temporary, make_output_dir, read_json, sha256_file, write_json
 from edgetruth.render.camera import Camera
-from edgetruth.render.files import encode_exr, encode_png16
 from edgetruth.render.ground_truth import checker_ground_truth, outline_in_view, target_ground_truth, target_outline_local
 from edgetruth.render.mitsuba_scene import CheckerRig, RenderSettings, TargetRig
 from edgetruth.render.pose import Pose
-from edgetruth.render.reader import MANIFEST
 from edgetruth.render.sensor import make_rng
-from edgetruth.render.spec import Job, Spec, load_spec
+from edgetruth.render.spec import Job, Spec
 from edgetruth.render.targets import TARGETS
 
 FORMAT_VERSION = 1
@@ -172,194 +166,3 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
         "versions": versions(mi.variant()),
     }
     return radiance, image, full
-
-
-# --- datasets -----------------------------------------------------------------------
-def _entry_complete(out_dir: Path, entry: dict | None) -> bool:
-    if not entry or not entry.get("complete"):
-        return False
-    for f in entry["files"].values():
-        p = out_dir / f["path"]
-        if not p.is_file() or sha256_file(p) != f["sha256"]:
-            return False
-    return True
-
-
-def _new_manifest(spec: Spec) -> dict:
-    return {"format": FORMAT_VERSION, "spec": spec.name, "spec_sha256": spec.identity_sha256,
-            "n_images": spec.n_images, "images": {}}
-
-
-def _encode_json(obj) -> bytes:
-    return (json.dumps(obj, indent=1, sort_keys=False) + "\n").encode()
-
-
-def init_worker(variant: str, threads: int | None = None) -> None:
-    """Once per worker process: activate ``variant`` and share the cores among the workers."""
-    import edgetruth.render.variants  # noqa: F401  (points Dr.Jit at the pip libLLVM before it is imported)
-    import mitsuba as mi
-
-    if mi.variant() != variant:
-        mi.set_variant(variant)
-    if threads and variant.startswith("llvm"):
-        import drjit as dr
-
-        dr.set_thread_count(int(threads))
-
-
-def render_task(spec: Spec, index: int, variant: str, out_dir: str | None) -> dict:
-    """Render image ``index`` of ``spec``: a pure function of (spec, index) (its seed is
-    ``image_seed(spec.name, index)``).  With ``out_dir`` the files are written there, each
-    atomically; otherwise their bytes come back in ``payload`` for the driver to write.
-    Returns the image's manifest entry (with SHA-256 of every file) -- the driver records it."""
-    import mitsuba as mi
-
-    if mi.variant() != variant:
-        init_worker(variant)
-    job = spec.jobs[index]
-    timings: dict = {}
-    radiance, dn, gt = render_job(spec, job, timings=timings)
-    name = job.name
-    gt["files"] = {"exr": f"{name}.exr", "png": f"{name}.png"}
-    data = {"exr": encode_exr(radiance), "png": encode_png16(dn), "json": _encode_json(gt)}
-    if out_dir is not None:
-        _write_files(Path(out_dir), name, data)
-    entry = {
-        "index": index, "kind": job.kind, "group": job.group, "seed": job.seed,
-        "variant": variant, "complete": True,
-        "files": {k: {"path": f"{name}.{k}", "sha256": hashlib.sha256(b).hexdigest()} for k, b in data.items()},
-    }
-    return {"name": name, "entry": entry, "render_s": timings.get("render_s", 0.0), "reused": timings.get("reused", 0),
-            "payload": None if out_dir is not None else data}
-
-
-def _write_files(out_dir: Path, name: str, data: dict) -> None:
-    # the JSON (which names the other two) last; each file appears whole or not at all
-    for ext in ("exr", "png", "json"):
-        atomic_write_bytes(out_dir / f"{name}.{ext}", data[ext])
-
-
-class _DirLock:
-    """An exclusive ``flock`` on the dataset directory itself (no lock file to leave behind);
-    the kernel releases it when the process dies, even on ``kill -9``."""
-
-    def __init__(self, path: Path):
-        import fcntl
-
-        self.fd = os.open(path, os.O_RDONLY)
-        try:
-            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(self.fd)
-            raise InputError(f"{path}: another `edgetruth render` is writing this dataset now; "
-                             "wait for it to finish or choose another output directory") from None
-
-    def release(self) -> None:
-        os.close(self.fd)  # closing the descriptor drops the flock
-
-
-def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | None = None, progress: bool = True,
-                only: list[int] | None = None, timings: dict | None = None, announce=print,
-                backend: str = "local", workers: int | None = 1, address: str | None = None) -> dict:
-    """Render every image of ``spec`` into ``out_dir`` (resumable) and return the manifest.
-
-    ``only`` restricts to those job indices; ``timings`` (a dict) accumulates ``render_s``
-    (inside ``mi.render``, summed over workers), ``wall_s`` and ``n_rendered``.
-
-    ``backend``/``workers``/``address``: where images render (see ``edgetruth.backends``);
-    the default renders in this process.  Whatever the backend, the files of an image are
-    identical, only this (driver) process writes ``manifest.json`` (atomically, after each
-    image), and an interrupted run -- even ``kill -9`` -- resumes where it stopped.
-    """
-    from edgetruth.backends import check_backend_args, default_workers, make_backend
-    from edgetruth.render.variants import choose_variant
-
-    check_backend_args(backend, workers, address)  # before anything is written
-    if variant:
-        import mitsuba as mi
-
-        if variant not in mi.variants():
-            raise InputError(f"--variant {variant}: not in this Mitsuba build (have: {', '.join(mi.variants())})")
-    if not isinstance(spec, Spec):
-        spec = load_spec(spec)
-    out_dir = Path(out_dir)
-    if only is not None:
-        bad = sorted(i for i in set(only) if not 0 <= i < spec.n_images)
-        if bad:
-            raise InputError(f"--only: index {bad[0]} out of range; {spec.name!r} has images 0-{spec.n_images - 1}")
-    make_output_dir(out_dir)
-    lock = _DirLock(out_dir)
-    try:
-        return _render_locked(spec, out_dir, variant, progress, only, timings, announce, backend, workers,
-                              address, make_backend, default_workers, choose_variant)
-    finally:
-        lock.release()
-
-
-def _render_locked(spec, out_dir, variant, progress, only, timings, announce, backend, workers, address,
-                   make_backend, default_workers, choose_variant) -> dict:
-    mpath = out_dir / MANIFEST
-    manifest = read_json(mpath) if mpath.is_file() else _new_manifest(spec)
-    if not isinstance(manifest, dict) or not isinstance(manifest.get("images"), dict):
-        raise InputError(f"{mpath}: not an edgetruth manifest; choose a new output directory or delete it")
-    if manifest.get("spec") != spec.name or manifest.get("spec_sha256") != spec.identity_sha256:
-        raise InputError(f"{out_dir} holds renders of another spec (or another version of {spec.name!r}); "
-                         "choose a new output directory or delete it")
-    for p in out_dir.iterdir():  # temporaries of a killed run (we hold the lock: no writer is alive)
-        if is_temporary(p) and p.is_file():
-            p.unlink()
-    jobs = list(spec.jobs) if only is None else [spec.jobs[i] for i in sorted(set(only))]
-    todo = [j for j in jobs if not _entry_complete(out_dir, manifest["images"].get(j.name))]
-    # the images of one radiance unit next to each other: a worker renders the unit once and reuses it
-    unit_rank = {i: u for u, unit in enumerate(spec.units()) for i in unit}
-    todo.sort(key=lambda j: (unit_rank[j.index], j.index))
-    stats = timings if timings is not None else {}
-    t_start = time.perf_counter()
-    if not todo:
-        if not mpath.is_file():
-            write_json(mpath, manifest)
-        stats["wall_s"] = stats.get("wall_s", 0.0) + time.perf_counter() - t_start
-        return manifest
-    n_workers = default_workers() if workers is None else int(workers)
-    n_workers = min(n_workers, len(todo)) if backend == "local" else n_workers
-    be = make_backend(backend, workers=n_workers, address=address)  # validates before any rendering
-    bar = None
-    try:
-        if backend == "ray" and getattr(be, "num_gpus", 0) and not variant:
-            used = "cuda_ad_rgb"
-            announce(f"render: using Mitsuba variant {used} (the Ray cluster has GPUs)")
-        else:
-            used = choose_variant(variant, announce=announce)
-        threads = max(1, default_workers() // max(1, be.concurrency)) if be.concurrency > 1 else None
-        be.set_initializer(init_worker, (used, threads))
-        bar = console.bar(total=len(jobs), initial=len(jobs) - len(todo), unit="img", desc=f"render {spec.name}",
-                          enabled=progress)
-        worker_dir = str(out_dir.resolve()) if be.shares_filesystem else None
-        tasks = [(spec, j.index, used, worker_dir) for j in todo]
-        for res in be.map_unordered(render_task, tasks):
-            name = res["name"]
-            if res["payload"] is not None:
-                _write_files(out_dir, name, res["payload"])
-            manifest["images"][name] = res["entry"]
-            manifest["images"] = dict(sorted(manifest["images"].items(), key=lambda kv: kv[1]["index"]))
-            write_json(mpath, manifest)
-            stats["render_s"] = stats.get("render_s", 0.0) + res["render_s"]
-            stats["n_rendered"] = stats.get("n_rendered", 0) + 1
-            stats["reused"] = stats.get("reused", 0) + res.get("reused", 0)
-            bar.update(1)
-    except BaseException:
-        be.close(abort=True)
-        raise
-    finally:
-        if bar is not None:
-            bar.close()
-    be.close()
-    stats["wall_s"] = stats.get("wall_s", 0.0) + time.perf_counter() - t_start
-    return manifest
-
-
-def list_images(out_dir: str | Path) -> list[str]:
-    """Names of the complete images of a dataset, in index order (see ``edgetruth.render.reader``)."""
-    from edgetruth.render.reader import open_dataset
-
-    return open_dataset(out_dir).names()

@@ -6,6 +6,7 @@ raise ``InputError`` naming the file.  Generic atomic writes, JSON and hashes li
 """
 from __future__ import annotations
 
+import io
 import os
 import tempfile
 from pathlib import Path
@@ -41,20 +42,26 @@ def read_png16(path: str | Path) -> np.ndarray:
 
 
 def encode_exr(radiance: np.ndarray, channel: str = EXR_CHANNEL) -> bytes:
-    """A 2-D float32 image as one-channel ZIP-compressed EXR bytes (via a private temporary file:
-    the OpenEXR package writes to paths only)."""
+    """A 2-D float32 image as one-channel ZIP-compressed EXR bytes, encoded in memory (OpenEXR >= 3.3
+    writes to a stream; older versions only to a path, so there via a private temporary file)."""
     import OpenEXR
 
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     channels = {channel: np.ascontiguousarray(radiance, dtype=np.float32)}
-    fd, tmp = tempfile.mkstemp(prefix="edgetruth-exr-", suffix=".exr")
-    os.close(fd)
-    try:
-        with OpenEXR.File(header, channels) as f:
+    with OpenEXR.File(header, channels) as f:
+        buf = io.BytesIO()
+        try:
+            f.write(buf)
+            return buf.getvalue()
+        except TypeError:  # this OpenEXR writes to paths only
+            pass
+        fd, tmp = tempfile.mkstemp(prefix="edgetruth-exr-", suffix=".exr")
+        os.close(fd)
+        try:
             f.write(tmp)
-        return Path(tmp).read_bytes()
-    finally:
-        os.unlink(tmp)
+            return Path(tmp).read_bytes()
+        finally:
+            os.unlink(tmp)
 
 
 def write_exr(path: str | Path, radiance: np.ndarray, channel: str = EXR_CHANNEL) -> None:

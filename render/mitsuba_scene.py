@@ -114,6 +114,7 @@ class _Rig:
         self.scene = mi.load_dict(self.scene_dict)
         self.params = mi.traverse(self.scene)
         self.sensor = self.scene.sensors()[0]  # the Python LensSensor (``set_window``)
+        self._last: dict = {}  # the transform last set per parameter key
 
     def psf_description(self) -> dict | None:
         """How the sensor samples the lens PSF (None: the pixel box alone)."""
@@ -129,7 +130,19 @@ class _Rig:
         return self.mi.ScalarTransform4f(np.asarray(m, dtype=np.float64).tolist())
 
     def _set_transform(self, key: str, m: np.ndarray) -> None:
-        self.params[key] = self.mi.Transform4f(np.asarray(m, dtype=np.float64).tolist())
+        # opaque: a literal transform is baked into the kernel (the area light's is, inside the
+        # emitter's sample_direction), so every new pose would cost an LLVM compile (~80 ms) and
+        # 20 KB of kernel cache on disk; opaque, one kernel serves every pose
+        import drjit as dr
+
+        m = np.asarray(m, dtype=np.float64)
+        last = self._last.get(key)
+        if last is not None and np.array_equal(last, m):
+            return  # e.g. a parked target: no update, no rebuild
+        self._last[key] = m.copy()
+        t = self.mi.Transform4f(m.tolist())
+        dr.make_opaque(t)
+        self.params[key] = t
 
     def _set_light(self, pose: Pose, irradiance_w_m2: float) -> float:
         pos = LIGHT_OFFSET_M

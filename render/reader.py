@@ -10,11 +10,12 @@
     ds["0003_T4"], ds[0], len(ds), ds.targets(), ds.checkerboards()
 
 The layout: per image ``NAME.exr``, ``NAME.png`` and ``NAME.json``; ``manifest.json``
-lists every image with the SHA-256 of each file (docs/formats.md).
+lists every image with the SHA-256 of each file, and while a render runs (or after it was
+killed) ``journal.jsonl`` holds the images finished since (``edgetruth.render.journal``).
+Both forms are read: the journal's entries are merged into the manifest's.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,21 +23,15 @@ import numpy as np
 
 from edgetruth.errors import InputError
 from edgetruth.fileio import is_temporary, read_json, sha256_file
+from edgetruth.render.journal import JOURNAL, MANIFEST, JournalScan, ManifestReader, iter_journal
 
-MANIFEST = "manifest.json"
-_SHA = re.compile(r"^[0-9a-f]{64}$")
-
-
-def _manifest_ok(m) -> bool:
-    return (isinstance(m, dict) and isinstance(m.get("images"), dict) and isinstance(m.get("n_images"), int)
-            and all(isinstance(e, dict) and isinstance(e.get("files"), dict) and isinstance(e.get("index"), int)
-                    and all(isinstance(f, dict) and isinstance(f.get("path"), str)
-                            and _SHA.match(str(f.get("sha256", ""))) for f in e["files"].values())
-                    for e in m["images"].values()))
+__all__ = ["MANIFEST", "JOURNAL", "Dataset", "Sample", "check_dataset", "load_image", "load_manifest", "open_dataset"]
 
 
-def load_manifest(d: str | Path) -> dict:
-    """The manifest of dataset ``d``, checked for shape; one InputError otherwise."""
+def load_manifest(d: str | Path, scan: JournalScan | None = None) -> dict:
+    """The manifest of dataset ``d`` with the journal's entries merged in (the latest entry of an
+    image wins), images in index order; one InputError if it is not a dataset or is damaged.
+    ``scan`` (a ``JournalScan``) receives what reading the journal found."""
     d = Path(d)
     if not d.exists():
         raise InputError(f"{d}: no such directory; pass the -o directory of `edgetruth render`")
@@ -46,14 +41,16 @@ def load_manifest(d: str | Path) -> dict:
     if not mpath.is_file():
         raise InputError(f"{d}: no {MANIFEST}, so not an edgetruth dataset; render one with "
                          f"`edgetruth render SPEC -o {d}`")
-    try:
-        m = read_json(mpath)
-    except InputError:
-        raise InputError(f"{mpath}: not valid JSON; re-run `edgetruth render` for this spec into a new "
-                         "directory (or delete the manifest to re-render everything)") from None
-    if not _manifest_ok(m):
-        raise InputError(f"{mpath}: not an edgetruth manifest (missing or malformed images/files/sha256 "
-                         "entries); re-render into a new directory")
+    reader = ManifestReader(mpath)
+    m = dict(reader.header)
+    images = dict(reader)
+    scan = scan if scan is not None else JournalScan()
+    if (d / JOURNAL).is_file():
+        for _, name, entry in iter_journal(d / JOURNAL, m["n_images"], scan):
+            images.pop(name, None)
+            images[name] = entry
+        images = dict(sorted(images.items(), key=lambda kv: kv[1]["index"]))
+    m["images"] = images
     return m
 
 
@@ -155,9 +152,12 @@ def check_dataset(d: str | Path) -> tuple[list[str], dict]:
     """(problems, info) for dataset ``d``: one human-readable line per problem (missing or damaged
     file, temporary left by a killed run, unlisted file, images not yet rendered)."""
     d = Path(d)
-    m = load_manifest(d)
-    problems: list[str] = []
-    listed = {MANIFEST}
+    scan = JournalScan()
+    m = load_manifest(d, scan)
+    problems: list[str] = [scan.problem()] if scan.problem() else []
+    if scan.spec_sha256 not in (None, m.get("spec_sha256")):
+        problems.append(f"{JOURNAL}: written for another spec; delete it (its images are rendered again)")
+    listed = {MANIFEST, JOURNAL}
     complete = 0
     for name, entry in m["images"].items():
         ok = bool(entry.get("complete"))

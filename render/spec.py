@@ -18,6 +18,7 @@ so a spec of a million images costs nothing to load.
 from __future__ import annotations
 
 import bisect
+import functools
 import hashlib
 import json
 from dataclasses import asdict, dataclass, field, replace
@@ -277,7 +278,7 @@ class Spec:
                     out.append([i])
         return out
 
-    @property
+    @functools.cached_property  # the spec is frozen; hashing a million-image spec takes ~1 s
     def identity_sha256(self) -> str:
         """SHA-256 of the resolved spec: equal for any two specs that render the same images."""
         text = json.dumps(self.resolved(), sort_keys=True, default=float)

@@ -53,3 +53,17 @@ def write_tiny_spec(tmp_path: Path, spp: int = 16, edge_spp: int = 36) -> Path:
     spec = tmp_path / "tiny.toml"
     spec.write_text(TINY_SPEC.format(camera=cam, spp=spp, edge_spp=edge_spp))
     return spec
+
+
+def write_patch_spec(tmp_path: Path, n_images: int, name: str = "patches") -> Path:
+    """A spec of ``n_images`` tiny training patches: the default camera binned 32x (40x32 px), 1 spp,
+    the four targets in turn over 1.2-2 m with lateral offsets and tilts."""
+    per, groups = n_images // 4, []
+    for k, target in enumerate(("T1", "T2", "T3", "T4")):
+        count = per if k < 3 else n_images - 3 * per
+        if count:
+            groups.append(f'[[group]]\nname = "{target}"\ntarget = "{target}"\ndistance_range_cm = [120, 200]\n'
+                          f"count = {count}\nlateral_fraction = 0.5\ntilt_max_deg = 10\n")
+    spec = Path(tmp_path) / f"{name}.toml"
+    spec.write_text(f'[spec]\nname = "{name}"\ncamera_scale = 32\nspp = 1\n\n' + "\n".join(groups))
+    return spec

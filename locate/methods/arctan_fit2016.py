@@ -18,7 +18,7 @@ Gaussian-blurred edge, which costs precision, not bias, on symmetric edges.
 Choices left open: window 11 samples (t = -5..5); initial A = min,
 B = max - min, mu and a width from the positive profile differences, w
 matched to that width by equal central slope (w = sd sqrt(2/pi)); stopping
-|d mu|, |d w| < 1e-7 px, 100 iterations; failure (converged=False,
+|d mu| < 1e-7 px and |d w| < 1e-5 px per step, 100 iterations; failure (converged=False,
 candidate pixel kept) when there is no contrast, no convergence, mu outside
 [-5, 5], w outside (0.05, 20) px or B <= 0.
 
@@ -27,13 +27,14 @@ Extras: A, B, width (w, px), offset, rss, iterations, status, se.
 from __future__ import annotations
 
 from edgetruth.locate import curve_fit_kernels as CF
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 
 MAXIT = 100
 TOL_PX = 1e-7  # accepted step (px); quadratic convergence leaves far less, as in locate.methods.erf
 
 
-@register("arctan_fit2016", "ArctanFit2016", family="baseline")
+@register("arctan_fit2016", "ArctanFit2016", family="baseline", footprint=FP.profile(5))
 def arctan_fit2016(image, cand, maxit: int = MAXIT, tol_px: float = TOL_PX):
     """ArctanFit2016: 4-parameter arctangent fit of the 11-sample normal profile."""
     return CF.refine_step_model(image, cand, CF.ARCTAN, maxit, tol_px)

@@ -53,6 +53,7 @@ import math
 import numba
 import numpy as np
 
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
 
@@ -136,7 +137,15 @@ def devernay_points(smoothed: np.ndarray, xs: np.ndarray, ys: np.ndarray, strict
     return out_x, out_y, eta, axis
 
 
-@register("canny_devernay", "Canny–Devernay", family="baseline")
+def devernay_footprint(cand, **options):
+    """|g| at p and its four neighbours (the axis test and the parabola), each from G at +-1 in x and y:
+    the diamond |dx| + |dy| <= 2 of the smoothed image, widened by the Gaussian kernel's reach."""
+    dy, dx = np.mgrid[-2:3, -2:3]
+    m = FP.pattern_masks(len(cand), np.abs(dx) + np.abs(dy) <= 2)
+    return FP.dilate(m, FP.gaussian_radius_px(cand.sigma_px))
+
+
+@register("canny_devernay", "Canny–Devernay", family="baseline", footprint=devernay_footprint)
 def canny_devernay(image, cand, strict: bool = True, **options) -> Refinement:
     """Canny–Devernay: IPOL 2017 parabola through |g| at p-d, p, p+d (d horizontal or vertical)."""
     x, y, eta, axis = devernay_points(cand.smoothed, cand.x.astype(np.int64), cand.y.astype(np.int64), strict)

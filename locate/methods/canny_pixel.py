@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
 
 
-@register("canny_pixel", "CannyPixel", family="baseline")
+@register("canny_pixel", "CannyPixel", family="baseline", footprint=FP.candidate_decision)
 def canny_pixel(image, cand, **options) -> Refinement:
     """CannyPixel: the Canny candidate pixel centre, unrefined."""
     n = len(cand)

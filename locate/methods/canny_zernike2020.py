@@ -55,6 +55,7 @@ import numba
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
 
@@ -131,7 +132,13 @@ def _zernike_kernel(img, xs, ys, mx, my, m20, out):
         out[i, 5] = 1.5 * z11 / (1.0 - l * l) ** 1.5 if abs(l) < 1.0 else math.nan
 
 
-@register("canny_zernike2020", "Canny–Zernike2020", family="baseline")
+def zernike_footprint(cand, mask_size: int = MASK_SIZE, **options):
+    """The pixels with a non-zero weight in any of the three masks (the block less its outer corners)."""
+    mx, my, m20 = zernike_masks(int(mask_size))
+    return FP.pattern_masks(len(cand), (mx != 0) | (my != 0) | (m20 != 0))
+
+
+@register("canny_zernike2020", "Canny–Zernike2020", family="baseline", footprint=zernike_footprint)
 def canny_zernike2020(image, cand, mask_size: int = MASK_SIZE, **options) -> Refinement:
     """Canny–Zernike2020: Ghosal-Mehrotra Z11/Z20 step on a 7x7 mask; point p + (N/2) l (cos phi, sin phi)."""
     mask_size = int(mask_size)

@@ -18,6 +18,7 @@ import numpy as np
 
 from edgetruth.errors import InputError
 from edgetruth.locate import erf_kernels as K
+from edgetruth.locate import footprints as FP
 from edgetruth.locate import thresholds as _thr
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
@@ -67,7 +68,8 @@ def _make(method_id: str, label: str, family: str, four_param: bool, window: int
 
     fn.__doc__ = f"{label}: ERF {'4P' if four_param else '2P'} fit, " + (
         f"fixed {window}-sample window" if window else "entropy-guided dynamic window")
-    register(method_id, label, family)(fn)
+    # the fit reads its window's samples; the dynamic window's choice reads all 11
+    register(method_id, label, family, footprint=FP.profile((window - 1) // 2 if window else K.PROFILE_HALF))(fn)
 
 
 for _w in WINDOWS:

@@ -41,6 +41,7 @@ import numpy as np
 from edgetruth.errors import InputError
 from edgetruth.locate import curve_fit_kernels as CF
 from edgetruth.locate.profiles import profile_offsets, sample_profiles
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
 
@@ -77,15 +78,14 @@ def log_parabola(g, tg):
     return mu, w, a, ok
 
 
-@register("gaussian_fit2014", "GaussianFit2014", family="baseline")
+@register("gaussian_fit2014", "GaussianFit2014", family="baseline", footprint=FP.profile(5))
 def gaussian_fit2014(image, cand, variant: str = "lsq", maxit: int = MAXIT, tol_px: float = TOL_PX):
     """GaussianFit2014: Gaussian fit of the profile differences along the normal; peak = edge."""
     if variant not in VARIANTS:
         raise InputError(f"variant={variant!r}: choose one of {', '.join(VARIANTS)}")
-    g, tg = gradient_profiles(image, cand)
     if variant == "log3":
+        g, tg = gradient_profiles(image, cand)
         mu, w, a, ok = log_parabola(g, tg)
         ok &= np.abs(mu) <= tg[-1]
         return Refinement.from_offset(cand, np.where(ok, mu, 0.0), ok, amplitude=a, width=w)
-    out = CF.fit_profiles(g, tg, CF.GAUSS, maxit, tol_px)
-    return CF.finish(cand, out, tg.size, 3, mu_index=1, width_index=2, amp_names=("amplitude",))
+    return CF.refine_gauss_differences(image, cand, maxit, tol_px)

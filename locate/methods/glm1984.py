@@ -44,6 +44,7 @@ import numpy as np
 
 from edgetruth.errors import InputError
 from edgetruth.locate.profiles import bilinear
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
 
@@ -93,7 +94,7 @@ def _glm_kernel(img, xs, ys, nxs, nys, half, out):
         out[i, 5] = 1.0 if math.isfinite(out[i, 0]) else 0.0
 
 
-@register("glm1984", "GLM1984", family="baseline")
+@register("glm1984", "GLM1984", family="baseline", footprint=FP.profile(DEFAULT_HALF, option="half"))
 def glm1984(image, cand, half: int = DEFAULT_HALF, **options) -> Refinement:
     """GLM1984: Tabatabai-Mitchell moment-preserving step on the normal profile (t = -half..half)."""
     half = int(half)

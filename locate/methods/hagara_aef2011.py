@@ -24,13 +24,14 @@ Choices the paper leaves open here:
   * initial values: A = min, B = max - min of the profile, mu and sigma
     from the mean and spread of the positive profile differences (the
     paper's own closed-form starting estimates are not reproduced).
-  * stopping: |d mu|, |d sigma| < 1e-7 px per accepted step, 100 iterations.
+  * stopping: |d mu| < 1e-7 px and |d sigma| < 1e-5 px per step, 100 iterations.
   * failure (converged=False, candidate pixel kept): no contrast, no
     convergence, mu outside [-5, 5], sigma outside (0.05, 20) px or B <= 0.
 
 Mathematically this is the same estimator as ERF4P-fixed11 (BRIEF §2); the
-two differ only in starting values and stopping rule, so on well-posed
-profiles they agree to the LM tolerance.
+two differ only in starting values, stopping rule and Phi (A&S 7.1.26 there,
+|error| 1.5e-7; ``locate.normal_cdf`` here, 2e-13), so on well-posed profiles
+they agree to the LM tolerance.
 
 Extras: A, B, width (= sigma, px), a, b (the paper's parametrisation), offset,
 rss, iterations, status, se.
@@ -38,13 +39,14 @@ rss, iterations, status, se.
 from __future__ import annotations
 
 from edgetruth.locate import curve_fit_kernels as CF
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 
 MAXIT = 100
 TOL_PX = 1e-7  # accepted step (px); quadratic convergence leaves far less, as in locate.methods.erf
 
 
-@register("hagara_aef2011", "HagaraAEF2011", family="baseline")
+@register("hagara_aef2011", "HagaraAEF2011", family="baseline", footprint=FP.profile(5))
 def hagara_aef2011(image, cand, maxit: int = MAXIT, tol_px: float = TOL_PX):
     """HagaraAEF2011: 4-parameter erf fit of the whole 11-sample normal profile."""
     r = CF.refine_step_model(image, cand, CF.ERF, maxit, tol_px)

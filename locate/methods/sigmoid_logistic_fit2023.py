@@ -18,7 +18,7 @@ performs close to the erf fits.
 Choices left open (the reference's exact fitting procedure is not available
 here): window 11 samples; initial A = min, B = max - min, mu and a width
 from the positive profile differences, w matched by equal central slope
-(w = sd sqrt(2 pi)/4); stopping |d mu|, |d w| < 1e-7 px, 100 iterations;
+(w = sd sqrt(2 pi)/4); stopping |d mu| < 1e-7 px and |d w| < 1e-5 px per step, 100 iterations;
 failure (converged=False, candidate pixel kept) when there is no contrast,
 no convergence, mu outside [-5, 5], w outside (0.05, 20) px or B <= 0.
 
@@ -27,13 +27,14 @@ Extras: A, B, width (w, px), offset, rss, iterations, status, se.
 from __future__ import annotations
 
 from edgetruth.locate import curve_fit_kernels as CF
+from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 
 MAXIT = 100
 TOL_PX = 1e-7  # accepted step (px); quadratic convergence leaves far less, as in locate.methods.erf
 
 
-@register("sigmoid_logistic_fit2023", "SigmoidLogisticFit2023", family="baseline")
+@register("sigmoid_logistic_fit2023", "SigmoidLogisticFit2023", family="baseline", footprint=FP.profile(5))
 def sigmoid_logistic_fit2023(image, cand, maxit: int = MAXIT, tol_px: float = TOL_PX):
     """SigmoidLogisticFit2023: 4-parameter logistic fit of the 11-sample normal profile."""
     return CF.refine_step_model(image, cand, CF.LOGISTIC, maxit, tol_px)

@@ -1,13 +1,14 @@
 """``edgetruth.backends`` and ``edgetruth render --backend/--workers``: same dataset everywhere."""
 from __future__ import annotations
 
+import itertools
 import sys
 import time
 from pathlib import Path
 
 import pytest
 
-from edgetruth.backends import check_backend_args, default_workers, make_backend
+from edgetruth.backends import WINDOW_PER_WORKER, check_backend_args, default_workers, make_backend
 from edgetruth.cli import main
 from edgetruth.errors import InputError
 from edgetruth.render.testing import write_tiny_spec
@@ -24,6 +25,25 @@ def test_serial_and_pool_map_every_task_once():
     with make_backend("local", workers=2) as be:
         assert be.concurrency == 2
         assert sorted(be.map_unordered(pow, args)) == [2 ** i for i in range(7)]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_tasks_are_consumed_lazily_with_a_bounded_window(workers):
+    """A million tasks cost nothing up front: at most ``window`` are in flight beyond the results taken."""
+    consumed = []
+
+    def tasks():
+        for i in itertools.count():
+            consumed.append(i)
+            yield (2, i)
+
+    with make_backend("local", workers=workers) as be:
+        it = be.map_unordered(pow, tasks(), window=3)
+        got = [next(it) for _ in range(10)]
+        it.close()
+        assert be.window() == max(2, WINDOW_PER_WORKER * be.concurrency)
+    assert set(got) <= {2 ** i for i in consumed} and len(set(got)) == 10
+    assert len(consumed) <= 10 + 3  # taken + window
 
 
 def test_pool_task_error_reaches_the_driver():
@@ -58,7 +78,7 @@ def test_backend_ray_without_ray_says_how_to_install(tmp_path, capsys, monkeypat
 
 
 def test_local_pool_and_in_process_give_identical_datasets(tmp_path):
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
 
     spec = write_tiny_spec(tmp_path, spp=8)
     render_spec(spec, tmp_path / "serial", progress=False, announce=lambda s: None, workers=1)
@@ -68,7 +88,7 @@ def test_local_pool_and_in_process_give_identical_datasets(tmp_path):
 
 def test_ray_and_local_backends_give_identical_manifests(tmp_path):
     ray = pytest.importorskip("ray", reason="ray is not installed: pip install 'edgetruth[cluster]'")
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
 
     spec = write_tiny_spec(tmp_path, spp=8)
     t0 = time.perf_counter()

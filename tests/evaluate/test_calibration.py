@@ -25,7 +25,7 @@ def test_calibration_spec_recovers_fx_and_principal_point(tmp_path, fast_variant
     """The `calibration` spec (20 boards, 1280x1024, default camera): measured fx +0.015 %,
     principal point (+0.42, +0.03) px; ~65 s of rendering on 2 cores (llvm)."""
     from edgetruth.evaluate.calibration import calibrate_dataset
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
 
     render_spec("calibration", tmp_path / "cal", progress=False, announce=lambda s: None)
     cal = calibrate_dataset(tmp_path / "cal")

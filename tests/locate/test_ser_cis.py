@@ -148,3 +148,24 @@ def test_noise_estimate_ignores_the_edge():
     assert abs(image_noise_sigma(noisy, locate.candidates(noisy)) / 2.4 - 1) < 0.1
     clean = render_edge_image(SHAPE, edge, A, B, BLUR)
     assert image_noise_sigma(clean, locate.candidates(clean)) < 0.01 * B
+
+
+def test_noise_estimate_is_immerkaers_formula():
+    """The one-pass kernel equals Immerkaer's estimator written with OpenCV (3x3 Laplacian-difference
+    mask, mean |response| over the interior pixels whose gradient is below the Canny low threshold)."""
+    import math
+
+    import cv2
+    import pytest
+
+    from edgetruth.locate import candidates
+
+    for seed in range(3):
+        img, cand, _ = edge_scenes.scored("ser_cis", straight(seed), noise_rel=0.02, seed=seed)
+        full = candidates(img)
+        mask = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
+        resp = np.abs(cv2.filter2D(img, cv2.CV_64F, mask, borderType=cv2.BORDER_REFLECT))[1:-1, 1:-1]
+        mag = np.hypot(full.grad_x, full.grad_y)[1:-1, 1:-1]
+        ref = math.sqrt(math.pi / 2) / 6 * resp[mag < full.thresholds[0]].mean()
+        assert image_noise_sigma(img, full) == pytest.approx(ref, rel=1e-12)
+        assert 0.5 * 0.02 * 120 < ref < 2 * 0.02 * 120

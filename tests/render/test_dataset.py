@@ -21,7 +21,7 @@ VARIANTS = ["llvm_ad_rgb", "scalar_rgb"]
 
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_same_spec_and_seed_give_identical_bytes(tmp_path, variant):
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
 
     if not probe(variant)[0]:
         pytest.skip(f"{variant} does not work here: {probe(variant)[1]}")
@@ -34,7 +34,7 @@ def test_same_spec_and_seed_give_identical_bytes(tmp_path, variant):
 
 def test_resume_skips_complete_and_rerenders_damaged(tmp_path):
     from edgetruth.fileio import sha256_file
-    from edgetruth.render.dataset import MANIFEST, render_spec
+    from edgetruth.render.driver import MANIFEST, render_spec
 
     spec = _spec(tmp_path)
     out = tmp_path / "out"
@@ -59,7 +59,7 @@ def test_resume_skips_complete_and_rerenders_damaged(tmp_path):
 
 def test_other_spec_in_same_dir_is_input_error(tmp_path):
     from edgetruth.errors import InputError
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
 
     spec = _spec(tmp_path)
     render_spec(spec, tmp_path / "o", progress=False, only=[0], announce=lambda s: None)
@@ -72,7 +72,7 @@ def test_ground_truth_content(tmp_path):
     import cv2
 
     from edgetruth.render import open_dataset
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
 
     spec = _spec(tmp_path)
     out = tmp_path / "gt"

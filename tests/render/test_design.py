@@ -73,7 +73,8 @@ def test_cells_share_the_pose_slots(tmp_path):
 
 def test_reused_radiance_equals_a_direct_render_bit_for_bit(tmp_path, fast_variant):
     from edgetruth.render import open_dataset
-    from edgetruth.render.dataset import get_rig, job_pose, render_spec
+    from edgetruth.render.dataset import get_rig, job_pose
+    from edgetruth.render.driver import render_spec
     from edgetruth.render.edge_band import render_edge_band
     from edgetruth.render.ground_truth import target_ground_truth, target_outline_local
     from edgetruth.render.spec import load_spec
@@ -99,6 +100,12 @@ def test_reused_radiance_equals_a_direct_render_bit_for_bit(tmp_path, fast_varia
         assert np.array_equal(direct, b.radiance)
         assert np.array_equal(a.radiance * np.float32(0.5), b.radiance)
         assert not np.array_equal(a.image, b.image)  # independent sensor noise per level
+    # two pool workers: one task per radiance unit, so the reuse survives, and the bytes are the same
+    pooled, t2 = tmp_path / "pooled", {}
+    render_spec(spec, pooled, progress=False, announce=lambda s: None, timings=t2, workers=2)
+    assert t2["reused"] == 2
+    for f in sorted(out.glob("*.png")) + sorted(out.glob("*.exr")):
+        assert (pooled / f.name).read_bytes() == f.read_bytes(), f.name
     # a second render of the same spec is byte-identical (reuse does not depend on order or workers)
     out2 = tmp_path / "data2"
     render_spec(spec, out2, progress=False, announce=lambda s: None, only=[4, 1])

@@ -20,6 +20,10 @@ def register(subparsers) -> None:
     p.add_argument("--variant", default=None,
                    help="Mitsuba variant to use (default: best working of cuda_ad_rgb, llvm_ad_rgb, scalar_rgb)")
     p.add_argument("--only", metavar="I,J-K", default=None, help="render only these image indices")
+    p.add_argument("--files", choices=("auto", "driver", "workers"), default="auto",
+                   help="who writes the image files: the workers when they share this disk (auto: a local pool or "
+                        "a local Ray instance), else this driver, which then receives the bytes (driver); workers: "
+                        "always the workers (every node mounts DIR at the same path)")
     add_progress_option(p)
     add_backend_options(p, "local worker processes (default: the number of cores; 1 renders in this process); "
                            "with --backend ray and no --address: CPUs of the local Ray instance")
@@ -48,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     from edgetruth import console
     from edgetruth.backends import check_backend_args
     from edgetruth.fileio import check_output_dir
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
     from edgetruth.render.spec import load_spec
     from edgetruth.resources import default_runs_dir
 
@@ -57,10 +61,10 @@ def run(args: argparse.Namespace) -> int:
     spec = load_spec(args.spec)
     out = check_output_dir(args.output or default_runs_dir() / "render" / spec.name)
     timings: dict = {}
-    manifest = render_spec(spec, out, variant=args.variant, progress=not args.no_progress,
-                           only=only, timings=timings, backend=args.backend, workers=args.workers,
-                           address=args.address, announce=console.say)
-    done = sum(1 for e in manifest["images"].values() if e.get("complete"))
+    render_spec(spec, out, variant=args.variant, progress=not args.no_progress, only=only, timings=timings,
+                backend=args.backend, workers=args.workers, address=args.address, files=args.files,
+                announce=console.say)
+    done = timings["n_complete"]
     n = timings.get("n_rendered", 0)
     extra = f", {n} rendered in {timings.get('wall_s', 0):.1f} s" if n else ", nothing to do"
     console.say(f"render: {done}/{spec.n_images} images of {spec.name!r} complete in {out}{extra}")

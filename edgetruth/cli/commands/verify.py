@@ -1,9 +1,11 @@
 """``edgetruth verify DIR``: check a rendered dataset against its manifest.
 
-Exit 0: every image the manifest lists is complete and every file hashes to its
-recorded SHA-256.  Exit 1: problems, one line each (missing file, hash mismatch,
-temporary file of an interrupted run, files the manifest does not list, images
-not yet rendered).  Exit 2: DIR is not a dataset.
+Exit 0: every image the manifest (and the journal of a running or killed render) lists
+is complete and every file hashes to its recorded SHA-256.  Exit 1: problems, one line
+each (missing file, hash mismatch, temporary file of an interrupted run, files the
+manifest does not list, damaged journal lines, images not yet rendered).  Exit 2: DIR is
+not a dataset, or its manifest is damaged.  A killed run's journal is compacted into
+the manifest first (a lossless rewrite; not while a render holds the directory).
 """
 from __future__ import annotations
 
@@ -23,9 +25,12 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from edgetruth import console
+    from edgetruth.render.driver import compact_if_idle
     from edgetruth.render.reader import check_dataset
 
     d: Path = args.dir
+    if compact_if_idle(d):  # a killed run's journal (unless a render is writing it now)
+        console.say(f"verify: {d}: compacted journal.jsonl into manifest.json")
     problems, info = check_dataset(d)
     for line in problems:
         print(line)
