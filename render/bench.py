@@ -4,18 +4,14 @@ cost of the lens PSF.
 ``run_bench()`` renders the ``quick`` spec on the best variant into a temporary
 directory (wall time includes pose, ground truth, sensor model, EXR/PNG/JSON writes
 and hashing; the ratio shows how much of it is spent outside ``mi.render``), then
-<<<<<<< HEAD
 one full-resolution target image of the default camera with and without its PSF (the frame at
 ``spp`` and the edge band at ``edge_spp``, medians of 3), then a small window on every other
 working variant for a per-variant throughput figure.
-=======
-a small window on every other working variant for a per-variant throughput figure.
 
 Then the dataset-scale figures: the fixed cost of a tiny image (40x32 px, 1 spp, one
 worker) at 500 and 3,000 images with its breakdown per stage (``patch_cost``), and a
 1,000,000-image spec started in a subprocess (``million_image_run``): seconds until
 its first image is recorded and the driver's memory after 200 and 2,000 images.
->>>>>>> main
 """
 from __future__ import annotations
 
@@ -121,11 +117,8 @@ def run_bench(spec_name: str = "quick") -> list[str]:
                  f"{n / wall:.2f} images/s")
     lines.append(f"render bench: wall time / time inside mi.render = {wall / inside:.3f} (target <= 1.10); "
                  f"incl. scene loading and JIT warm-up: {total / inside:.3f}")
-<<<<<<< HEAD
     lines += psf_cost_lines()
-=======
     rates = {}
->>>>>>> main
     for v in ORDER:
         ok, reason = probe(v)
         if not ok:
