@@ -51,7 +51,7 @@ class RenderSettings:
     #: the shutter time rays are spread over (a moving camera only; 0: static)
     exposure_s: float = 0.0
     #: spp of the pixels near a target's outline (``edgetruth.render.edge_band``); 0: none
-    edge_spp: int = 1024
+    edge_spp: int = 0
 
     def to_dict(self) -> dict:
         d = {"spp": self.spp, "sampler": self.sampler, "samples_per_pass": self.samples_per_pass,
