@@ -103,9 +103,12 @@ def render_band(radiance: np.ndarray, frame_origin: tuple[int, int], rig, tiles:
     return n, render_s
 
 
-def render_edge_band(radiance, camera, settings, job, pose, gt, crop, irradiance_w_m2) -> dict:
+def render_edge_band(radiance, camera, settings, job, pose, gt, crop, irradiance_w_m2) -> dict | None:
     """Re-render the pixels near the target's outline at ``settings.edge_spp`` (in place; the tiles'
-    seeds come from ``job.render_seed``); returns the JSON's ``edge_band`` block plus ``render_s``."""
+    seeds come from ``job.render_seed``); returns the JSON's ``edge_band`` block plus ``render_s``
+    (None, and nothing rendered, when ``edge_spp`` is 0)."""
+    if settings.edge_spp <= 0:
+        return None
     outlines = [np.asarray(gt["outline"]["polyline_distorted_px"])]
     motion_px = 0.0
     if "motion" in gt:

@@ -124,7 +124,7 @@ def test_8_bit_outputs_are_8_bit_pngs(tmp_path):
     import cv2
 
     from edgetruth.render import open_dataset
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
 
     spec = _spec(tmp_path)
     spec.write_text(spec.read_text().replace("[[group]]", '[sensor]\noutput = "jpeg"\njpeg_quality = 80\n'
@@ -147,7 +147,7 @@ def test_seed_is_pure_function_of_spec_and_index():
 
 def test_moving_camera_ground_truth_is_mid_exposure_plus_the_motion(tmp_path):
     from edgetruth.render import open_dataset
-    from edgetruth.render.dataset import render_spec
+    from edgetruth.render.driver import render_spec
 
     spec = _spec(tmp_path)
     spec.write_text(spec.read_text().replace("tilt_max_deg = 5\n", "tilt_max_deg = 5\n"

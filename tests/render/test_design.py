@@ -13,6 +13,7 @@ DESIGN = """
 name = "paired"
 camera = "cam.toml"
 spp = 8
+edge_spp = 16             # the band around the targets is part of a unit's radiance
 
 [design]
 mode = "{mode}"
