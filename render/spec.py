@@ -48,13 +48,13 @@ SPEC_KEYS = [
         "folder)"),
     Key("camera_scale", "int", 1, "", "binning: the camera with camera_scale x fewer pixels per side (same field "
         "of view, pitch x camera_scale)", 1, 64),
-    Key("spp", "int", RenderSettings.spp, "samples/px", "Monte-Carlo samples per pixel", 1, MAX_SPP),
+    Key("spp", "int", RenderSettings.spp, "samples/px", "Monte-Carlo samples per pixel (a power of two: "
+        "byte-identical renders whatever the thread count)", 1, MAX_SPP),
     Key("edge_spp", "int", RenderSettings.edge_spp, "samples/px", "samples per pixel near a target's outline "
-        "(within the PSF, defocus and motion reach; the rest of the frame uses spp); 0 = spp everywhere", 0,
-        MAX_SPP),
-    Key("sampler", "str", RenderSettings.sampler, "", "Mitsuba sampler (orthogonal takes a prime squared spp and "
-        "is not bit-reproducible in Mitsuba 3.9: its renders differ in the last bit from run to run)",
-        choices=SAMPLERS),
+        "(within the PSF, defocus and motion reach; the rest of the frame uses spp; a power of two); 0 = spp "
+        "everywhere", 0, MAX_SPP),
+    Key("sampler", "str", RenderSettings.sampler, "", "Mitsuba sampler (orthogonal is not bit-reproducible in "
+        "Mitsuba 3.9: its renders differ in the last bit from run to run)", choices=SAMPLERS),
     Key("target_size_m", "float", 0.13, "m", "target side (square) or diameter (circle)", 1e-3, 10.0),
     Key("checkerboard", "table", {}, "", "the calibration board {cols, rows, square_m, margin_m}"),
 ]
@@ -370,24 +370,23 @@ def _n_images(g: dict) -> int:
     return g["count"]
 
 
-def _is_prime(n: int) -> bool:
-    return n >= 2 and all(n % k for k in range(2, int(n ** 0.5) + 1))
+#: Dr.Jit's LLVM backend splits a render into blocks of 2^14 samples: with a power-of-two spp up to
+#: that, a pixel's samples never straddle two blocks, so the film's atomic adds happen in one order
+#: whatever the thread count (any other spp leaves ~1/1000 pixels differing in the last bit).
+MAX_REPRODUCIBLE_SPP = 1 << 14
 
 
 def _check_sample_counts(s: dict, where: str) -> None:
-    """The orthogonal-array sampler takes p^2 samples (p prime); anything else Mitsuba rounds up silently."""
-    if s["sampler"] != "orthogonal":
-        return
+    """spp and edge_spp must be powers of two up to ``MAX_REPRODUCIBLE_SPP``: byte-identical renders."""
     for key in ("spp", "edge_spp"):
         n = s[key]
         if key == "edge_spp" and n == 0:
             continue
-        p = round(n ** 0.5)
-        if p * p != n or not _is_prime(p):
-            lo = max((q for q in range(2, int(n ** 0.5) + 1) if _is_prime(q)), default=2)
-            hi = next(q for q in range(int(n ** 0.5) + 1, 10 ** 4) if _is_prime(q))
-            raise InputError(f"{where}: {key} = {n}: the orthogonal sampler takes a prime squared; use {lo * lo} or "
-                             f"{hi * hi} (or another sampler)")
+        if n & (n - 1) or n > MAX_REPRODUCIBLE_SPP:
+            lo = 1 << max(0, min(n, MAX_REPRODUCIBLE_SPP).bit_length() - 1)
+            hint = f"use {lo} or {2 * lo}" if n < MAX_REPRODUCIBLE_SPP else f"use at most {MAX_REPRODUCIBLE_SPP}"
+            raise InputError(f"{where}: {key} = {n}: {hint} -- a power of two up to {MAX_REPRODUCIBLE_SPP} keeps "
+                             "renders byte-identical whatever the number of threads and workers")
 
 
 def load_spec(name_or_path: str | Path) -> Spec:

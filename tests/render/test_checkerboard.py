@@ -23,7 +23,7 @@ def test_black_squares_reflect_their_albedo():
     cam = load_camera().ideal_optics().scaled(4)
     board = Checkerboard()
     pose = Pose(0.6)
-    rig = CheckerRig(cam, RenderSettings(spp=49, edge_spp=0), board)
+    rig = CheckerRig(cam, RenderSettings(spp=64, edge_spp=0), board)
     rig.set_state(pose, 1.2)
     img = rig.render(1)
     ratios = []

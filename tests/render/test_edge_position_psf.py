@@ -6,7 +6,7 @@ the pixels within 4 px of the middle 70 % of the side are fitted with a model th
 blur -- I = (a0 + a1 t) + (b0 + b1 t) E(d − μ), d the signed distance to the exact distorted
 outline, t the position along the side, E the edge spread of pixel x PSF x defocus disk
 computed here from its analytic OTF -- and the offset μ must stay within 0.02 px.
-Measured (289 spp): |μ| <= 0.001 px in focus, <= 0.004 px at 1.0 m (0.56 px defocus disk).
+Measured (256 spp): |μ| <= 0.001 px in focus, <= 0.004 px at 1.0 m (0.56 px defocus disk).
 """
 from __future__ import annotations
 
@@ -53,7 +53,7 @@ def test_psf_does_not_move_straight_edges(distance_m):
     poly = curve.polyline()
     x0, y0 = (np.floor(poly.min(0)) - 8).astype(int)
     x1, y1 = (np.ceil(poly.max(0)) + 8).astype(int)
-    rig = TargetRig(cam, RenderSettings(spp=289), crop=(int(x0), int(y0), int(x1 - x0), int(y1 - y0)))
+    rig = TargetRig(cam, RenderSettings(spp=256), crop=(int(x0), int(y0), int(x1 - x0), int(y1 - y0)))
     rig.set_state("T1", pose, 1.2)
     img = rig.render(3).astype(np.float64)
     ys, xs = np.mgrid[y0:y1, x0:x1].astype(float)

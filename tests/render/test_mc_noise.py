@@ -9,7 +9,7 @@ bands of distance |d| from the exact outline of a black matte square (``edge_mc_
   focus and ~1.5x10^5 at 1 m (0.56 px defocus) (docs/optics.md, ``python -m
   edgetruth.render.mc_noise``), so the test pins the measured ratio to the sensor's own temporal
   noise there (shot + dark): |d| < 1 px <= 0.4, 1-3 px <= 0.3, 3-10 px <= 0.1 (measured at the
-  study's 25/4096 spp, 0.5-2.5 m: 0.07-0.38, 0.06-0.27, 0.03-0.07; the seeds are fixed).
+  study's 32/4096 spp, 0.5-2.5 m: 0.07-0.38, 0.06-0.27, 0.03-0.07; the seeds are fixed).
 """
 from __future__ import annotations
 

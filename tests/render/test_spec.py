@@ -132,13 +132,18 @@ def test_groups_sweep_the_optics_and_motion(tmp_path):
         load_spec(_write(tmp_path / "b", extra="camera = { pitch_um = 3.0 }"))
 
 
-def test_orthogonal_sampler_needs_a_prime_squared(tmp_path):
+def test_sample_counts_are_powers_of_two(tmp_path):
+    """A pixel's samples must not straddle two of Dr.Jit's work blocks (ulp-level differences with
+    the thread count): spp and edge_spp are powers of two up to 2^14."""
     p = _write(tmp_path)
-    p.write_text(p.read_text().replace("spp = 4", 'spp = 64\nsampler = "orthogonal"'))
-    with pytest.raises(InputError, match="spp = 64: the orthogonal sampler takes a prime squared; use 49 or 121"):
+    p.write_text(p.read_text().replace("spp = 4", "spp = 49"))
+    with pytest.raises(InputError, match="spp = 49: use 32 or 64 -- a power of two"):
         load_spec(p)
-    p.write_text(p.read_text().replace("spp = 64", "spp = 49\nedge_spp = 1000"))
-    with pytest.raises(InputError, match="edge_spp = 1000.*use 961 or 1369"):
+    p.write_text(p.read_text().replace("spp = 49", "spp = 64\nedge_spp = 1000"))
+    with pytest.raises(InputError, match="edge_spp = 1000: use 512 or 1024"):
         load_spec(p)
-    p.write_text(p.read_text().replace("edge_spp = 1000", "edge_spp = 961"))
-    assert (load_spec(p).render.spp, load_spec(p).render.edge_spp) == (49, 961)
+    p.write_text(p.read_text().replace("edge_spp = 1000", "edge_spp = 32768"))
+    with pytest.raises(InputError, match="use at most 16384"):
+        load_spec(p)
+    p.write_text(p.read_text().replace("edge_spp = 32768", "edge_spp = 4096"))
+    assert (load_spec(p).render.spp, load_spec(p).render.edge_spp) == (64, 4096)
