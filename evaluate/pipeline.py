@@ -22,8 +22,8 @@ from edgetruth.fileio import check_output_dir, read_json, write_json
 
 RUN_MARKER = "run.json"
 STUDIES = {
-    "quick": {"calibration": "quick", "targets": ["quick"]},
-    "full": {"calibration": "calibration", "targets": ["study"]},
+    "quick": {"calibration": "quick", "targets": ["quick"], "thresholds": "thresholds_quick"},
+    "full": {"calibration": "calibration", "targets": ["study"], "thresholds": "thresholds"},
 }
 
 
@@ -77,28 +77,47 @@ def select_jobs(spec, limit: int | None, kind: str) -> list[int]:
 def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None, thresholds=None,
                       progress: bool = True, names: dict | None = None, backend: str = "local",
                       workers: int | None = 1, address: str | None = None, header: dict | None = None,
-                      synthetic_report: Path | None = None, title: str = "evaluation report") -> Path:
-    """Range every target image of ``datasets`` with every method and write ``report.md`` into ``out``."""
+                      synthetic_report: Path | None = None, title: str = "evaluation report",
+                      camera_thresholds=None) -> Path:
+    """Range every target image of ``datasets`` with every method, score every method's points
+    against the exact outline, and write ``report.md`` into ``out``.  ``camera_thresholds``: a file
+    of thresholds calibrated for the camera (``calibrate-thresholds --dataset``); the dynamic methods
+    then also run with them (labels ``*_camera``)."""
+    from edgetruth import locate
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.ranging import run_ranging
     from edgetruth.evaluate.ranging_report import write_report
+    from edgetruth.evaluate.threshold_calibration import check_disjoint
+    from edgetruth.render.reader import open_dataset
 
-    options = mo.study_options(thresholds)
+    options = mo.study_options(thresholds, camera_thresholds)
     tau = mo.thresholds_in_use(thresholds)
+    samples = [(f"{d}/{s.name}", s.truth) for d in datasets for s in open_dataset(d).targets()
+               if names is None or str(d) not in names or s.name in set(names[str(d)])]
+    for f in (thresholds, camera_thresholds):
+        check_disjoint(f, samples)
+    if camera_thresholds is not None:
+        methods = mo.ordered(list(methods or locate.METHODS) + [
+            v for v in mo.variant_labels(options) if options[v]["method"] in (methods or locate.METHODS)])
     result = run_ranging(datasets, calibration, out, methods=methods, progress=progress, names=names,
                          options=options, backend=backend, workers=workers, address=address)
     head = dict(header or {})
     head.setdefault("target images", len({(r.get("spec"), r["image"]) for r in result["rows"]}))
     head.setdefault("methods", len(result["methods"]))
     head["entropy thresholds"] = f"2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']})"
+    if camera_thresholds is not None:
+        ct = mo.thresholds_in_use(camera_thresholds)
+        head["entropy thresholds for this camera (camera τ)"] = (
+            f"2P {tuple(ct['2p'])}, 4P {tuple(ct['4p'])} (from {Path(camera_thresholds).name}: calibrated on renders "
+            "disjoint from these, `edgetruth calibrate-thresholds --dataset`)")
     return write_report(out, result["rows"], result["methods"], calibration, result["examples"], head,
-                        str(synthetic_report) if synthetic_report else None, title=title)
+                        str(synthetic_report) if synthetic_report else None, title=title, points=result["points"])
 
 
 def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int | None = None,
                  calib_limit: int | None = None, methods=None, variant: str | None = None,
                  skip_synthetic: bool = False, progress: bool = True, thresholds=None,
-                 workers: int | None = None) -> tuple[Path, int]:
+                 workers: int | None = None, camera_thresholds=None) -> tuple[Path, int]:
     """The whole study in one call (``edgetruth run``); returns (report path, exit code)."""
     from edgetruth.backends import default_workers
     from edgetruth.evaluate import method_order as mo
@@ -114,12 +133,16 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     if calib_limit is not None and calib_limit < 4:
         raise InputError(f"--calib-limit {calib_limit}: Zhang's method needs >= 4 boards here")
     mo.thresholds_in_use(thresholds)  # a bad --thresholds file fails now, not after the renders
+    if camera_thresholds is not None:
+        mo.thresholds_in_use(camera_thresholds)
     plan = STUDIES[study]
     cal_spec = load_spec(plan["calibration"])
     target_specs = [load_spec(n) for n in plan["targets"]]
+    thr_spec = load_spec(plan["thresholds"]) if camera_thresholds is None else None
     out = prepare_run_dir(out or default_runs_dir() / utc_stamp(), "run",
                           {"study": study, "limit": limit, "calib_limit": calib_limit, "methods": methods,
-                           "thresholds": str(thresholds) if thresholds else None})
+                           "thresholds": str(thresholds) if thresholds else None,
+                           "camera_thresholds": str(camera_thresholds) if camera_thresholds else None})
     workers = default_workers() if workers is None else workers
     t0 = time.perf_counter()
     timing: dict = {}
@@ -140,6 +163,8 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
         target_sets.append((spec, only))
     if cal_spec.name not in plan["targets"]:
         target_sets.insert(0, (cal_spec, cal_only))
+    if thr_spec is not None:  # threshold calibration renders: a spec (and seeds) of their own
+        target_sets.insert(0, (thr_spec, select_jobs(thr_spec, None, "target")))
     for spec, only in target_sets:
         render_spec(spec, render_dir / spec.name, variant=variant, progress=progress, only=only,
                     announce=lambda s: (variants.append(s), console.say(s)))
@@ -155,6 +180,22 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
                 f"({e.get('fx_rel_pct', float('nan')):+.3f} % vs truth), principal point error "
                 f"({e.get('cx_px', float('nan')):+.2f}, {e.get('cy_px', float('nan')):+.2f}) px")
     timing["calibrate_s"] = time.perf_counter() - t
+
+    # 2b. entropy thresholds for this camera, from the disjoint threshold renders' per-point truth
+    if thr_spec is not None:
+        from edgetruth.evaluate import threshold_calibration as tcal
+
+        t = time.perf_counter()
+        record = tcal.calibrate_renders([render_dir / thr_spec.name])
+        record["provenance"]["command"] = (f"edgetruth calibrate-thresholds --dataset render/{thr_spec.name} "
+                                           "(inside edgetruth run)")
+        camera_thresholds = out / "thresholds_camera.json"
+        tcal.write(record, camera_thresholds)
+        console.say("thresholds for the camera: " + "; ".join(
+            f"{m} tau {tuple(round(v, 2) for v in r['tau'])} RMSE {r['rmse_px']:.4f} px" for m, r in record["models"].items())
+            + f" ({record['provenance']['data']['on_edge_points']} points of {len(record['provenance']['data']['images'])}"
+              f" {thr_spec.name} images)")
+        timing["thresholds_s"] = time.perf_counter() - t
 
     # 3. synthetic study (quick preset), linked from the report
     synthetic_report, synthetic_failed = None, False
@@ -186,7 +227,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
         header["synthetic study"] = "FAILED (see the console)"
     report = evaluate_datasets(datasets, cal, out, methods=methods, thresholds=thresholds, progress=progress,
                                names=names, workers=workers, header=header, synthetic_report=synthetic_report,
-                               title=f"run report (study {study})")
+                               title=f"run report (study {study})", camera_thresholds=camera_thresholds)
     timing["ranging_s"] = time.perf_counter() - t
     console.say(f"run: report {report} ({time.perf_counter() - t0:.1f} s in all: "
                 + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + ")")

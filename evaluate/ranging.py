@@ -58,6 +58,8 @@ class ImageResult:
     points: dict = field(default_factory=dict)  # method -> (x, y) in image coords (for figures)
     crop: tuple = ()
     error: str = ""
+    scores: object = None  # edgetruth.evaluate.render_points.PointScores of the raw image (None: not scored)
+    record: dict = field(default_factory=dict)  # the image's design fields (for the per-point tables)
 
 
 def size_of(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float, K=None, size_m: float | None = None) -> dict:
@@ -128,6 +130,7 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
                   name: str = "image", options: dict | None = None) -> ImageResult:
     """Run steps 1-5 on one image; ``gt`` supplies only the target's shape/size (and the scoring truth)."""
     from edgetruth import locate
+    from edgetruth.evaluate.method_order import resolve
     from edgetruth.evaluate.target_finding import target_candidates
 
     shape = gt["target"]["shape"]
@@ -160,7 +163,8 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
     for m in methods:
         row = dict(base, method=m, n_points=len(tc.candidates))
         try:
-            pts = locate.refine(tc.crop, tc.candidates, m, **(options or {}).get(m, {}))
+            mid, kw = resolve(m, options)
+            pts = locate.refine(tc.crop, tc.candidates, mid, **kw)
             x, y = pts.x + x0, pts.y + y0
             s = size_of(shape, x, y, pts.nx, pts.ny, fx, fy, cy, K=cal.K, size_m=size_m)
             z = distance_from_size(fx, size_m, s["size_px"])
@@ -220,9 +224,12 @@ def _undistorter(cal):
     return _undistorters[key]
 
 
-def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: bool, options: dict):
+def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: bool, options: dict,
+                score_points: bool = True):
     """One task (a pure function of its arguments): range target image ``name`` of ``dataset`` with
-    every method; None for a checkerboard.  Runs in worker processes (``edgetruth.backends``)."""
+    every method and score every method's points on the raw image against the exact outline
+    (``edgetruth.evaluate.render_points``); None for a checkerboard.  Runs in worker processes."""
+    from edgetruth.evaluate.render_points import score_image
     from edgetruth.render.reader import open_dataset
 
     s = open_dataset(dataset)[name]
@@ -233,9 +240,21 @@ def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: b
     if size != tuple(cal.image_size):
         raise InputError(f"{dataset}/{name}: image size {size} differs from the calibrated {tuple(cal.image_size)}; "
                          "calibrate with boards from the same camera")
-    r = process_image(s.image.astype(np.float64), gt, cal, _undistorter(cal), methods, keep_points, name=name,
-                      options=options)
+    image = s.image.astype(np.float64)
+    r = process_image(image, gt, cal, _undistorter(cal), methods, keep_points, name=name, options=options)
+    if r.rows:
+        r.record = {k: r.rows[0].get(k, "") for k in POINT_RECORD_FIELDS}
+    if score_points and not r.error:
+        try:
+            r.scores = score_image(image, gt, methods, options, radiance=s.radiance)
+        except InputError as exc:  # the raw image's target finding failed: the image has no points
+            r.record["points_error"] = str(exc)
     return r
+
+
+#: the per-image fields of ``render_points.npz``'s records
+POINT_RECORD_FIELDS = ("image", "spec", "group", "slot", "levels", "off_base", "target", "shape", "true_distance_m",
+                       "interval")
 
 
 def _range_task(i, *args):
@@ -245,7 +264,7 @@ def _range_task(i, *args):
 def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | None = None,
                 progress: bool = True, names: dict | None = None, figure_examples: int = 2,
                 options: dict | None = None, backend: str = "local", workers: int | None = 1,
-                address: str | None = None) -> dict:
+                address: str | None = None, score_points: bool = True) -> dict:
     """Range every target image of ``datasets`` with every method; write ``ranging_rows.csv``.
 
     Images are independent tasks on ``backend`` (in-process, local pool or Ray, with the caller's
@@ -273,7 +292,7 @@ def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | N
         if len(keep) < figure_examples and shape not in shown:
             keep.add(k)
             shown.add(shape)
-    tasks = [(k, ds, n, cal, methods, k in keep, options or {}) for k, (ds, n, _) in enumerate(jobs)]
+    tasks = [(k, ds, n, cal, methods, k in keep, options or {}, score_points) for k, (ds, n, _) in enumerate(jobs)]
     results: dict = {}
     t0 = time.perf_counter()
     n_workers = 1 if workers is None else int(workers)
@@ -284,7 +303,7 @@ def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | N
         for k, r in be.map_unordered(_range_task, tasks):
             results[k] = r
             bar.update(1)
-    rows, per_image, examples = [], [], []
+    rows, per_image, examples, point_images, point_scores = [], [], [], [], []
     for k in range(len(tasks)):
         r = results[k]
         if r is None:
@@ -293,9 +312,18 @@ def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | N
             examples.append(r)
         rel = os.path.relpath(jobs[k][0], out_dir)
         rows += [dict(row, dataset=rel) for row in r.rows]
+        if r.scores is not None:
+            point_images.append(dict(r.record, dataset=rel))
+            point_scores.append(r.scores)
         per_image.append({"image": r.name, "dataset": jobs[k][0], "n_candidates": r.n_candidates,
                           "n_boundary": r.n_boundary, **r.region, "error": r.error})
     write_rows(out_dir / "ranging_rows.csv", rows)
     (out_dir / "ranging_images.json").write_text(json.dumps(per_image, indent=1))
+    points = None
+    if score_points:
+        from edgetruth.evaluate import render_points as rp
+
+        points = rp.table_from_scores(point_images, point_scores, methods)
+        rp.write_points(out_dir / rp.POINTS_FILE, points)
     return {"rows": rows, "examples": examples, "per_image": per_image, "wall_s": time.perf_counter() - t0,
-            "methods": methods}
+            "methods": methods, "points": points}

@@ -11,7 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
+from edgetruth.evaluate.design_cells import group_rows, main_rows
 from edgetruth.evaluate.ranging import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13
+from edgetruth.evaluate.report_format import ci as _ci, num as _f, table as _table
 from edgetruth.evaluate.stats import (holm, rank_biserial, rmse, rmse_ci, rmse_difference_ci, summary,
                                       wilcoxon_paired)
 
@@ -26,43 +28,8 @@ SEED_TARGET_WINNER = {"T1": "dynamic_erf_4p", "T2": "ser_cis", "T3": "dynamic_er
 
 
 def _label(m: str) -> str:
-    from edgetruth import locate
-    return locate.METHODS[m].label if m in locate.METHODS else m
-
-
-def _level(row, factor: str) -> str | None:
-    for part in str(row.get("levels", "")).split(";"):
-        k, _, v = part.partition("=")
-        if k == factor:
-            return v
-    return None
-
-
-#: the design factors behind Tables 16 (SNR levels G1-G4) and 17 (targets T1-T4)
-TABLE_FACTORS = {"G": ("snr", "illumination"), "T": ("target",)}
-
-
-def main_rows(rows):
-    """Rows of Tables 13-15 and claims 1-4: a paired design's base cell (every factor at its first
-    level: the seed's standard experiment); else the ``standard`` spec when present; else every row."""
-    base = [r for r in rows if r.get("levels") and r.get("off_base", "") == ""]
-    return base or [r for r in rows if r.get("spec") == "standard"] or list(rows)
-
-
-def group_rows(rows, prefix: str):
-    """Rows of Table 16 (prefix G) or 17 (prefix T), with ``group`` = the level.  A paired design: the
-    cells that move only that factor off the base (every level on the same pose slots).  Otherwise
-    the ``snr`` / ``targets`` spec, else every row whose group is G1..G4 / T1..T4."""
-    for factor in TABLE_FACTORS[prefix]:
-        sel = [dict(r, group=_level(r, factor)) for r in rows
-               if r.get("levels") and r.get("off_base", "") in ("", factor) and _level(r, factor)]
-        if sel:
-            return sel
-    spec = {"G": "snr", "T": "targets"}[prefix]
-    sel = [r for r in rows if r.get("spec") == spec]
-    if not sel:
-        sel = list(rows)
-    return [r for r in sel if str(r["group"]).startswith(prefix) and len(str(r["group"])) == 2]
+    from edgetruth.evaluate.method_order import label
+    return label(m)
 
 
 def _ok(rows):
@@ -90,11 +57,6 @@ def method_stats(rows) -> dict:
     return s
 
 
-def _ci(ci, nd=3) -> str:
-    lo, hi = ci
-    return "—" if not (np.isfinite(lo) and np.isfinite(hi)) else f"[{lo:.{nd}f}, {hi:.{nd}f}]"
-
-
 def paired_errors(rows_a, rows_b, key: str = "error_cm"):
     """Signed errors of two methods on the same images, paired on (spec, image)."""
     a = {(r.get("spec", ""), r["image"]): r.get(key, np.nan) for r in _ok(rows_a)}
@@ -120,16 +82,6 @@ def method_comparisons(per: dict, methods, reference: str = REFERENCE_METHOD, ke
         r["p_holm"] = float(p)
         r["significant"] = bool(p < 0.05)
     return rows
-
-
-def _f(v, nd=3):
-    return "—" if v is None or not np.isfinite(v) else f"{v:.{nd}f}"
-
-
-def _table(header, body) -> str:
-    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
-    out += ["| " + " | ".join(str(c) for c in row) + " |" for row in body]
-    return "\n".join(out)
 
 
 # --- claims ---------------------------------------------------------------------------
@@ -265,7 +217,8 @@ def verdicts(rows, methods) -> list[dict]:
                     "observed": "; ".join(f"{g}: best {_label(w)}" for g, w in winners.items())
                                 + "; Dynamic 4P RMSE " + ", ".join(_f(v_, 3) for v_ in lv["rmse"]) + " cm; "
                                 + describe_levels(lv),
-                    "verdict": (v + "; growth G1→G4 " + ("holds" if grows else "does not hold"))
+                    "verdict": (v + "; growth G1→G4 " + ("holds" if grows else "does not hold in the ranging error "
+                                                          "(per point it does where the report has Table E4G)"))
                     if n_g >= 10 else f"INCONCLUSIVE (n = {n_g} per group)"})
     t_rows = group_rows(all_rows, "T")
     per = by_method(t_rows, methods)
@@ -380,7 +333,7 @@ def figures(rows, methods, examples, fig_dir: Path) -> dict:
 
 # --- the report ---------------------------------------------------------------------------
 def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), header: dict | None = None,
-                 synthetic_report: str | None = None, title: str = "ranging report") -> Path:
+                 synthetic_report: str | None = None, title: str = "ranging report", points=None) -> Path:
     """Write ``report.md`` (+ ``figures/``, ``ranging_summary.json``) and return its path."""
     out_dir = Path(out_dir)
     all_rows = rows
@@ -425,7 +378,10 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
               "", "(k2 and k3 trade off against each other; compare the distortion *field*, not the coefficients.)"]
     seed_marks = {m: " ★" for m in SEED_TABLE13}
     order = sorted(methods, key=lambda m: (st[m]["rmse"] if st[m]["n"] else np.inf))
-    src = "the `standard` spec" if rows is not all_rows and len(rows) != len(all_rows) else "all target images"
+    if any(r.get("levels") for r in rows) and len(rows) != len(all_rows):
+        src = "the design's base cell: " + ", ".join(sorted({r["levels"].replace(";", ", ") for r in rows}))
+    else:
+        src = "the `standard` spec" if len(rows) != len(all_rows) else "all target images"
     L += ["", f"## Table 13 — overall ranging error (cm), all methods, sorted by RMSE ({src})", "",
           "★ = in the seed's Table 13.  size RMSE/bias: l_hat − l_true (px), the edge-localisation part alone.", "",
           _table(["method", "n", "MAE", "RMSE", "RMSE 95 % CI", "SD", "median", "IQR", "max", "mean rel. err (%)",
@@ -488,6 +444,10 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
                   "ΔRMSE = RMSE(Dynamic 4P) − RMSE(method) with a paired bootstrap 95 % CI.  α = 0.05, two-sided.", "",
                   _table(["method", "pairs", "median Δabs(e) (cm)", "r", "ΔRMSE (cm)", "ΔRMSE 95 % CI", "p", "p (Holm)",
                           "significant"], body)]
+    if points is not None and len(points.image):
+        from edgetruth.evaluate.render_points_report import report_section
+
+        L += report_section(points, [m for m in methods if m in points.errors], out_dir)
     L += ["", "## Figures", ""]
     names = {"fig8": "Figure 8 — edge fragments and refined points", "fig9": "Figure 9 — box plots of |e|",
              "fig10": "Figure 10 — RMSE ± SD vs distance", "fig11": "Figure 11 — RMSE per SNR group",
@@ -496,6 +456,10 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
         rel = Path(p).relative_to(out_dir)
         L += [f"**{names[k]}**", "", f"![{names[k]}]({rel})", ""]
     L += ["## Files", "", "- `ranging_rows.csv`: one row per (image, method)", "- `ranging_summary.json`",
+          "- `render_points.npz`: every scored point's signed error per method (docs/formats.md)"
+          if points is not None else "",
+          "- `render_points_summary.csv`: per-point statistics per method × cell × distance interval"
+          if points is not None else "",
           "- `calibration.json`" if calibration is not None else ""]
     path = out_dir / "report.md"
     path.write_text("\n".join(L) + "\n")

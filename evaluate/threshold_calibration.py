@@ -1,7 +1,11 @@
 """Calibrate the dynamic window's entropy thresholds tau1 <= tau2 <= tau3 (BRIEF §2).
 
 Data: the ``calibration`` split of the synthetic scenarios (seeds disjoint
-from every test split by construction, see ``edgetruth.render.synthetic``).
+from every test split by construction, see ``edgetruth.render.synthetic``),
+or rendered target images of a camera (``calibrate_renders``: the per-point
+truth of ``edgetruth.evaluate.render_points`` on the raw images; the file
+records every image's seeds, and ``check_disjoint`` refuses to evaluate
+those thresholds on any image rendered from the same seeds).
 For every on-edge candidate we fit all four fixed windows once and record
 the normalised entropy H of its 11-sample profile; a threshold triple then
 only selects, per point, which of the four stored errors counts.  With the
@@ -25,7 +29,7 @@ from edgetruth import locate
 from edgetruth import __version__
 from edgetruth.errors import InputError
 from edgetruth.resources import source_commit
-from edgetruth.evaluate.matching import on_edge
+from edgetruth.evaluate.matching import MATCH_RADIUS_PX, on_edge
 from edgetruth.locate.methods.erf import WINDOWS
 from edgetruth.render.synthetic import SCENARIOS, DEFAULT_SHAPE, synthetic_image
 
@@ -67,6 +71,88 @@ def collect(split: str = "calibration", images_per_scenario: int = 100, shape=DE
                         np.concatenate(sc), total)
 
 
+def collect_renders(dataset_dirs, progress=None) -> tuple[WindowErrors, list[dict]]:
+    """Per-point window errors on the target images of rendered datasets (raw images, exact outline,
+    the scoring rule of ``edgetruth.evaluate.render_points``); also each image's seeds and spec."""
+    from edgetruth.evaluate.render_points import scored_subset
+    from edgetruth.evaluate.target_finding import target_candidates
+    from edgetruth.render.edge_truth import OutlineEdge
+    from edgetruth.render.reader import open_dataset
+
+    ent, sc, used = [], [], []
+    errs = {"2p": [], "4p": []}
+    total = 0
+    for di, d in enumerate(dataset_dirs):
+        for s in open_dataset(d).targets():
+            gt = s.truth
+            truth = OutlineEdge.from_ground_truth(gt)
+            total += 1
+            try:
+                tc = target_candidates(s.image.astype(np.float64))
+            except InputError:
+                tc = None
+            if progress is not None:
+                progress()
+            if tc is None:
+                continue
+            keep, _ = scored_subset(truth, tc.candidates, tc.offset)
+            cand = tc.candidates.subset(keep)
+            if not len(cand):
+                continue
+            x0, y0 = tc.offset
+            for model in ("2p", "4p"):
+                rows = []
+                for w in WINDOWS:
+                    pts = locate.refine(tc.crop, cand, f"erf{model}_fixed{w}")
+                    rows.append(truth.signed_distance(pts.x + x0, pts.y + y0))
+                errs[model].append(np.array(rows))
+            ent.append(pts.entropy)
+            sc.append(np.full(len(cand), di))
+            used.append({"dataset": str(d), "spec": gt.get("spec", ""), "image": s.name, "seed": gt.get("seed"),
+                         "seeds": gt.get("seeds", {}), "points": int(len(cand))})
+    if not ent:
+        raise InputError(f"datasets {', '.join(map(str, dataset_dirs))}: no target image with scored edge points; "
+                         "render target images (e.g. `edgetruth render thresholds`)")
+    return (WindowErrors(np.concatenate(ent), {m: np.concatenate(v, axis=1) for m, v in errs.items()},
+                         np.concatenate(sc), total), used)
+
+
+def image_seed_keys(gt_or_record: dict) -> set:
+    """The seeds that make an image: the pose's, the Monte-Carlo render's and the sensor noise's."""
+    s = gt_or_record.get("seeds") or {}
+    keys = set()
+    for k in ("pose_rng", "sensor_rng"):
+        if s.get(k) is not None:
+            keys.add((k, tuple(s[k]) if isinstance(s[k], (list, tuple)) else s[k]))
+    if s.get("mitsuba") is not None:
+        keys.add(("mitsuba", s["mitsuba"]))
+    return keys
+
+
+def check_disjoint(thresholds_path, samples) -> None:
+    """Refuse to evaluate render-calibrated thresholds on an image rendered from the seeds they
+    were calibrated on (calibration data must be disjoint from test data)."""
+    import json
+
+    if thresholds_path is None:
+        return
+    try:
+        data = json.loads(open(thresholds_path).read())
+    except (OSError, ValueError):
+        return  # thresholds.load reports an unreadable file
+    images = (data.get("provenance", {}).get("data", {}) or {}).get("images") or []
+    cal = set()
+    for r in images:
+        cal |= image_seed_keys(r)
+    if not cal:
+        return
+    for name, gt in samples:
+        if image_seed_keys(gt) & cal:
+            raise InputError(f"thresholds file {thresholds_path}: image {name} was rendered from seeds its thresholds "
+                             "were calibrated on; calibrate on images of another spec (calibration and test data "
+                             "must be disjoint)")
+
+
 def grid_search(entropy: np.ndarray, errors: np.ndarray, step: float = 0.01):
     """Best (tau1, tau2, tau3) on a grid; errors (4, N) for windows 5, 7, 9, 11.
 
@@ -105,14 +191,8 @@ def calibrate(images_per_scenario: int = 100, step: float = 0.01, shape=DEFAULT_
     if images_per_scenario < 1:
         raise InputError(f"images_per_scenario={images_per_scenario}: must be >= 1")
     data = collect("calibration", images_per_scenario, shape, progress=progress)
-    models = {}
-    for model, errs in data.errors.items():
-        tau, rmse, _ = grid_search(data.entropy, errs, step)
-        fixed = {int(w): float(np.sqrt(np.mean(errs[k] ** 2))) for k, w in enumerate(WINDOWS)}
-        models[model] = {"tau": list(tau), "rmse_px": rmse, "fixed_window_rmse_px": fixed,
-                         "window_shares": window_shares(data.entropy, tau)}
     return {
-        "models": models,
+        "models": _fit(data, step),
         "provenance": {
             "data": {
                 "split": "calibration",
@@ -129,6 +209,55 @@ def calibrate(images_per_scenario: int = 100, step: float = 0.01, shape=DEFAULT_
             "code_version": {"edgetruth": __version__, "git_commit": source_commit()},
             "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
             "command": f"edgetruth calibrate-thresholds --images-per-scenario {images_per_scenario} --step {step}",
+        },
+    }
+
+
+def _fit(data: WindowErrors, step: float) -> dict:
+    models = {}
+    for model, errs in data.errors.items():
+        tau, rmse, _ = grid_search(data.entropy, errs, step)
+        fixed = {int(w): float(np.sqrt(np.mean(errs[k] ** 2))) for k, w in enumerate(WINDOWS)}
+        models[model] = {"tau": list(tau), "rmse_px": rmse, "fixed_window_rmse_px": fixed,
+                         "window_shares": window_shares(data.entropy, tau)}
+    return models
+
+
+def calibrate_renders(dataset_dirs, step: float = 0.01, progress=None) -> dict:
+    """Thresholds for the camera of rendered datasets, from their per-point truth (JSON-ready record)."""
+    from edgetruth.evaluate.render_points import CORNER_EXCLUSION_PX
+    from edgetruth.render.reader import open_dataset
+
+    data, used = collect_renders(dataset_dirs, progress)
+    cams = {}
+    for d in dataset_dirs:
+        for s in open_dataset(d).targets():
+            c = s.truth["camera"]
+            cams[c.get("name", "")] = {k: c.get(k) for k in ("name", "width_px", "height_px", "pitch_um",
+                                                             "focal_length_mm", "f_number", "focus_distance_m")}
+            break
+    return {
+        "models": _fit(data, step),
+        "provenance": {
+            "data": {
+                "kind": "renders",
+                "datasets": [str(d) for d in dataset_dirs],
+                "specs": sorted({u["spec"] for u in used}),
+                "camera": list(cams.values()),
+                "target_images": data.images,
+                "images_with_points": len(used),
+                "on_edge_points": int(data.entropy.size),
+                "images": used,
+                "seeds": "each image's own (pose, Monte-Carlo, sensor) seeds, listed under images; evaluating these "
+                         "thresholds on an image with any of them is refused (check_disjoint)",
+                "rule": f"raw-image Canny boundary candidates within {MATCH_RADIUS_PX} px of the exact distorted "
+                        f"outline, squares' candidates farther than {CORNER_EXCLUSION_PX:g} px from a corner",
+            },
+            "objective": "minimise RMSE (px) of the dynamic-window ERF positions over the scored points, pooled",
+            "search": f"exhaustive grid, step {step}, 0 <= tau1 <= tau2 <= tau3 <= 1; ties -> the centre of the optimal set",
+            "code_version": {"edgetruth": __version__, "git_commit": source_commit()},
+            "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "command": "edgetruth calibrate-thresholds --dataset " + " ".join(str(d) for d in dataset_dirs),
         },
     }
 

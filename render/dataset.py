@@ -110,6 +110,8 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
                                   "meaning": "analytic MTF50 (pixel x PSF x defocus disk) at the target centre"}
     else:
         board = spec.checkerboard
+        if settings.checkerboard_spp:  # the board's own spp; the JSON's render.spp says what was used
+            settings = replace(settings, spp=settings.checkerboard_spp, checkerboard_spp=0)
         pose = job_pose(job, camera, board.plate_corners_local())
         rig = get_rig("checkerboard", camera, settings, board, crop)
         le = rig.set_state(pose, e_render)

@@ -62,6 +62,65 @@ class CircleEdge:
                 "bright_inside": self.bright_inside}
 
 
+def closed_polyline_signed_distance(poly: np.ndarray, x, y) -> np.ndarray:
+    """Signed distance (px) of points to the closed polyline ``poly`` (N, 2): > 0 outside.
+
+    The nearest vertex (k-d tree), then the exact distance to the four chords around it (enough for
+    points within a vertex spacing of a smooth curve, the only ones scored)."""
+    from scipy.spatial import cKDTree
+
+    poly = np.asarray(poly, float)
+    q = np.column_stack([np.ravel(x), np.ravel(y)]).astype(float)
+    n = len(poly)
+    if n < 3 or not len(q):
+        return np.zeros(np.shape(x))
+    _, i = cKDTree(poly).query(q)
+    area2 = np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1) * poly[:, 1])
+    orient = 1.0 if area2 > 0 else -1.0  # > 0: counter-clockwise in (x right, y down) pixel axes
+    best = np.full(len(q), np.inf)
+    sign = np.ones(len(q))
+    for j0 in (i - 2, i - 1, i, i + 1):
+        a, b = poly[j0 % n], poly[(j0 + 1) % n]
+        d = b - a
+        u = np.clip(((q - a) * d).sum(1) / np.maximum((d * d).sum(1), 1e-300), 0.0, 1.0)
+        dist = np.linalg.norm(q - (a + u[:, None] * d), axis=1)
+        cross = d[:, 0] * (q - a)[:, 1] - d[:, 1] * (q - a)[:, 0]
+        take = dist < best
+        best[take] = dist[take]
+        sign[take] = np.where(cross * orient > 0, -1.0, 1.0)[take]
+    return (sign * best).reshape(np.shape(x))
+
+
+@dataclass(frozen=True)
+class OutlineEdge:
+    """A rendered target's exact outline: the dense distorted polyline of its ground-truth JSON
+    (chords within ``polyline_chord_error_px`` <= 1e-3 px of the curve), > 0 outside on the
+    bright board, as the synthetic edges are > 0 on their bright side."""
+
+    polyline_px: np.ndarray  # (N, 2) closed, OpenCV pixel coordinates
+    shape: str  # "square" | "circle"
+    corners_px: np.ndarray | None = None  # (4, 2) distorted corners of a square
+    kind: str = "outline"
+
+    @classmethod
+    def from_ground_truth(cls, gt: dict) -> "OutlineEdge":
+        o = gt["outline"]
+        shape = gt["target"]["shape"]
+        corners = np.asarray(o["distorted_px"], float)[:4] if shape == "square" else None
+        return cls(np.asarray(o["polyline_distorted_px"], float), shape, corners)
+
+    def signed_distance(self, x, y) -> np.ndarray:
+        return closed_polyline_signed_distance(self.polyline_px, x, y)
+
+    def corner_distance(self, x, y) -> np.ndarray:
+        """Distance (px) to the nearest corner of a square (inf for a circle)."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        if self.corners_px is None:
+            return np.full(np.broadcast(x, y).shape, np.inf)
+        c = self.corners_px
+        return np.min(np.hypot(x[..., None] - c[:, 0], y[..., None] - c[:, 1]), axis=-1)
+
+
 def edge_from_dict(d: dict):
     d = dict(d)
     kind = d.pop("kind")

@@ -52,10 +52,14 @@ class RenderSettings:
     exposure_s: float = 0.0
     #: spp of the pixels near a target's outline (``edgetruth.render.edge_band``); 0: none
     edge_spp: int = 0
+    #: spp of checkerboard images; 0: ``spp``
+    checkerboard_spp: int = 0
 
     def to_dict(self) -> dict:
         d = {"spp": self.spp, "sampler": self.sampler, "samples_per_pass": self.samples_per_pass,
              "edge_spp": self.edge_spp}
+        if self.checkerboard_spp:
+            d["checkerboard_spp"] = self.checkerboard_spp
         if self.exposure_s:
             d["exposure_s"] = self.exposure_s
         return d

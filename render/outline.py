@@ -118,25 +118,7 @@ class OutlineCurve:
         """Signed distance (px) of image points to the distorted curve: > 0 outside (the bright board).
 
         Nearest point on a polyline of ``step_px`` spacing (chord error ~ step² κ / 8, far below
-        1e-4 px for these curves), projected onto its two neighbouring chords."""
-        from scipy.spatial import cKDTree
+        1e-4 px for these curves)."""
+        from edgetruth.render.edge_truth import closed_polyline_signed_distance
 
-        poly = self.polyline(step_px)
-        q = np.column_stack([np.ravel(x), np.ravel(y)]).astype(float)
-        _, i = cKDTree(poly).query(q)
-        n = len(poly)
-        area2 = np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1) * poly[:, 1])
-        orient = 1.0 if area2 > 0 else -1.0  # > 0: counter-clockwise in (x right, y down) pixel axes
-        best = np.full(len(q), np.inf)
-        sign = np.ones(len(q))
-        for j0 in (i - 1, i):
-            a, b = poly[j0 % n], poly[(j0 + 1) % n]
-            d = b - a
-            u = np.clip(((q - a) * d).sum(1) / np.maximum((d * d).sum(1), 1e-300), 0.0, 1.0)
-            foot = a + u[:, None] * d
-            dist = np.linalg.norm(q - foot, axis=1)
-            cross = d[:, 0] * (q - a)[:, 1] - d[:, 1] * (q - a)[:, 0]
-            take = dist < best
-            best[take] = dist[take]
-            sign[take] = np.where(cross * orient > 0, -1.0, 1.0)[take]
-        return (sign * best).reshape(np.shape(x))
+        return closed_polyline_signed_distance(self.polyline(step_px), x, y)

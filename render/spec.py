@@ -48,11 +48,14 @@ SPEC_KEYS = [
         "folder)"),
     Key("camera_scale", "int", 1, "", "binning: the camera with camera_scale x fewer pixels per side (same field "
         "of view, pitch x camera_scale)", 1, 64),
-    Key("spp", "int", RenderSettings.spp, "samples/px", "Monte-Carlo samples per pixel (a power of two: "
-        "byte-identical renders whatever the thread count)", 1, MAX_SPP),
+    Key("spp", "int", RenderSettings.spp, "samples/px", "Monte-Carlo samples per pixel (a power of two, of "
+        "four for multijitter and stratified: byte-identical renders whatever the thread count)", 1, MAX_SPP),
     Key("edge_spp", "int", RenderSettings.edge_spp, "samples/px", "samples per pixel near a target's outline "
-        "(within the PSF, defocus and motion reach; the rest of the frame uses spp; a power of two); 0 = spp "
+        "(within the PSF, defocus and motion reach; the rest of the frame uses spp; a power of two, of four for multijitter and stratified); 0 = spp "
         "everywhere", 0, MAX_SPP),
+    Key("checkerboard_spp", "int", 0, "samples/px", "samples per pixel of the checkerboard images (their corners "
+        "are edges, and boards have no edge band; a power of two, of four for multijitter and stratified); "
+        "0 = spp", 0, MAX_SPP),
     Key("sampler", "str", RenderSettings.sampler, "", "Mitsuba sampler (orthogonal is not bit-reproducible in "
         "Mitsuba 3.9: its renders differ in the last bit from run to run)", choices=SAMPLERS),
     Key("target_size_m", "float", 0.13, "m", "target side (square) or diameter (circle)", 1e-3, 10.0),
@@ -374,18 +377,28 @@ def _n_images(g: dict) -> int:
 #: that, a pixel's samples never straddle two blocks, so the film's atomic adds happen in one order
 #: whatever the thread count (any other spp leaves ~1/1000 pixels differing in the last bit).
 MAX_REPRODUCIBLE_SPP = 1 << 14
+#: Samplers that round the sample count up to a near-square grid (multijitter: 32 -> 5 x 7 = 35,
+#: 512 -> 22 x 24 = 528): only a power of four stays a power of two for them.
+SQUARE_GRID_SAMPLERS = ("multijitter", "stratified")
 
 
 def _check_sample_counts(s: dict, where: str) -> None:
-    """spp and edge_spp must be powers of two up to ``MAX_REPRODUCIBLE_SPP``: byte-identical renders."""
-    for key in ("spp", "edge_spp"):
-        n = s[key]
-        if key == "edge_spp" and n == 0:
+    """spp and edge_spp must be powers of two up to ``MAX_REPRODUCIBLE_SPP`` (of four for the
+    samplers that round to a square grid): byte-identical renders whatever the thread count."""
+    square = s.get("sampler") in SQUARE_GRID_SAMPLERS
+    base, what = (4, "a power of four") if square else (2, "a power of two")
+    for key in ("spp", "edge_spp", "checkerboard_spp"):
+        n = s.get(key, 0)
+        if key != "spp" and n == 0:
             continue
-        if n & (n - 1) or n > MAX_REPRODUCIBLE_SPP:
-            lo = 1 << max(0, min(n, MAX_REPRODUCIBLE_SPP).bit_length() - 1)
-            hint = f"use {lo} or {2 * lo}" if n < MAX_REPRODUCIBLE_SPP else f"use at most {MAX_REPRODUCIBLE_SPP}"
-            raise InputError(f"{where}: {key} = {n}: {hint} -- a power of two up to {MAX_REPRODUCIBLE_SPP} keeps "
+        ok = n & (n - 1) == 0 and (not square or (n.bit_length() - 1) % 2 == 0)
+        if not ok or n > MAX_REPRODUCIBLE_SPP:
+            lo = 1
+            while lo * base <= min(n, MAX_REPRODUCIBLE_SPP):
+                lo *= base
+            hint = f"use {lo} or {base * lo}" if n < MAX_REPRODUCIBLE_SPP else f"use at most {MAX_REPRODUCIBLE_SPP}"
+            extra = f" (the {s['sampler']} sampler rounds other counts to a square grid)" if square else ""
+            raise InputError(f"{where}: {key} = {n}: {hint} -- {what} up to {MAX_REPRODUCIBLE_SPP}{extra} keeps "
                              "renders byte-identical whatever the number of threads and workers")
 
 
@@ -463,6 +476,7 @@ def load_spec(name_or_path: str | Path) -> Spec:
     _check_sample_counts(s, f"{src} [spec]")
     return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
                 camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"],
-                                                                         edge_spp=s["edge_spp"]),
+                                                                         edge_spp=s["edge_spp"],
+                                                                         checkerboard_spp=s["checkerboard_spp"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
                 text_sha256=hashlib.sha256(path.read_bytes()).hexdigest())

@@ -46,7 +46,7 @@ irradiance_w_m2 = 0.0044
 """
 
 
-def write_tiny_spec(tmp_path: Path, spp: int = 16, edge_spp: int = 32) -> Path:
+def write_tiny_spec(tmp_path: Path, spp: int = 16, edge_spp: int = 64) -> Path:
     """Write a 64×48-pixel camera and a 3-image spec (2 circles, 1 checkerboard) into ``tmp_path``."""
     cam = tmp_path / "tiny_cam.toml"
     cam.write_text(TINY_CAMERA)

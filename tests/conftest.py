@@ -28,7 +28,7 @@ def tiny_dataset(tmp_path_factory) -> tuple[Path, Path]:
     from edgetruth.render.testing import write_tiny_spec
 
     root = tmp_path_factory.mktemp("tiny")
-    spec = write_tiny_spec(root, spp=8)
+    spec = write_tiny_spec(root, spp=4)
     out = root / "data"
     render_spec(spec, out, progress=False, announce=lambda s: None)
     return spec, out

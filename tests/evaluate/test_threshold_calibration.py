@@ -6,6 +6,7 @@ import pytest
 
 from edgetruth import locate
 from edgetruth.evaluate import threshold_calibration as tc
+from edgetruth.errors import InputError
 from edgetruth.locate import thresholds as thr
 
 
@@ -69,3 +70,61 @@ def test_bad_threshold_files_are_clear_errors(tmp_path):
     bad.write_text('{"models": {"4p": {"tau": [0.9, 0.1, 0.5]}}}')
     with pytest.raises(ValueError, match="tau"):
         thr.load("4p", bad)
+
+
+# --- thresholds for a camera, from renders ----------------------------------------------------------
+THR_SPEC = """
+[spec]
+name = "{name}"
+camera = "default"
+camera_scale = 4
+spp = 4
+edge_spp = 16
+
+[[group]]
+name = "T1"
+target = "T1"
+distance_range_cm = [60, 90]
+count = 2
+lateral_fraction = 0.3
+tilt_max_deg = 3
+irradiance_w_m2 = 0.075
+"""
+
+
+@pytest.fixture(scope="module")
+def two_render_sets(tmp_path_factory, fast_variant):
+    """Two tiny target datasets from specs that differ only in their name (so in every seed)."""
+    from edgetruth.render.driver import render_spec
+
+    root = tmp_path_factory.mktemp("thr")
+    out = {}
+    for name in ("cal_renders", "test_renders"):
+        spec = root / f"{name}.toml"
+        spec.write_text(THR_SPEC.format(name=name))
+        render_spec(spec, root / name, progress=False, announce=lambda s: None)
+        out[name] = root / name
+    return out
+
+
+def test_render_calibration_records_its_seeds_and_refuses_them_at_test_time(two_render_sets, tmp_path):
+    from edgetruth.render.reader import open_dataset
+
+    rec = tc.calibrate_renders([two_render_sets["cal_renders"]], step=0.05)
+    data = rec["provenance"]["data"]
+    assert data["kind"] == "renders" and data["specs"] == ["cal_renders"] and data["on_edge_points"] > 50
+    for model in ("2p", "4p"):  # the optimum is no worse than the best fixed window on the same points
+        m = rec["models"][model]
+        assert m["rmse_px"] <= min(m["fixed_window_rmse_px"].values()) + 1e-12
+        assert thr.validate(m["tau"]) == tuple(m["tau"])
+    path = tmp_path / "camera.json"
+    tc.write(rec, path)
+    assert thr.load("4p", path) == tuple(rec["models"]["4p"]["tau"])
+    cal = [(s.name, s.truth) for s in open_dataset(two_render_sets["cal_renders"]).targets()]
+    test = [(s.name, s.truth) for s in open_dataset(two_render_sets["test_renders"]).targets()]
+    cal_keys = set().union(*(tc.image_seed_keys(gt) for _, gt in cal))
+    test_keys = set().union(*(tc.image_seed_keys(gt) for _, gt in test))
+    assert len(cal_keys) >= 3 * len(cal) - 1 and not cal_keys & test_keys  # own seeds: disjoint by the spec's name
+    tc.check_disjoint(path, test)  # disjoint: accepted
+    with pytest.raises(InputError, match="rendered from seeds its thresholds were calibrated on"):
+        tc.check_disjoint(path, cal[:1])

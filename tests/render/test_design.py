@@ -12,7 +12,7 @@ DESIGN = """
 [spec]
 name = "paired"
 camera = "cam.toml"
-spp = 8
+spp = 4
 edge_spp = 16             # the band around the targets is part of a unit's radiance
 
 [design]

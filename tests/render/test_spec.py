@@ -134,13 +134,17 @@ def test_groups_sweep_the_optics_and_motion(tmp_path):
 
 def test_sample_counts_are_powers_of_two(tmp_path):
     """A pixel's samples must not straddle two of Dr.Jit's work blocks (ulp-level differences with
-    the thread count): spp and edge_spp are powers of two up to 2^14."""
+    the thread count): spp and edge_spp are powers of two up to 2^14 -- of four for multijitter,
+    which rounds other counts up to a near-square grid (32 -> 35)."""
     p = _write(tmp_path)
     p.write_text(p.read_text().replace("spp = 4", "spp = 49"))
-    with pytest.raises(InputError, match="spp = 49: use 32 or 64 -- a power of two"):
+    with pytest.raises(InputError, match="spp = 49: use 16 or 64 -- a power of four"):
         load_spec(p)
-    p.write_text(p.read_text().replace("spp = 49", "spp = 64\nedge_spp = 1000"))
-    with pytest.raises(InputError, match="edge_spp = 1000: use 512 or 1024"):
+    p.write_text(p.read_text().replace("spp = 49", "spp = 32"))
+    with pytest.raises(InputError, match="spp = 32: use 16 or 64 -- a power of four .*multijitter"):
+        load_spec(p)
+    p.write_text(p.read_text().replace("spp = 32", "spp = 64\nedge_spp = 1000"))
+    with pytest.raises(InputError, match="edge_spp = 1000: use 256 or 1024"):
         load_spec(p)
     p.write_text(p.read_text().replace("edge_spp = 1000", "edge_spp = 32768"))
     with pytest.raises(InputError, match="use at most 16384"):

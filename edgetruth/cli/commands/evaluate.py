@@ -24,6 +24,9 @@ def register(sub) -> None:
     p.add_argument("--methods", default=None, help="comma-separated method ids (default: all, plug-ins included)")
     p.add_argument("--thresholds", default=None, metavar="FILE",
                    help="entropy thresholds for the dynamic methods (default: the shipped ones)")
+    p.add_argument("--camera-thresholds", default=None, metavar="FILE",
+                   help="thresholds calibrated for the camera (calibrate-thresholds --dataset on renders disjoint "
+                        "from these): the dynamic methods also run with them, as '(camera τ)' rows")
     p.add_argument("-o", "--output", metavar="DIR", type=Path, default=None,
                    help="report directory (default ./runs/<UTC stamp>-evaluate)")
     add_backend_options(p, "worker processes (default: the cores)")
@@ -47,6 +50,8 @@ def run(args: argparse.Namespace) -> int:
     check_backend_args(args.backend, args.workers, args.address)
     methods = method_list(args.methods)
     mo.thresholds_in_use(args.thresholds)
+    if args.camera_thresholds is not None:
+        mo.thresholds_in_use(args.camera_thresholds)
     sets = [open_dataset(d) for d in args.datasets]  # each must be a dataset
     if not any(ds.targets() for ds in sets):
         raise InputError(f"{' '.join(map(str, args.datasets))}: no target images to evaluate; render a spec with "
@@ -73,12 +78,14 @@ def run(args: argparse.Namespace) -> int:
         source = f"{len(boards)} checkerboards of the datasets"
     out = prepare_run_dir(out, "evaluate", {"datasets": [str(d) for d in args.datasets],
                                             "calibration": args.calibration, "methods": methods,
-                                            "thresholds": args.thresholds})
+                                            "thresholds": args.thresholds,
+                                            "camera_thresholds": args.camera_thresholds})
     write_json(out / "calibration.json", cal.to_dict())
     header = {"datasets": ", ".join(f"{d} ({ds.spec_name})" for d, ds in zip(args.datasets, sets)),
               "calibration": source, "UTC": utc_stamp()}
     report = evaluate_datasets(args.datasets, cal, out, methods=methods, thresholds=args.thresholds,
                                progress=not args.no_progress, backend=args.backend,
-                               workers=args.workers or default_workers(), address=args.address, header=header)
+                               workers=args.workers or default_workers(), address=args.address, header=header,
+                               camera_thresholds=args.camera_thresholds)
     console.say(f"evaluate: report {report}")
     return 0

@@ -5,11 +5,12 @@ render (specs) -> calibrate (Zhang, OpenCV) -> undistort -> find targets -> ever
 from the report.  Output: ``./runs/<UTC stamp>/`` (or ``-o DIR``; an earlier run's
 directory resumes it).
 
-* ``--study quick`` (default): the ``quick`` spec (target images + boards, half
-  resolution): the whole chain in minutes on 2 cores.
-* ``--study full``: ``calibration`` + ``standard`` + ``snr`` + ``targets`` at full
-  resolution (hours on a CPU); ``--limit N`` keeps N target images per group (spread
-  over the distance range) and ``--calib-limit N`` N boards, for a tiny end-to-end check.
+* ``--study quick`` (default): the ``quick`` spec (a paired design of target images +
+  boards, half resolution) and ``thresholds_quick`` (renders of its own seeds on which the
+  dynamic window's thresholds are calibrated for the camera): minutes on 2 cores.
+* ``--study full``: ``calibration`` + ``study`` + ``thresholds`` at full resolution (an hour
+  or more on a CPU); ``--limit N`` keeps N target images per group (spread over the distance
+  range) and ``--calib-limit N`` N boards, for a tiny end-to-end check.
 """
 from __future__ import annotations
 
@@ -34,6 +35,9 @@ def register(subparsers) -> None:
     p.add_argument("--methods", default=None, help="comma-separated method ids (default: all, plug-ins included)")
     p.add_argument("--thresholds", default=None, metavar="FILE",
                    help="entropy thresholds for the dynamic methods (default: the shipped ones)")
+    p.add_argument("--camera-thresholds", default=None, metavar="FILE",
+                   help="thresholds calibrated for the camera (calibrate-thresholds --dataset) to run the dynamic "
+                        "methods with as well (default: calibrate them on the study's threshold renders)")
     p.add_argument("--variant", default=None, help="Mitsuba variant (default: best that works here)")
     p.add_argument("-j", "--workers", type=positive_int, default=None, metavar="N",
                    help="worker processes for the evaluation and the synthetic study (default: the cores)")
@@ -49,5 +53,6 @@ def run(args: argparse.Namespace) -> int:
 
     _, code = run_main_job(args.study, args.output, args.limit, args.calib_limit, method_list(args.methods),
                            args.variant, args.skip_synthetic, progress=not args.no_progress,
-                           thresholds=args.thresholds, workers=args.workers)
+                           thresholds=args.thresholds, workers=args.workers,
+                           camera_thresholds=args.camera_thresholds)
     return code

@@ -1,0 +1,209 @@
+"""Per-point truth on renders: every method's points on the raw image scored against the exact outline.
+
+The ranging chain works on the undistorted (resampled) image, where the truth is only as good as
+the calibration.  Edge-level errors are measured on the *raw* image instead: the target's Canny
+boundary candidates there (``edgetruth.evaluate.target_finding``) are refined by every method and
+each point's error is its signed distance to the exact distorted outline of the ground truth
+(``edgetruth.render.edge_truth.OutlineEdge``: the JSON's dense polyline, chords within 1e-3 px of
+the curve; > 0 on the bright board, as the synthetic study's errors are > 0 on the bright side).
+
+Which candidates are scored (one rule for every method, as ``edgetruth.evaluate.matching``):
+
+- *on the edge*: the candidate pixel centre lies within ``MATCH_RADIUS_PX`` (1.5 px) of the outline;
+- *not at a corner*: squares only -- the candidate lies farther than ``CORNER_EXCLUSION_PX`` (4 px)
+  from every true (distorted) corner, where the profile across one side also crosses the other
+  and no edge model of the study applies.
+
+A method that declines or fails a candidate answers with the candidate pixel (``converged`` False):
+it still counts in the all-points statistics; coverage says how often it happened.
+
+The per-point bound (``point_bound_px``) is an *approximation*, stated as such in the report: the
+Cramér–Rao bound of an axis-aligned 11-pixel row across a pixel-integrated Gaussian edge
+(``edgetruth.evaluate.crb.position_std_bound``, A, B, μ, σ unknown) whose σ is the Gaussian
+equivalent of the lens PSF and defocus disk at the target (Airy core 0.42 λN, aberration σ(h),
+disk radius R as R/2), with the contrast and the noise at the edge's mid level taken from the
+noise-free radiance and the EMVA model of the image's JSON.  Oblique sides, the non-Gaussian PSF
+and 2-D methods (which use more than one row) make it a reference, not a strict floor.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from edgetruth.evaluate.matching import MATCH_RADIUS_PX
+
+CORNER_EXCLUSION_PX = 4.0
+BOUND_WINDOW_PX = 11
+_AIRY_GAUSS = 0.42  # σ of the Gaussian that best fits the Airy core, in units of λN
+
+
+@dataclass
+class PointScores:
+    """One image: its scored candidates and every method's signed errors on them (px)."""
+
+    n_candidates: int  # boundary candidates before the on-edge and corner rules
+    bound_px: float  # approximate per-point bound (module docstring)
+    candidate_distance: np.ndarray  # (N,) truth at the candidate pixel centres
+    errors: dict = field(default_factory=dict)  # label -> (N,) signed error, px
+    converged: dict = field(default_factory=dict)  # label -> (N,) bool
+    windows: dict = field(default_factory=dict)  # dynamic labels -> (N,) window size (samples)
+
+
+def scored_subset(truth, cand, offset) -> tuple[np.ndarray, np.ndarray]:
+    """(keep mask over ``cand``, signed truth distance of the kept candidates) by the module's rule."""
+    x0, y0 = offset
+    cx, cy = cand.x + x0, cand.y + y0
+    d = truth.signed_distance(cx, cy)
+    keep = np.abs(d) <= MATCH_RADIUS_PX
+    keep &= truth.corner_distance(cx, cy) > CORNER_EXCLUSION_PX
+    return keep, d[keep]
+
+
+def gaussian_equivalent_blur_px(gt: dict) -> float:
+    """σ (px) of a Gaussian standing in for PSF ⊗ defocus disk at the target (pixel excluded)."""
+    cam = gt["camera"]
+    psf = cam.get("optics", {}).get("psf", {})
+    pitch_um = float(cam["pitch_um"])
+    h = float(gt.get("optics_at_target", {}).get("field_height", 0.0))
+    s_ab = float(psf.get("aberration_sigma_um", 0.0)) * (1.0 + float(psf.get("aberration_sigma_growth", 0.0)) * h * h)
+    lam_um = float(psf.get("diffraction_wavelength_nm", 0.0)) * 1e-3
+    s_airy = _AIRY_GAUSS * lam_um * float(cam.get("f_number", 0.0))
+    r_px = float(gt.get("defocus_radius_px", 0.0))
+    return math.sqrt((s_ab / pitch_um) ** 2 + (s_airy / pitch_um) ** 2 + (0.5 * r_px) ** 2)
+
+
+def point_bound_px(gt: dict, radiance: np.ndarray, truth) -> float:
+    """Approximate per-point bound (px) of one rendered target image (module docstring)."""
+    from edgetruth.evaluate.crb import position_std_bound
+
+    s = gt["sensor"]
+    poly = truth.polyline_px
+    x0, y0 = np.floor(poly.min(axis=0)).astype(int) - 16
+    x1, y1 = np.ceil(poly.max(axis=0)).astype(int) + 16
+    h, w = radiance.shape[:2]
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    d = truth.signed_distance(xx.astype(float), yy.astype(float))
+    rad = np.asarray(radiance, float)[y0:y1, x0:x1]
+    rad = rad if rad.ndim == 2 else rad.mean(axis=2)
+    e_per_rad = float(gt["photons_per_radiance"]) * float(s["qe"])
+    bright, dark = rad[(d > 6) & (d < 12)], rad[(d < -6) & (d > -12)]
+    if bright.size < 8 or dark.size < 8:
+        return float("nan")
+    a_e, b_e = e_per_rad * float(np.median(dark)), e_per_rad * (float(np.median(bright)) - float(np.median(dark)))
+    if b_e <= 0:
+        return float("nan")
+    k = float(s["gain_dn_per_e"])
+    sigma_e = math.sqrt(float(s["dark_noise_e"]) ** 2 + a_e + 0.5 * b_e + 1.0 / (12.0 * k * k))
+    return float(position_std_bound(max(gaussian_equivalent_blur_px(gt), 0.05), sigma_e / b_e,
+                                    window=BOUND_WINDOW_PX, unknowns="4p"))
+
+
+def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict | None = None,
+                radiance: np.ndarray | None = None) -> PointScores:
+    """Refine the target's boundary candidates of the raw ``image`` with every method and score them."""
+    from edgetruth import locate
+    from edgetruth.evaluate.method_order import resolve
+    from edgetruth.evaluate.target_finding import target_candidates
+    from edgetruth.render.edge_truth import OutlineEdge
+
+    truth = OutlineEdge.from_ground_truth(gt)
+    tc = target_candidates(np.asarray(image, np.float64))
+    keep, d = scored_subset(truth, tc.candidates, tc.offset)
+    sub = tc.candidates.subset(keep)
+    bound = point_bound_px(gt, radiance, truth) if radiance is not None else float("nan")
+    out = PointScores(len(tc.candidates), bound, d.astype(np.float32))
+    x0, y0 = tc.offset
+    for label in methods:
+        mid, kw = resolve(label, options)
+        if len(sub):
+            pts = locate.refine(tc.crop, sub, mid, **kw)
+            err = truth.signed_distance(pts.x + x0, pts.y + y0)
+            conv = np.asarray(pts.converged, bool)
+            if "window" in pts.extras and mid.startswith("dynamic"):
+                out.windows[label] = np.asarray(pts.extras["window"], np.int8)
+        else:
+            err, conv = np.zeros(0), np.zeros(0, bool)
+        out.errors[label] = np.asarray(err, np.float32)
+        out.converged[label] = conv
+    return out
+
+
+# --- storage: one npz per evaluation -------------------------------------------------------------
+POINTS_FILE = "render_points.npz"
+
+
+@dataclass
+class PointTable:
+    """Every scored point of an evaluation, with its image's record."""
+
+    images: list[dict]
+    image: np.ndarray  # (N,) index into images
+    errors: dict  # label -> (N,)
+    converged: dict
+    windows: dict
+
+    @property
+    def methods(self) -> list[str]:
+        return list(self.errors)
+
+    def select(self, image_mask: np.ndarray) -> "PointTable":
+        """The points of the images where ``image_mask`` (over ``images``) is True."""
+        keep = np.asarray(image_mask, bool)[self.image] if len(self.image) else np.zeros(0, bool)
+        return PointTable(self.images, self.image[keep], {m: v[keep] for m, v in self.errors.items()},
+                          {m: v[keep] for m, v in self.converged.items()}, {m: v[keep] for m, v in self.windows.items()})
+
+
+def read_points(path) -> PointTable:
+    import json
+
+    from edgetruth.errors import InputError
+
+    try:
+        z = np.load(path, allow_pickle=False)
+        images = json.loads(str(z["images_json"]))
+        names = [k.split("/", 1)[1] for k in z.files if k.startswith("error/")]
+        return PointTable(images, z["image"], {m: z[f"error/{m}"].astype(float) for m in names},
+                          {m: z[f"converged/{m}"] for m in names},
+                          {m: z[f"window/{m}"] for m in names if f"window/{m}" in z.files})
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError(f"{path}: not a readable {POINTS_FILE} ({exc}); re-run the evaluation") from None
+
+
+def write_points(path, table: "PointTable") -> None:
+    """``render_points.npz``: ``image`` (per point: index into ``images_json``), ``error/<label>``
+    (float32 px), ``converged/<label>``, ``window/<label>`` (dynamic methods), and ``images_json``
+    (one record per image: dataset, image, spec, group, slot, levels, off_base, target, interval,
+    true_distance_m, bound_px, n_candidates, n_scored)."""
+    import io
+    import json
+
+    from edgetruth.fileio import atomic_write_bytes
+
+    arrays = {"image": table.image.astype(np.int32), "images_json": np.array(json.dumps(table.images))}
+    for m in table.methods:
+        arrays[f"error/{m}"] = table.errors[m].astype(np.float32)
+        arrays[f"converged/{m}"] = table.converged[m].astype(bool)
+        if m in table.windows:
+            arrays[f"window/{m}"] = table.windows[m].astype(np.int8)
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def table_from_scores(images: list[dict], scores: list[PointScores], methods: list[str]) -> PointTable:
+    """One ``PointTable`` from per-image records and their scores (same order)."""
+    recs = [dict(r, bound_px=s.bound_px, n_candidates=s.n_candidates, n_scored=len(s.candidate_distance))
+            for r, s in zip(images, scores)]
+
+    def cat(get, dtype):
+        return np.concatenate([np.asarray(get(s), dtype) for s in scores]) if scores else np.zeros(0, dtype)
+
+    image = (np.concatenate([np.full(len(s.candidate_distance), k, np.int32) for k, s in enumerate(scores)])
+             if scores else np.zeros(0, np.int32))
+    return PointTable(recs, image, {m: cat(lambda s: s.errors[m], float) for m in methods},
+                      {m: cat(lambda s: s.converged[m], bool) for m in methods},
+                      {m: cat(lambda s: s.windows[m], np.int8) for m in methods
+                       if scores and all(m in s.windows for s in scores)})
