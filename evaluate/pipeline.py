@@ -74,6 +74,17 @@ def select_jobs(spec, limit: int | None, kind: str) -> list[int]:
     return sorted(out)
 
 
+def render_reuse_line(reuse: dict) -> str:
+    """What the paired design's radiance reuse saved in this run (images rendered now only)."""
+    n, r = reuse["images"], reuse["reused"]
+    if not n:
+        return ""
+    per = reuse["render_s"] / max(n - r, 1)  # time inside mi.render per radiance render, summed over workers
+    return (f"{n} images from {n - r} radiance renders ({r} images reused their slot's radiance: "
+            f"{100 * (n - r) / n:.0f} % of the renders, ~{r * per:.0f} s of rendering saved at "
+            f"{per:.1f} s per render)")
+
+
 def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None, thresholds=None,
                       progress: bool = True, names: dict | None = None, backend: str = "local",
                       workers: int | None = 1, address: str | None = None, header: dict | None = None,
@@ -164,11 +175,19 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     if cal_spec.name not in plan["targets"]:
         target_sets.insert(0, (cal_spec, cal_only))
     if thr_spec is not None:  # threshold calibration renders: a spec (and seeds) of their own
-        target_sets.insert(0, (thr_spec, select_jobs(thr_spec, None, "target")))
+        target_sets.insert(0, (thr_spec, select_jobs(thr_spec, limit, "target")))
+    reuse = {"images": 0, "reused": 0, "render_s": 0.0}
     for spec, only in target_sets:
-        render_spec(spec, render_dir / spec.name, variant=variant, progress=progress, only=only,
+        st: dict = {}
+        render_spec(spec, render_dir / spec.name, variant=variant, progress=progress, only=only, timings=st,
                     announce=lambda s: (variants.append(s), console.say(s)))
+        for k in ("reused", "render_s"):
+            reuse[k] += st.get(k, 0)
+        reuse["images"] += st.get("n_rendered", 0)
     timing["render_s"] = time.perf_counter() - t
+    reuse_line = render_reuse_line(reuse)
+    if reuse_line:
+        console.say("render: " + reuse_line)
 
     # 2. calibrate
     t = time.perf_counter()
@@ -186,7 +205,8 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
         from edgetruth.evaluate import threshold_calibration as tcal
 
         t = time.perf_counter()
-        record = tcal.calibrate_renders([render_dir / thr_spec.name])
+        record = tcal.calibrate_renders([render_dir / thr_spec.name],
+                                        names=[thr_spec.jobs[i].name for i in select_jobs(thr_spec, limit, "target")])
         record["provenance"]["command"] = (f"edgetruth calibrate-thresholds --dataset render/{thr_spec.name} "
                                            "(inside edgetruth run)")
         camera_thresholds = out / "thresholds_camera.json"
@@ -222,6 +242,8 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     header = {"study": study, "UTC": utc_stamp(), "specs": ", ".join(s.name for s, _ in target_sets),
               "Mitsuba": "; ".join(variants) or "renders reused (already complete)",
               "interpolation for undistortion": "bilinear (see edgetruth/evaluate/undistort.py)"}
+    if reuse_line:
+        header["render reuse"] = reuse_line
     header["timings so far (s)"] = ", ".join(f"{k} {v:.1f}" for k, v in timing.items())
     if synthetic_failed:
         header["synthetic study"] = "FAILED (see the console)"

@@ -71,7 +71,7 @@ def collect(split: str = "calibration", images_per_scenario: int = 100, shape=DE
                         np.concatenate(sc), total)
 
 
-def collect_renders(dataset_dirs, progress=None) -> tuple[WindowErrors, list[dict]]:
+def collect_renders(dataset_dirs, progress=None, names=None) -> tuple[WindowErrors, list[dict]]:
     """Per-point window errors on the target images of rendered datasets (raw images, exact outline,
     the scoring rule of ``edgetruth.evaluate.render_points``); also each image's seeds and spec."""
     from edgetruth.evaluate.render_points import scored_subset
@@ -84,6 +84,8 @@ def collect_renders(dataset_dirs, progress=None) -> tuple[WindowErrors, list[dic
     total = 0
     for di, d in enumerate(dataset_dirs):
         for s in open_dataset(d).targets():
+            if names is not None and s.name not in names:
+                continue
             gt = s.truth
             truth = OutlineEdge.from_ground_truth(gt)
             total += 1
@@ -223,12 +225,13 @@ def _fit(data: WindowErrors, step: float) -> dict:
     return models
 
 
-def calibrate_renders(dataset_dirs, step: float = 0.01, progress=None) -> dict:
-    """Thresholds for the camera of rendered datasets, from their per-point truth (JSON-ready record)."""
+def calibrate_renders(dataset_dirs, step: float = 0.01, progress=None, names=None) -> dict:
+    """Thresholds for the camera of rendered datasets, from their per-point truth (JSON-ready record);
+    ``names``: only these images (default: every target image)."""
     from edgetruth.evaluate.render_points import CORNER_EXCLUSION_PX
     from edgetruth.render.reader import open_dataset
 
-    data, used = collect_renders(dataset_dirs, progress)
+    data, used = collect_renders(dataset_dirs, progress, None if names is None else set(names))
     cams = {}
     for d in dataset_dirs:
         for s in open_dataset(d).targets():

@@ -143,6 +143,7 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
             raise InputError(f"--only: index {bad[0]} out of range; {spec.name!r} has images 0-{spec.n_images - 1}")
         selected[:] = False
         selected[sorted(set(only))] = True
+    check_not_foreign(out_dir)
     make_output_dir(out_dir)
     lock = DirLock(out_dir)
     try:
@@ -150,6 +151,17 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
                               announce, backend, workers, address, files, window)
     finally:
         lock.release()
+
+
+def check_not_foreign(out_dir: Path) -> None:
+    """``-o`` must be new, empty or a dataset (it has a manifest or a journal): never a folder of the
+    user's that rendering would fill with image files."""
+    if not out_dir.is_dir() or (out_dir / MANIFEST).exists() or (out_dir / JOURNAL).exists():
+        return
+    other = sorted(p.name for p in out_dir.iterdir() if not is_temporary(p.name))
+    if other:
+        raise InputError(f"-o {out_dir}: exists and is not empty ({other[0]}{', ...' if len(other) > 1 else ''}) but "
+                         "is not an edgetruth dataset (no manifest.json); choose a new or empty directory")
 
 
 def _open_dataset(spec: Spec, spec_key: str, out_dir: Path, selected: np.ndarray, announce):

@@ -76,6 +76,14 @@ class Sample:
         return self._truth
 
     @property
+    def outline(self):
+        """The target's exact distorted outline (``OutlineEdge``): ``signed_distance(x, y)`` in px,
+        > 0 outside on the bright board, as a synthetic image's ``truth``; None for a checkerboard."""
+        from edgetruth.render.edge_truth import OutlineEdge
+
+        return OutlineEdge.from_ground_truth(self.truth) if self.kind == "target" else None
+
+    @property
     def image(self) -> np.ndarray:
         """The sensor image, uint16 (H, W), raw DN."""
         from edgetruth.render.files import read_png16

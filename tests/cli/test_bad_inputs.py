@@ -154,6 +154,7 @@ CASES += [
     ("render-spec-dir", ["render", "{B}/adir/", "-o", "{O}"], "is a directory"),
     ("render-spec-fifo", ["render", "{B}/fifo.toml", "-o", "{O}"], "not a regular file"),
     ("render-out-parent-file", ["render", "{SPEC}", "-o", "{B}/afile/data"], "is a file"),
+    ("render-out-foreign", ["render", "{SPEC}", "-o", "{B}"], "not an edgetruth dataset"),
     # verify
     ("verify-missing", ["verify", "{B}/no-such-dir"], "no such directory"),
     ("verify-file", ["verify", "{B}/good.png"], "not a directory"),
@@ -174,6 +175,9 @@ CASES += [
      "does not exist"),
     # the output is checked before the calibration runs (it used to fail after it)
     ("calib-out-parent-file", ["calibrate-thresholds", "-o", "{B}/afile/t.json"], "is a file"),
+    ("calib-dataset-not", ["calibrate-thresholds", "--dataset", "{B}/adir", "-o", "{O}/../t.json"], "no manifest.json"),
+    ("calib-dataset-missing", ["calibrate-thresholds", "--dataset", "{B}/nothere", "-o", "{O}/../t.json"],
+     "no such directory"),
     ("calib-out-dir", ["calibrate-thresholds", "-o", "{O}"], "is a directory"),
     # run: the output must be a new directory or an earlier run's
     ("run-out-file", ["run", "-o", "{B}/good.png"], "is a file"),
@@ -196,6 +200,9 @@ CASES += [
      "not a regular file"),
     ("evaluate-out-dataset", ["evaluate", "{O}", "-o", "{O}"], "not an edgetruth run directory"),
     ("evaluate-method", ["evaluate", "{O}", "--methods", "nope"], "unknown method"),
+    ("evaluate-camthr-missing", ["evaluate", "{O}", "--camera-thresholds", "{B}/none.json", "-o", "{O}/../ev"],
+     "does not exist"),
+    ("run-camthr-bad", ["run", "-o", "{O}/../newrun", "--camera-thresholds", "{B}/thr_tau.json"], "thr_tau.json"),
     ("bench-only", ["bench", "--only", "nothing"], "invalid choice"),
 ]
 

@@ -33,7 +33,8 @@ def test_bad_limit_is_a_one_line_input_error(capsys, tmp_path):
 
 @pytest.mark.slow
 def test_quick_run_end_to_end(tmp_path, fast_variant):
-    """Render quick (1 image per cell + 15 boards), calibrate, locate, report (~40 s, llvm)."""
+    """Render quick and thresholds_quick (1 image per cell + 15 boards), calibrate the camera and its
+    thresholds, locate, score every point, report (~40 s, llvm)."""
     from edgetruth.evaluate.pipeline import select_jobs
     from edgetruth.render.spec import load_spec
 
@@ -47,3 +48,17 @@ def test_quick_run_end_to_end(tmp_path, fast_variant):
     ok = [r for r in rows if r["method"] == "dynamic_erf_4p" and r["status"] == "ok"]
     assert len(ok) == len(select_jobs(load_spec("quick"), 1, "target"))  # one per cell
     assert all(float(r["rel_error_pct"]) < 2.0 for r in ok)
+    # thresholds calibrated for the camera on renders of their own seeds, run next to the shipped ones
+    import json
+    import re
+
+    thr = json.loads((out / "thresholds_camera.json").read_text())
+    assert thr["provenance"]["data"]["specs"] == ["thresholds_quick"]
+    assert any(r["method"] == "dynamic_erf_4p_camera" and r["status"] == "ok" for r in rows)
+    assert "Table E1" in text and "(camera τ)" in text and "render reuse" in text
+    from edgetruth.evaluate.render_points import read_points
+
+    pts = read_points(out / "render_points.npz")
+    assert len(pts.images) == len(ok) and "dynamic_erf_4p_camera" in pts.windows
+    for link in re.findall(r"\]\(([^)]+)\)", text):  # every link of the report resolves
+        assert (out / link).exists(), link
