@@ -106,7 +106,7 @@ def test_ground_truth_content(tmp_path):
     assert gt["image"]["png_bit_depth"] == 16 and gt["image"]["black_level_dn"] == gt["sensor"]["dark_offset_dn"] > 0
     assert 0 <= gt["saturation"]["fraction_lit"] <= 1e-3
     band = gt["render"]["edge_band"]
-    assert band["spp"] == 32 and band["pixels"] > 0 and band["band_px"] > 1
+    assert band["spp"] == 64 and band["pixels"] > 0 and band["band_px"] > 1
     # the dense polyline lies on the distorted circle: cv2.projectPoints at its parameters
     t = np.asarray(gt["outline"]["polyline_parameter"])
     a = 2 * np.pi * t
