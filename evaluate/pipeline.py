@@ -74,15 +74,30 @@ def select_jobs(spec, limit: int | None, kind: str) -> list[int]:
     return sorted(out)
 
 
-def render_reuse_line(reuse: dict) -> str:
-    """What the paired design's radiance reuse saved in this run (images rendered now only)."""
-    n, r = reuse["images"], reuse["reused"]
+def radiance_renders(spec, only) -> int:
+    """How many radiance renders the images ``only`` of ``spec`` need: one per (pose slot, radiance
+    unit) of a paired design -- the cells that differ in light or sensor share it -- one per other image."""
+    keys = set()
+    for i in only:
+        j = spec.jobs[i]
+        keys.add(("unit", j.slot, j.radiance_unit) if j.slot is not None else ("image", i))
+    return len(keys)
+
+
+def render_reuse_line(target_sets, timing: dict) -> str:
+    """What the paired design's radiance reuse saves in this run's renders (and, when they were
+    rendered now, the time inside ``mi.render`` it saved)."""
+    n = sum(len(only) for _, only in target_sets)
+    r = sum(radiance_renders(spec, only) for spec, only in target_sets)
     if not n:
         return ""
-    per = reuse["render_s"] / max(n - r, 1)  # time inside mi.render per radiance render, summed over workers
-    return (f"{n} images from {n - r} radiance renders ({r} images reused their slot's radiance: "
-            f"{100 * (n - r) / n:.0f} % of the renders, ~{r * per:.0f} s of rendering saved at "
-            f"{per:.1f} s per render)")
+    line = f"{n} images from {r} radiance renders ({100 * r / n:.0f} % of the images; " + ", ".join(
+        f"{spec.name} {len(only)} from {radiance_renders(spec, only)}" for spec, only in target_sets) + ")"
+    done, reused = timing.get("n_rendered", 0), timing.get("reused", 0)
+    if done > reused:
+        per = timing.get("render_s", 0.0) / (done - reused)  # inside mi.render per radiance render, all workers
+        line += f"; rendered now: {done} images, {reused} reused a render, ~{reused * per:.0f} s of rendering saved"
+    return line
 
 
 def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None, thresholds=None,
@@ -176,16 +191,12 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
         target_sets.insert(0, (cal_spec, cal_only))
     if thr_spec is not None:  # threshold calibration renders: a spec (and seeds) of their own
         target_sets.insert(0, (thr_spec, select_jobs(thr_spec, limit, "target")))
-    reuse = {"images": 0, "reused": 0, "render_s": 0.0}
+    stats: dict = {}
     for spec, only in target_sets:
-        st: dict = {}
-        render_spec(spec, render_dir / spec.name, variant=variant, progress=progress, only=only, timings=st,
+        render_spec(spec, render_dir / spec.name, variant=variant, progress=progress, only=only, timings=stats,
                     announce=lambda s: (variants.append(s), console.say(s)))
-        for k in ("reused", "render_s"):
-            reuse[k] += st.get(k, 0)
-        reuse["images"] += st.get("n_rendered", 0)
     timing["render_s"] = time.perf_counter() - t
-    reuse_line = render_reuse_line(reuse)
+    reuse_line = render_reuse_line(target_sets, stats)
     if reuse_line:
         console.say("render: " + reuse_line)
 

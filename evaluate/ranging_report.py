@@ -426,9 +426,12 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
             for m in rep:
                 s = method_stats([r for r in gper[m] if r["group"] == g])
                 body.append([g, _label(m), s["n"], _f(s["mae"]), _f(s["rmse"]), _f(s["sd"]), _f(s["median"]),
-                             _f(s["iqr"]), _f(s["max"])])
+                             _f(s["iqr"]), _f(s["max"]), _f(s["size_rmse_px"], 4), _f(s["pose"]["rmse"])])
         L += ["", f"## {title} (cm; representative methods as in the seed)", "",
-              _table(["group", "method", "n", "MAE", "RMSE", "SD", "median", "IQR", "max"], body)]
+              "size RMSE: l_hat − l_true (px), the part of the error the edge localisation makes; pose RMSE: "
+              "the pose model's ranging RMSE (cm), without the size model's tilt floor.", "",
+              _table(["group", "method", "n", "MAE", "RMSE", "SD", "median", "IQR", "max", "size RMSE (px)",
+                      "pose RMSE"], body)]
         if len(groups) >= 2:
             L += ["", "Across the levels, per method: "]
             L += [f"- {_label(m)}: " + describe_levels(level_analysis(gper[m], groups)) for m in rep]

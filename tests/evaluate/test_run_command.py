@@ -24,6 +24,19 @@ def test_select_jobs_spreads_the_limit_over_each_group():
     assert select_jobs(spec, None, "target") == [j.index for j in spec.jobs]
 
 
+def test_render_reuse_counts_one_render_per_pose_slot_and_radiance_unit():
+    """study: 50 slots x 7 cells = 350 images; G2-G4 reuse G1's render, T2-T4 need their own: 200."""
+    from edgetruth.evaluate.pipeline import radiance_renders, render_reuse_line, select_jobs
+    from edgetruth.render.spec import load_spec
+
+    spec = load_spec("study")
+    targets = select_jobs(spec, None, "target")
+    assert (len(targets), radiance_renders(spec, targets)) == (350, 200)
+    assert radiance_renders(spec, select_jobs(spec, 2, "target")) == 2 * 4  # --limit keeps the pairs
+    line = render_reuse_line([(spec, targets)], {"n_rendered": 350, "reused": 150, "render_s": 400.0})
+    assert line.startswith("350 images from 200 radiance renders (57 %") and "~300 s of rendering saved" in line
+
+
 def test_bad_limit_is_a_one_line_input_error(capsys, tmp_path):
     with pytest.raises(SystemExit) as info:
         main(["run", "--limit", "0", "-o", str(tmp_path)])
