@@ -13,7 +13,7 @@ import numpy as np
 
 from edgetruth.render.camera import Camera
 from edgetruth.render.outline import OutlineCurve, camera_points_at
-from edgetruth.render.targets import TARGET_STANDOFF_M, TARGETS, Checkerboard
+from edgetruth.render.targets import BOARD_HALF_SIZE_M, BOARD_REFLECTANCE, TARGET_STANDOFF_M, TARGETS, Checkerboard
 from edgetruth.render.pose import Pose
 
 CIRCLE_OUTLINE_POINTS = 720
@@ -66,6 +66,8 @@ def target_ground_truth(camera: Camera, pose: Pose, target: str, size_m: float, 
                    "size_m": size_m, "size_meaning": "side" if spec["shape"] == "square" else "diameter",
                    "reflectance": spec["reflectance"], "standoff_m": TARGET_STANDOFF_M,
                    **({"ggx_alpha": spec["alpha"], "ior": spec["eta"]} if "alpha" in spec else {})},
+        "board": {"material": "white_matte", "reflectance": BOARD_REFLECTANCE,
+                  "half_size_m": list(BOARD_HALF_SIZE_M)},
         "true_distance_m": float(centre_cam[0, 2]),  # Z of the target centre (the ranging quantity)
         "true_range_m": float(np.linalg.norm(centre_cam)),
         "centre": _project_both(camera, centre_cam),
