@@ -19,6 +19,8 @@ refitted; the size is the diameter 2r.  Points are first scaled by
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -46,19 +48,38 @@ class Line:
         return self.n[0] * np.asarray(x) + self.n[1] * np.asarray(y) - self.d
 
 
+#: IRLS stops when the line moves less than this (px); far below the edge errors it measures (>= 1e-3 px)
+IRLS_TOL_PX = 1e-7
+
+
 def _tls(x, y, w):
     """Weighted total-least-squares line: (unit normal, d)."""
     sw = w.sum()
     mx, my = (w * x).sum() / sw, (w * y).sum() / sw
     dx, dy = x - mx, y - my
-    c = np.array([[(w * dx * dx).sum(), (w * dx * dy).sum()], [(w * dx * dy).sum(), (w * dy * dy).sum()]])
-    vals, vecs = np.linalg.eigh(c)
-    n = vecs[:, 0]
+    sxx, sxy, syy = float((w * dx * dx).sum()), float((w * dx * dy).sum()), float((w * dy * dy).sum())
+    # the scatter matrix's major axis is at angle theta = atan2(2 sxy, sxx - syy) / 2; the normal is
+    # perpendicular to it (closed form of the 2x2 eigenproblem, with a fixed sign: +y side up)
+    theta = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
+    n = np.array([-math.sin(theta), math.cos(theta)])
     return n, float(n[0] * mx + n[1] * my)
 
 
+def _median(v: np.ndarray) -> float:
+    """``np.median`` of a 1-D array, bit for bit, without its generic machinery (the robust line fits
+    call it ~60,000 times per quick run)."""
+    n = v.size
+    if n == 0:
+        return float("nan")
+    k = n // 2
+    if n % 2:
+        return float(np.partition(v, k)[k])
+    p = np.partition(v, (k - 1, k))
+    return float(np.mean(p[k - 1:k + 1]))
+
+
 def _mad_sigma(r) -> float:
-    return max(1.4826 * float(np.median(np.abs(r - np.median(r)))), SIGMA_FLOOR_PX)
+    return max(1.4826 * _median(np.abs(r - _median(r))), SIGMA_FLOOR_PX)
 
 
 def fit_line_robust(x, y, ransac_threshold_px: float = 1.0, iterations: int = 200, seed: int = 0,
@@ -97,7 +118,7 @@ def fit_line_robust(x, y, ransac_threshold_px: float = 1.0, iterations: int = 20
         n_new, d_new = _tls(x, y, w_new)
         if n_new @ n < 0:
             n_new, d_new = -n_new, -d_new
-        done = abs(d_new - d) < 1e-9 and np.linalg.norm(n_new - n) < 1e-12
+        done = abs(d_new - d) < IRLS_TOL_PX and np.linalg.norm(n_new - n) < IRLS_TOL_PX * 1e-3
         n, d, w = n_new, d_new, w_new
         if done:
             break
