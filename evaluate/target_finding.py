@@ -34,6 +34,9 @@ import numpy as np
 from edgetruth.errors import InputError
 
 DARK_RATIO = 0.55
+#: tried in turn when no compact region is darker than DARK_RATIO: a glossy target's specular sheen
+#: lifts part of it above 0.55 of the board (T4 at ~1 m reaches 0.7), the board stays near 1
+DARK_RATIO_LADDER = (DARK_RATIO, 0.65, 0.75)
 MIN_AREA_PX = 64
 MIN_SOLIDITY = 0.85
 
@@ -124,8 +127,11 @@ def find_target(image: np.ndarray, valid: np.ndarray | None = None) -> TargetReg
     bg = board_level(img)
     ratio = img / np.maximum(bg, 1e-9 + 1e-6 * float(bg.max()))
     open_k = np.ones((3, 3), np.uint8)
-    dark = cv2.morphologyEx((ratio < DARK_RATIO).astype(np.uint8), cv2.MORPH_OPEN, open_k).astype(bool)
-    best = _best_component(dark, valid)
+    for dark_ratio in DARK_RATIO_LADDER:
+        dark = cv2.morphologyEx((ratio < dark_ratio).astype(np.uint8), cv2.MORPH_OPEN, open_k).astype(bool)
+        best = _best_component(dark, valid)
+        if best is not None:
+            break
     if best is None:
         raise InputError("target finding: no compact dark region away from the image border; "
                          "is the target in view and darker than the board?")
@@ -135,9 +141,10 @@ def find_target(image: np.ndarray, valid: np.ndarray | None = None) -> TargetReg
     full[y0:y0 + bh, x0:x0 + bw] = m
     inner = cv2.erode(full.astype(np.uint8), np.ones((5, 5), np.uint8), iterations=2).astype(bool)
     interior = float(np.median(ratio[inner])) if inner.sum() > 10 else float(np.median(ratio[full]))
-    thr = 0.5 * (min(interior, DARK_RATIO) + 1.0)
-    # re-extract at the mid level, near the first component only
-    pad = 6
+    thr = 0.5 * (min(interior, dark_ratio) + 1.0)
+    # re-extract at the mid level, near the first component only (within its own size: a sheen can
+    # leave part of the target above the first threshold)
+    pad = max(6, bw, bh)
     ys, xs = slice(max(0, y0 - pad), y0 + bh + pad), slice(max(0, x0 - pad), x0 + bw + pad)
     local = np.zeros(img.shape, bool)
     local[ys, xs] = ratio[ys, xs] < thr
@@ -148,7 +155,7 @@ def find_target(image: np.ndarray, valid: np.ndarray | None = None) -> TargetReg
         full = np.zeros(img.shape, bool)
         full[y0:y0 + bh, x0:x0 + bw] = m2
     else:
-        thr = DARK_RATIO
+        thr = dark_ratio
     yy, xx = np.nonzero(full)
     return TargetRegion(full, (x0, y0, bw, bh), (float(xx.mean()), float(yy.mean())), float(full.sum()),
                         float(solidity), interior, float(thr), _shape_guess(full[y0:y0 + bh, x0:x0 + bw]))
