@@ -51,3 +51,24 @@ def test_no_target_is_an_input_error():
     img = np.full((100, 120), 1000.0) + np.random.default_rng(1).normal(0, 3, (100, 120))
     with pytest.raises(InputError):
         find_target(img)
+
+
+def _sheen_scene(sheen):
+    h, w, ss = 240, 320, 4
+    yy, xx = (np.mgrid[0:h * ss, 0:w * ss] + 0.5) / ss - 0.5
+    cx, cy, half = 150.3, 118.7, 40.0
+    inside = (np.abs(xx - cx) <= half) & (np.abs(yy - cy) <= half)
+    u, v = np.clip((xx - (cx - half)) / (2 * half), 0, 1), np.clip((yy - (cy - half)) / (2 * half), 0, 1)
+    img = np.where(inside, sheen(u, v), 1.0).reshape(h, ss, w, ss).mean(axis=(1, 3)) * 3000.0
+    return img + np.random.default_rng(1).normal(0, 5.0, img.shape), (cx, cy, half)
+
+
+@pytest.mark.parametrize("sheen", [lambda u, v: 0.35 + 0.3 * u * v,  # darker half found first, then all of it
+                                   lambda u, v: 0.62 + 0.0 * u])  # nowhere below 0.55 of the board
+def test_a_glossy_sheen_still_finds_the_whole_target(sheen):
+    """A glossy square whose specular sheen lifts part or all of it above 0.55 of the board (T4 at
+    ~1 m): the threshold ladder finds it and the mid-level re-extraction covers the whole square."""
+    img, (cx, cy, half) = _sheen_scene(sheen)
+    reg = find_target(img)
+    assert reg.centroid == pytest.approx((cx, cy), abs=1.0)
+    assert reg.area_px == pytest.approx((2 * half) ** 2, rel=0.05)
