@@ -61,6 +61,17 @@ def scored_subset(truth, cand, offset) -> tuple[np.ndarray, np.ndarray]:
     return keep, d[keep]
 
 
+def scored_candidates(image: np.ndarray, truth):
+    """The target's Canny boundary candidates on the raw ``image`` and the subset the rule scores:
+    (``TargetCandidates``, scored ``Candidates``, their signed truth distance).  One definition for
+    the per-point tables and the threshold calibration on renders."""
+    from edgetruth.evaluate.target_finding import target_candidates
+
+    tc = target_candidates(np.asarray(image, np.float64))
+    keep, d = scored_subset(truth, tc.candidates, tc.offset)
+    return tc, tc.candidates.subset(keep), d
+
+
 def gaussian_equivalent_blur_px(gt: dict) -> float:
     """σ (px) of a Gaussian standing in for PSF ⊗ defocus disk at the target (pixel excluded)."""
     cam = gt["camera"]
@@ -106,13 +117,10 @@ def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict |
     """Refine the target's boundary candidates of the raw ``image`` with every method and score them."""
     from edgetruth import locate
     from edgetruth.evaluate.method_order import resolve
-    from edgetruth.evaluate.target_finding import target_candidates
     from edgetruth.render.edge_truth import OutlineEdge
 
     truth = OutlineEdge.from_ground_truth(gt)
-    tc = target_candidates(np.asarray(image, np.float64))
-    keep, d = scored_subset(truth, tc.candidates, tc.offset)
-    sub = tc.candidates.subset(keep)
+    tc, sub, d = scored_candidates(image, truth)
     bound = point_bound_px(gt, radiance, truth) if radiance is not None else float("nan")
     out = PointScores(len(tc.candidates), bound, d.astype(np.float32))
     x0, y0 = tc.offset

@@ -28,6 +28,12 @@ def _label(m: str) -> str:
     return label(m)
 
 
+def image_columns(table) -> tuple[np.ndarray, np.ndarray]:
+    """Per image: the approximate per-point bound (px) and the distance interval label."""
+    return (np.array([r.get("bound_px", np.nan) for r in table.images], float),
+            np.array([r.get("interval", "") for r in table.images]))
+
+
 def per_image_sums(image: np.ndarray, e: np.ndarray, n_images: int) -> tuple[np.ndarray, np.ndarray]:
     """(sum of squared errors, number of points) per image."""
     ok = np.isfinite(e)
@@ -141,8 +147,7 @@ def window_shares(table, m: str) -> dict:
 
 def summary_rows(table, methods) -> list[dict]:
     """``render_points_summary.csv``: method × cell × distance interval (and "all")."""
-    bound = np.array([r.get("bound_px", np.nan) for r in table.images], float)
-    interval = np.array([r.get("interval", "") for r in table.images])
+    bound, interval = image_columns(table)
     c = cells(table)
     out = []
     named = [("base", "", c["base"])] + [(f, lv, mk) for f in ("G", "T") for lv, mk in c[f].items()]
@@ -186,8 +191,7 @@ def figures(table, methods, fig_dir: Path) -> dict:
     import matplotlib.pyplot as plt
 
     fig_dir.mkdir(parents=True, exist_ok=True)
-    bound = np.array([r.get("bound_px", np.nan) for r in table.images], float)
-    interval = np.array([r.get("interval", "") for r in table.images])
+    bound, interval = image_columns(table)
     c = cells(table)
     rep = [m for m in list(SEED_ROBUSTNESS) + [m + "_camera" for m in ("dynamic_erf_4p",)] + ["canny_devernay", "pae2013"]
            if m in methods and m != "canny_pixel"]
@@ -228,7 +232,7 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
     """The report's per-point section (markdown lines); writes ``render_points_summary.csv`` and figures."""
     from edgetruth.evaluate.render_points import CORNER_EXCLUSION_PX, MATCH_RADIUS_PX
 
-    bound = np.array([r.get("bound_px", np.nan) for r in table.images], float)
+    bound, interval = image_columns(table)
     write_summary(out_dir / "render_points_summary.csv", summary_rows(table, methods))
     c = cells(table)
     base = table.select(c["base"])
@@ -259,7 +263,6 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
                      [[_label(r["method"]), r["n_images"], _f(r["rmse_difference"], 4), _ci(r["rmse_difference_ci"], 4),
                        _f(r["rank_biserial"], 2), f"{r['p_value']:.2g}", f"{r['p_holm']:.2g}",
                        "yes" if r["significant"] else "no"] for r in comp])]
-    interval = np.array([r.get("interval", "") for r in table.images])
     present = [f"{a}-{b}" for a, b in INTERVALS_CM if (c["base"] & (interval == f"{a}-{b}")).any()]
     if present:
         L += ["", "## Table E3 — per-point RMSE (px) per distance interval, base cell", "",

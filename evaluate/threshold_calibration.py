@@ -74,8 +74,7 @@ def collect(split: str = "calibration", images_per_scenario: int = 100, shape=DE
 def collect_renders(dataset_dirs, progress=None, names=None) -> tuple[WindowErrors, list[dict]]:
     """Per-point window errors on the target images of rendered datasets (raw images, exact outline,
     the scoring rule of ``edgetruth.evaluate.render_points``); also each image's seeds and spec."""
-    from edgetruth.evaluate.render_points import scored_subset
-    from edgetruth.evaluate.target_finding import target_candidates
+    from edgetruth.evaluate.render_points import scored_candidates
     from edgetruth.render.edge_truth import OutlineEdge
     from edgetruth.render.reader import open_dataset
 
@@ -90,16 +89,12 @@ def collect_renders(dataset_dirs, progress=None, names=None) -> tuple[WindowErro
             truth = OutlineEdge.from_ground_truth(gt)
             total += 1
             try:
-                tc = target_candidates(s.image.astype(np.float64))
+                tc, cand, _ = scored_candidates(s.image, truth)
             except InputError:
                 tc = None
             if progress is not None:
                 progress()
-            if tc is None:
-                continue
-            keep, _ = scored_subset(truth, tc.candidates, tc.offset)
-            cand = tc.candidates.subset(keep)
-            if not len(cand):
+            if tc is None or not len(cand):
                 continue
             x0, y0 = tc.offset
             for model in ("2p", "4p"):

@@ -35,28 +35,24 @@ def run(args) -> int:
     out = check_output_file(args.output, "-o")  # before the calibration, not after it
     if not 0 < args.step <= 0.25:
         raise InputError(f"--step {args.step}: must be in (0, 0.25]")
-    if args.dataset:
+    if args.dataset:  # the camera's own renders
         from pathlib import Path
 
         from edgetruth.render.reader import open_dataset
 
         dirs = [Path(d) for d in args.dataset]
-        n = sum(len(open_dataset(d).targets()) for d in dirs)
-        with console.bar(total=n, desc="calibration renders", unit="img", enabled=not args.no_progress) as bar:
-            record = tc.calibrate_renders(dirs, args.step, progress=bar.update)
-        record["provenance"]["command"] = (f"edgetruth calibrate-thresholds --dataset {' '.join(args.dataset)} "
-                                           f"--step {args.step} -o {out.name}")
-        tc.write(record, out)
-        _say(record, "the renders")
-        console.say(f"-> {out}")
-        return 0
-    with console.bar(total=args.images_per_scenario * len(SCENARIOS), desc="calibration images", unit="img",
-                     enabled=not args.no_progress) as bar:
-        record = tc.calibrate(args.images_per_scenario, args.step, progress=bar.update)
-    record["provenance"]["command"] = (f"edgetruth calibrate-thresholds --images-per-scenario "
-                                       f"{args.images_per_scenario} --step {args.step} -o {out.name}")
+        n, desc, where = sum(len(open_dataset(d).targets()) for d in dirs), "calibration renders", "the renders"
+        command = f"--dataset {' '.join(args.dataset)}"
+        work = lambda progress: tc.calibrate_renders(dirs, args.step, progress=progress)  # noqa: E731
+    else:  # the synthetic calibration split
+        n, desc, where = args.images_per_scenario * len(SCENARIOS), "calibration images", "the calibration split"
+        command = f"--images-per-scenario {args.images_per_scenario}"
+        work = lambda progress: tc.calibrate(args.images_per_scenario, args.step, progress=progress)  # noqa: E731
+    with console.bar(total=n, desc=desc, unit="img", enabled=not args.no_progress) as bar:
+        record = work(bar.update)
+    record["provenance"]["command"] = f"edgetruth calibrate-thresholds {command} --step {args.step} -o {out.name}"
     tc.write(record, out)
-    _say(record, "the calibration split")
+    _say(record, where)
     console.say(f"-> {out}")
     return 0
 
