@@ -70,6 +70,20 @@ def shipped_thresholds() -> Path:
     return p
 
 
+def shipped_real_set_names() -> list[str]:
+    return sorted(p.name for p in (assets_dir() / "real").iterdir() if p.is_dir() and not p.name.startswith("_"))
+
+
+def real_set(name: str) -> Path:
+    """The folder of a shipped real photo set (``assets/real/<name>/``, provenance in ``assets/real/README.md``)."""
+    p = assets_dir() / "real" / name
+    if not p.is_dir() or name.startswith("_"):
+        names = shipped_real_set_names()
+        raise InputError(f"real photo set {name!r} not found; shipped sets: {', '.join(names) or 'NONE (broken install)'}"
+                         "; or give the photos' paths")
+    return p
+
+
 def default_runs_dir() -> Path:
     """Where outputs go unless ``-o`` says otherwise: ``./runs`` under the current directory."""
     return Path.cwd() / "runs"

@@ -39,6 +39,17 @@ def add_backend_options(p: argparse.ArgumentParser, workers_help: str) -> None:
                         "else a local Ray instance)")
 
 
+#: how a colour photo becomes the gray image every method reads (edgetruth.image_io.GRAY_RULES)
+CHANNEL_CHOICES = ("luma", "r", "g", "b")
+
+
+def add_image_options(p: argparse.ArgumentParser) -> None:
+    """Options of every command that reads photos: how colour becomes gray."""
+    p.add_argument("--channel", choices=CHANNEL_CHOICES, default="luma",
+                   help="colour photos: 'luma' (default) = 0.299 R + 0.587 G + 0.114 B on the stored values "
+                        "(ITU-R BT.601, OpenCV's rule), or take one channel r, g or b; gray images are read as they are")
+
+
 def positive_int(text: str) -> int:
     try:
         n = int(text)
