@@ -114,7 +114,7 @@ def _read_exr(p: Path) -> np.ndarray:
         raise InputError(f"{p}: not a readable EXR file ({exc.__class__.__name__}); check the file is complete") from None
 
 
-def read_gray(path) -> np.ndarray:
+def read_gray(path, channel: str = "luma") -> np.ndarray:
     """Read a gray image (PNG/TIFF/JPEG/PGM 8- or 16-bit, EXR float, or .npy) without changing its values.
 
     Colour images are rejected rather than silently converted: the conversion weights
