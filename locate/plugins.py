@@ -67,13 +67,30 @@ def load_plugin(ref: str):
             sys.modules[name] = module
             spec.loader.exec_module(module)
         else:
-            module = importlib.import_module(ref)
+            module = _import_by_name(ref)
     except InputError:
         raise
     except Exception as exc:  # the user's code: any error while importing it
-        raise InputError(f"--plugin {ref}: import failed ({type(exc).__name__}: {exc}); fix the module") from None
+        raise InputError(f"--plugin {ref}: importing it raised {type(exc).__name__}: {exc}; "
+                         "fix the module (the error is inside it)") from None
     _loaded[ref] = module
     return module
+
+
+def _import_by_name(ref: str):
+    """Import module ``ref`` as ``python -m`` would find it: the import path, then the current folder
+    (a console script's path does not hold the current folder).  A module that is found but fails
+    to import its own dependencies is the user's code failing, not a missing module."""
+    if importlib.util.find_spec(ref.split(".")[0]) is None:
+        cwd = str(Path.cwd())
+        if cwd not in sys.path:
+            sys.path.insert(0, cwd)
+        importlib.invalidate_caches()
+        if importlib.util.find_spec(ref.split(".")[0]) is None:
+            raise InputError(f"--plugin {ref}: no module named {ref.split('.')[0]!r} on the import path nor in the "
+                             f"current folder {cwd}; run from the module's folder, give its .py path, or "
+                             "pip install the package that holds it")
+    return importlib.import_module(ref)
 
 
 def load_plugins(refs=()) -> None:

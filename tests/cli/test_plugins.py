@@ -112,3 +112,25 @@ def test_bad_plugin_is_one_line(argv, expect, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and expect in err[0]
+
+
+def test_plugin_by_module_name_from_its_own_folder(tmp_path, monkeypatch, capsys):
+    """`--plugin my_edges` run from the folder that holds my_edges.py imports it, as `python -m` would."""
+    (tmp_path / "my_edges_cwd.py").write_text(PLUGIN.read_text().replace("user_gradient_centroid",
+                                                                          "user_cwd_centroid"))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "path", [p for p in sys.path if p not in ("", ".", str(tmp_path))])
+    rc = main(["methods", "--plugin", "my_edges_cwd"])
+    assert rc == 0, capsys.readouterr().err
+    assert "user_cwd_centroid" in capsys.readouterr().out
+
+
+def test_plugin_errors_name_the_real_cause(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["methods", "--plugin", "no_such_module_xyz"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "no module named 'no_such_module_xyz'" in err and str(tmp_path) in err
+    (tmp_path / "broken_dep_mod.py").write_text("import not_installed_dependency_xyz\n")
+    assert main(["methods", "--plugin", "broken_dep_mod"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "not_installed_dependency_xyz" in err and "inside it" in err
