@@ -4,7 +4,12 @@ JSON says about them.
 The saturated fraction is counted over the *lit* pixels (board, targets, checkerboard plate:
 radiance > 0; the black background behind a checkerboard plate does not count) and over the
 whole frame.  Above ``SATURATION_WARN_FRACTION`` of the lit pixels a one-line warning goes to
-stderr: a saturated edge has lost its profile.
+stderr: a saturated edge has lost its profile.  Hot and dead pixels (the sensor's fixed
+pattern) are not counted: they are listed under ``fixed_pattern``.
+
+The sensor's fixed-pattern noise is the camera's: its maps cover the camera's frame, and an
+image that is a window of it (``crop`` = (x0, y0, width, height), or a smaller image at the
+frame's top-left corner) gets that window, so every image of a camera shares one pattern.
 """
 from __future__ import annotations
 
@@ -29,10 +34,29 @@ def predicted_saturated_fraction(radiance: np.ndarray, camera, sensor) -> float:
     return float(p[lit].mean()) if lit.any() else 0.0
 
 
-def capture(radiance: np.ndarray, camera, sensor, rng: np.random.Generator, name: str = "image"):
-    """(image file pixels, ground-truth dict) from the radiance of one render."""
+def camera_pattern(sensor, camera, shape: tuple[int, int], crop=None):
+    """The sensor's fixed pattern for an image of ``shape``: the ``crop`` window of the camera's frame,
+    else the frame's top-left ``shape`` (a pattern of its own when larger); None without FPN."""
+    if not sensor.has_fixed_pattern:
+        return None
+    frame = (int(camera.height_px), int(camera.width_px))
+    if crop is None:
+        if shape[0] > frame[0] or shape[1] > frame[1]:
+            return sensor.fixed_pattern(shape)
+        crop = (0, 0, shape[1], shape[0])
+    return sensor.fixed_pattern(frame, tuple(int(v) for v in crop))
+
+
+def capture(radiance: np.ndarray, camera, sensor, rng: np.random.Generator, name: str = "image", crop=None):
+    """(image file pixels, ground-truth dict) from the radiance of one render (``crop``: the
+    (x0, y0, width, height) window of the camera's frame it covers, None for the whole frame)."""
+    from edgetruth.render.sensor import no_fixed_pattern_truth
+
     mean_e = sensor.mean_electrons(radiance, camera.f_number, camera.pitch_um)
-    raw, saturated = sensor.expose_clipped(mean_e, rng)
+    pattern = camera_pattern(sensor, camera, mean_e.shape, crop)
+    raw, saturated = sensor.expose_clipped(mean_e, rng, pattern)
+    if pattern is not None and pattern.defects is not None:
+        saturated &= ~pattern.defects
     lit = np.asarray(radiance) > 0
     frac_lit = float(saturated[lit].mean()) if lit.any() else 0.0
     if frac_lit > SATURATION_WARN_FRACTION:
@@ -44,9 +68,11 @@ def capture(radiance: np.ndarray, camera, sensor, rng: np.random.Generator, name
         "saturation": {"fraction_lit": frac_lit, "fraction_all": float(saturated.mean()),
                        "lit_fraction": float(lit.mean()),
                        "meaning": "pixels whose electrons reached the full well or whose DN reached full scale; "
-                                  "lit = radiance > 0 (board, targets, checkerboard plate)",
+                                  "lit = radiance > 0 (board, targets, checkerboard plate); hot and dead "
+                                  "pixels (fixed_pattern) not counted",
                        "warn_above": SATURATION_WARN_FRACTION},
         "mean_electrons_lit": {"p1": float(np.percentile(mean_e[lit], 1)) if lit.any() else 0.0,
                                "p99": float(np.percentile(mean_e[lit], 99)) if lit.any() else 0.0},
+        "fixed_pattern": no_fixed_pattern_truth(sensor) if pattern is None else pattern.truth(sensor),
     }
     return image, truth

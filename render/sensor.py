@@ -12,9 +12,32 @@ pixel has its channel's QE (``qe_r``, ``qe_g``, ``qe_b``) instead of ``qe``; dem
 the output encoding (``output``: raw DN, 8-bit sRGB, JPEG) are ``edgetruth.render.pipeline``.
 All randomness comes from a seeded ``numpy.random.Generator`` passed in by the caller
 (never the global RNG).
+
+Fixed-pattern noise (EMVA 1288 release 4.0 spatial non-uniformity), fixed per camera by
+``fpn_seed`` (the same pattern in every image of a camera, drawn from its own generators, never
+from the per-image one), with z_g, z_d two standard-normal maps over the camera's frame, each
+shifted and scaled to mean 0 and SD 1 over the frame's pixels:
+
+    g   = 1 + (prnu_pct / 100) · z_g                   relative photo-response (gain) map: PRNU
+    d   = dsnu_e · z_d                                  dark-signal offset map [e⁻]: DSNU
+    e   = min(Poisson(μe · g + I_hot · t_exp · [hot]), full well)
+    y   = K · (e + d + N(0, σd²)) + offset
+    DN  = clip(round(y), 0, 2^bits − 1);  DN = clip(round(offset)) on a dead pixel
+
+PRNU scales the photo-electrons (a QE / fill-factor spread), so each pixel's shot noise follows
+its own mean and the temporal photon transfer is unchanged; DSNU is an offset in electrons after
+the well (a readout offset spread: no shot noise, not clipped by the full well).  So, measured as
+EMVA 1288 does, DSNU1288 = SD over pixels of the averaged dark image / K = ``dsnu_e`` and
+PRNU1288 = SD of (averaged bright − averaged dark) / its mean = ``prnu_pct`` %, with K and σd
+(from frame differences) untouched.  Hot pixels (a ``hot_pixel_fraction`` of the frame) collect
+an extra dark current ``hot_pixel_current_e_s`` (Poisson, clipped by the well like light); dead
+pixels (``dead_pixel_fraction``) read the black level, without noise.  Both sets are drawn once
+per camera (disjoint; each grows monotonically with its fraction).  With every FPN key at 0 the
+model is the one above, drawing exactly the same numbers from the per-image generator.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
@@ -26,6 +49,11 @@ CFA_PATTERNS = ("none", "RGGB", "BGGR", "GRBG", "GBRG")
 OUTPUTS = ("raw", "srgb8", "jpeg")
 PLANCK_J_S = 6.62607015e-34
 SPEED_OF_LIGHT_M_S = 299792458.0
+#: streams of the camera's fixed-pattern generators, [fpn_seed, stream] (the per-image streams are 1, 2)
+PRNU_STREAM, DSNU_STREAM, DEFECT_STREAM = 128801, 128802, 128803
+PRNU_MAX_PCT = 10.0  # keeps the gain map positive (10 SD below the mean)
+DEFECT_MAX_FRACTION = 0.01
+FPN_SEED_MAX = 10 ** 9
 
 
 @dataclass(frozen=True)
@@ -47,6 +75,12 @@ class SensorModel:
     qe_b: float = 0.15
     output: str = "raw"
     jpeg_quality: int = 90
+    dsnu_e: float = 0.0
+    prnu_pct: float = 0.0
+    hot_pixel_fraction: float = 0.0
+    hot_pixel_current_e_s: float = 5.0e4
+    dead_pixel_fraction: float = 0.0
+    fpn_seed: int = 0
 
     def __post_init__(self) -> None:
         require(0 < self.qe <= 1, f"sensor: qe must be in (0, 1], got {self.qe}")
@@ -57,6 +91,14 @@ class SensorModel:
         require(self.cfa in CFA_PATTERNS, f"sensor: cfa must be one of {', '.join(CFA_PATTERNS)}")
         require(self.output in OUTPUTS, f"sensor: output must be one of {', '.join(OUTPUTS)}")
         require(0 <= self.dark_offset_dn < self.max_dn, "sensor: dark_offset_dn must lie below full scale")
+        require(self.dsnu_e >= 0, f"sensor: dsnu_e must be >= 0, got {self.dsnu_e}")
+        require(0 <= self.prnu_pct <= PRNU_MAX_PCT,
+                f"sensor: prnu_pct must be in [0, {PRNU_MAX_PCT:g}], got {self.prnu_pct}")
+        require(0 <= self.hot_pixel_fraction <= DEFECT_MAX_FRACTION and 0 <= self.dead_pixel_fraction
+                <= DEFECT_MAX_FRACTION, f"sensor: hot_pixel_fraction, dead_pixel_fraction must be in "
+                f"[0, {DEFECT_MAX_FRACTION:g}]")
+        require(self.hot_pixel_current_e_s >= 0, "sensor: hot_pixel_current_e_s must be >= 0")
+        require(0 <= int(self.fpn_seed) <= FPN_SEED_MAX, f"sensor: fpn_seed must be in [0, {FPN_SEED_MAX}]")
 
     @property
     def gain_dn_per_e(self) -> float:
@@ -89,21 +131,54 @@ class SensorModel:
         rad = np.asarray(radiance, dtype=np.float64)
         return self.qe_map(rad.shape) * self.photons_per_radiance(f_number, pitch_um) * rad
 
-    def expose_electrons(self, mean_e: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Mean electrons -> digital numbers (uint16), with shot noise, dark noise, clipping, ADC."""
-        return self.expose_clipped(mean_e, rng)[0]
+    @property
+    def has_fixed_pattern(self) -> bool:
+        """Any fixed-pattern noise (DSNU, PRNU, hot or dead pixels) switched on."""
+        return bool(self.dsnu_e or self.prnu_pct or self.hot_pixel_fraction or self.dead_pixel_fraction)
 
-    def expose_clipped(self, mean_e: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    def fixed_pattern(self, frame: tuple[int, int], window: tuple[int, int, int, int] | None = None
+                      ) -> "FixedPattern | None":
+        """The camera's fixed pattern over its ``frame`` (height, width), or over ``window`` = (x0, y0,
+        width, height) of it; None when every FPN key is 0.  A pure function of the FPN keys and the
+        frame (cached): the same pattern in every image of the camera."""
+        if not self.has_fixed_pattern:
+            return None
+        full = _fixed_pattern(int(self.fpn_seed), float(self.dsnu_e), float(self.prnu_pct),
+                              float(self.hot_pixel_fraction), float(self.dead_pixel_fraction),
+                              (int(frame[0]), int(frame[1])))
+        return full if window is None else full.window(*window)
+
+    def expose_electrons(self, mean_e: np.ndarray, rng: np.random.Generator,
+                         pattern: "FixedPattern | None" = None) -> np.ndarray:
+        """Mean electrons -> digital numbers (uint16), with shot noise, dark noise, clipping, ADC."""
+        return self.expose_clipped(mean_e, rng, pattern)[0]
+
+    def expose_clipped(self, mean_e: np.ndarray, rng: np.random.Generator,
+                       pattern: "FixedPattern | None" = None) -> tuple[np.ndarray, np.ndarray]:
         """(DN uint16, saturated bool): pixels whose electrons reached the full well or whose DN the ADC
-        clipped at full scale (the black level keeps the low end unclipped)."""
+        clipped at full scale (the black level keeps the low end unclipped; a dead pixel is never
+        saturated).  ``pattern``: the camera's fixed pattern cut to this image (``fixed_pattern``);
+        by default the pattern of a frame of this image's shape."""
         mean_e = np.clip(np.asarray(mean_e, dtype=np.float64), 0.0, None)
-        e = rng.poisson(mean_e).astype(np.float64)
+        if pattern is None and self.has_fixed_pattern:
+            pattern = self.fixed_pattern(mean_e.shape)
+        if pattern is not None:
+            require(pattern.shape == mean_e.shape, f"sensor: fixed pattern {pattern.shape} does not match the "
+                    f"image {mean_e.shape}")
+        lam = mean_e if pattern is None else pattern.electron_mean(mean_e, self.hot_pixel_current_e_s * self.exposure_s)
+        e = rng.poisson(lam).astype(np.float64)
         saturated = e >= self.full_well_e
         e = np.minimum(e, self.full_well_e)
+        if pattern is not None and pattern.offset_e is not None:
+            e += pattern.offset_e
         e += rng.normal(0.0, self.dark_noise_e, size=e.shape) if self.dark_noise_e > 0 else 0.0
         y = np.rint(self.gain_dn_per_e * e + self.dark_offset_dn)
         saturated |= y >= self.max_dn
-        return np.clip(y, 0, self.max_dn).astype(np.uint16), saturated
+        dn = np.clip(y, 0, self.max_dn).astype(np.uint16)
+        if pattern is not None and pattern.dead is not None:
+            dn[pattern.dead] = np.clip(np.rint(self.dark_offset_dn), 0, self.max_dn)
+            saturated[pattern.dead] = False
+        return dn, saturated
 
     def expose(self, radiance: np.ndarray, f_number: float, pitch_um: float, rng: np.random.Generator) -> np.ndarray:
         """Radiance image -> digital numbers (uint16)."""
@@ -155,6 +230,18 @@ SENSOR_KEYS = [
         "(full scale - black) through the sRGB curve in an 8-bit PNG; jpeg = srgb8 through a JPEG encoder "
         "(decoded pixels in an 8-bit PNG)", choices=OUTPUTS),
     Key("jpeg_quality", "int", _D.jpeg_quality, "", "JPEG quality (libjpeg scale) for output = jpeg", 1, 100),
+    Key("dsnu_e", "float", _D.dsnu_e, "e-", "DSNU (EMVA 1288): SD over pixels of the fixed dark-signal offset, "
+        "added in electrons after the full well; fixed per fpn_seed", 0.0, 1e4),
+    Key("prnu_pct", "float", _D.prnu_pct, "%", "PRNU (EMVA 1288): SD over pixels of the relative photo-response "
+        "(gain on the photo-electrons, before shot noise), in % of its mean; fixed per fpn_seed", 0.0, PRNU_MAX_PCT),
+    Key("hot_pixel_fraction", "float", _D.hot_pixel_fraction, "", "fraction of hot pixels (extra dark current "
+        "hot_pixel_current_e_s); positions fixed per fpn_seed, listed in the ground truth", 0.0, DEFECT_MAX_FRACTION),
+    Key("hot_pixel_current_e_s", "float", _D.hot_pixel_current_e_s, "e-/s", "dark current of a hot pixel "
+        "(Poisson, clipped by the full well; times exposure_s)", 0.0, 1e9),
+    Key("dead_pixel_fraction", "float", _D.dead_pixel_fraction, "", "fraction of dead pixels (read the black "
+        "level, no noise); positions fixed per fpn_seed, listed in the ground truth", 0.0, DEFECT_MAX_FRACTION),
+    Key("fpn_seed", "int", _D.fpn_seed, "", "camera seed of the fixed-pattern noise (DSNU, PRNU, hot and dead "
+        "pixels): the same pattern in every image of the camera, whatever the image seed", 0, FPN_SEED_MAX),
 ]
 assert [k.name for k in SENSOR_KEYS] == [f.name for f in fields(SensorModel)]
 
@@ -167,3 +254,113 @@ def sensor_from_dict(d: dict, base: SensorModel | None = None, where: str = "sen
 def make_rng(seed: int, stream: int) -> np.random.Generator:
     """An independent, reproducible generator per (image seed, purpose)."""
     return np.random.Generator(np.random.PCG64([int(seed), int(stream)]))
+
+
+# --- fixed-pattern noise ------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class FixedPattern:
+    """A camera's fixed pattern over one image: read-only maps, None where that part is off."""
+
+    shape: tuple[int, int]
+    gain: np.ndarray | None  # 1 + PRNU map (relative photo-response, mean 1 over the frame)
+    offset_e: np.ndarray | None  # DSNU map, e- (mean 0 over the frame)
+    hot: np.ndarray | None  # bool masks
+    dead: np.ndarray | None
+    fpn_seed: int = 0
+    origin: tuple[int, int] = (0, 0)  # (x0, y0) of this image in the camera's frame
+
+    def window(self, x0: int, y0: int, width: int, height: int) -> "FixedPattern":
+        """The pattern of the (x0, y0, width, height) window of this frame."""
+        h, w = self.shape
+        require(0 <= x0 and 0 <= y0 and width > 0 and height > 0 and x0 + width <= w and y0 + height <= h,
+                f"sensor: window {(x0, y0, width, height)} outside the {w}x{h} frame")
+        cut = (slice(y0, y0 + height), slice(x0, x0 + width))
+        return replace(self, shape=(int(height), int(width)), origin=(self.origin[0] + x0, self.origin[1] + y0),
+                       **{k: None if getattr(self, k) is None else getattr(self, k)[cut]
+                          for k in ("gain", "offset_e", "hot", "dead")})
+
+    def electron_mean(self, mean_e: np.ndarray, hot_e: float) -> np.ndarray:
+        """Poisson mean per pixel: μe · g, plus the hot pixels' dark electrons ``hot_e``."""
+        lam = mean_e if self.gain is None else mean_e * self.gain
+        if self.hot is not None and hot_e > 0:
+            lam = lam + hot_e * self.hot
+        return lam
+
+    @property
+    def defects(self) -> np.ndarray | None:
+        """Hot or dead (bool mask), None without either."""
+        if self.hot is None and self.dead is None:
+            return None
+        return (self.hot if self.hot is not None else False) | (self.dead if self.dead is not None else False)
+
+    def truth(self, sensor: SensorModel) -> dict:
+        """What the ground truth states: the pattern's values over this image and the defect positions."""
+        def xy(mask):
+            if mask is None:
+                return []
+            r, c = np.nonzero(mask)
+            return [[int(a), int(b)] for a, b in zip(c, r)]
+
+        def sd(a):
+            return float(np.std(a, ddof=1)) if a is not None and a.size > 1 else 0.0
+
+        hot, dead = xy(self.hot), xy(self.dead)
+        return {"dsnu_e": sd(self.offset_e),
+                "prnu_pct": 100.0 * sd(self.gain) / float(np.mean(self.gain)) if self.gain is not None else 0.0,
+                "fpn_seed": self.fpn_seed,
+                "origin_xy": list(self.origin),
+                "hot_pixels": {"count": len(hot), "current_e_s": sensor.hot_pixel_current_e_s, "xy": hot},
+                "dead_pixels": {"count": len(dead), "xy": dead},
+                "model": FPN_MODEL}
+
+
+FPN_MODEL = ("EMVA 1288 spatial non-uniformity, fixed per fpn_seed: e = min(Poisson(mu_e (1 + prnu z_g) + "
+             "I_hot t_exp [hot]), full well); y = K (e + dsnu z_d + N(0, sigma_d^2)) + black; dead pixels read "
+             "the black level. z_g, z_d: standard normal maps normalised to mean 0, SD 1 over the camera frame; "
+             "dsnu_e, prnu_pct here: their SD over this image's pixels; xy: [column, row] of each defect")
+
+
+def no_fixed_pattern_truth(sensor: SensorModel) -> dict:
+    """The ground-truth block of a camera without fixed-pattern noise."""
+    return {"dsnu_e": 0.0, "prnu_pct": 0.0, "fpn_seed": int(sensor.fpn_seed), "origin_xy": [0, 0],
+            "hot_pixels": {"count": 0, "current_e_s": sensor.hot_pixel_current_e_s, "xy": []},
+            "dead_pixels": {"count": 0, "xy": []}, "model": FPN_MODEL}
+
+
+def _unit_map(seed: int, stream: int, shape: tuple[int, int]) -> np.ndarray:
+    """A standard-normal map from [seed, stream], normalised to mean 0 and SD 1 (ddof 1) over its pixels."""
+    z = make_rng(seed, stream).standard_normal(shape)
+    if z.size > 1:
+        z -= z.mean()
+        z /= z.std(ddof=1)
+    return z
+
+
+def _readonly(a):
+    if a is not None:
+        a.setflags(write=False)
+    return a
+
+
+@functools.lru_cache(maxsize=4)
+def _fixed_pattern(seed: int, dsnu_e: float, prnu_pct: float, hot_fraction: float, dead_fraction: float,
+                   shape: tuple[int, int]) -> FixedPattern:
+    """A camera's fixed pattern over a frame.  Each part has its own stream, so switching one on does
+    not move another; defects: one uniform priority per pixel, the lowest ``round(hot_fraction · n)``
+    are hot, the highest ``round(dead_fraction · n)`` dead (disjoint, nested in their fraction)."""
+    gain = 1.0 + (prnu_pct / 100.0) * _unit_map(seed, PRNU_STREAM, shape) if prnu_pct else None
+    offset = dsnu_e * _unit_map(seed, DSNU_STREAM, shape) if dsnu_e else None
+    hot = dead = None
+    n = shape[0] * shape[1]
+    n_hot, n_dead = round(hot_fraction * n), round(dead_fraction * n)
+    if n_hot or n_dead:
+        priority = make_rng(seed, DEFECT_STREAM).random(n)
+        if n_hot:
+            hot = np.zeros(n, dtype=bool)
+            hot[np.argpartition(priority, n_hot - 1)[:n_hot]] = True
+            hot = hot.reshape(shape)
+        if n_dead:
+            dead = np.zeros(n, dtype=bool)
+            dead[np.argpartition(-priority, n_dead - 1)[:n_dead]] = True
+            dead = dead.reshape(shape)
+    return FixedPattern(shape, _readonly(gain), _readonly(offset), _readonly(hot), _readonly(dead), seed)
