@@ -7,6 +7,7 @@ Per target image:
 3. refine the *same* candidates with every method (``edgetruth.locate.refine``);
 4. size: square -> robust side lines, l = left/right distance (the seed's l, with fx);
    circle -> robust circle fit, l = diameter (``edgetruth.evaluate.size_extraction``);
+   rectangle (real photos, ``edgetruth.evaluate.photo_ranging``) -> as a square, l = its width;
 5. Z = fx * S / l with the calibrated fx and S = the target's physical size (13 cm).
 
 What the experimenter knows and the pipeline uses: the target's shape and physical size
@@ -62,17 +63,57 @@ class ImageResult:
     record: dict = field(default_factory=dict)  # the image's design fields (for the per-point tables)
 
 
-def size_of(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float, K=None, size_m: float | None = None) -> dict:
+#: the target shapes ranging knows: l is the side (square), the width (rectangle), the diameter (circle)
+SHAPES = ("square", "rectangle", "circle")
+
+
+def rectangle_pose_distance(corners_px, K, width_m: float, height_m: float) -> float:
+    """Z (m) of the centre of a ``width_m`` x ``height_m`` rectangle from its image corners (4, 2):
+    top-left, top-right, bottom-right, bottom-left (undistorted px); ``cv2.solvePnP`` with IPPE."""
+    import cv2
+
+    c = np.asarray(corners_px, np.float64).reshape(4, 2)
+    if not np.all(np.isfinite(c)):
+        raise InputError("rectangle pose: corners are not finite")
+    w, h = width_m / 2.0, height_m / 2.0
+    obj = np.array([[-w, h, 0.0], [w, h, 0.0], [w, -h, 0.0], [-w, -h, 0.0]])
+    ok, _, tvec = cv2.solvePnP(obj, c, np.asarray(K, np.float64), None, flags=cv2.SOLVEPNP_IPPE)
+    if not ok:
+        raise InputError("rectangle pose: solvePnP found no pose")
+    return float(tvec[2, 0])
+
+
+def size_of(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float, K=None, size_m: float | None = None,
+            height_m: float | None = None) -> dict:
     """Image size l (pixels, in fx units) of the target from refined points; with ``K`` and ``size_m``
-    also the pose-based distance ``z_pose_m`` (``edgetruth.evaluate.pose_ranging``)."""
+    also the pose-based distance ``z_pose_m`` (``edgetruth.evaluate.pose_ranging``).
+
+    A rectangle is fitted like a square; l is its width (the left/right side-line distance), so
+    ``size_m`` is its horizontal side.  With ``height_m`` its pose is PnP on the four corners, and a
+    rectangle whose measured width/height is closer to height_m/size_m than to size_m/height_m
+    (turned by 90 degrees) is refused; without it there is no pose distance."""
     from edgetruth.evaluate.pose_ranging import pose_distance
 
-    if shape == "square":
+    if shape in ("square", "rectangle"):
         fit = fit_square(x, y, nx, ny)
         out = {"size_px": fit.width_px, "size_tb_px": fit.height_px * fx / fy, "size_seed_px": fit.width_seed_px,
                "n_used": int(fit.used.sum()),
                "fit_rms_px": float(np.nanmean([ln.rms_px for ln in fit.lines.values()]))}
         pose_args = {"corners_px": fit.corners}
+        if shape == "rectangle":
+            if height_m is not None and size_m is not None:
+                seen, told = np.log(out["size_px"] / out["size_tb_px"]), np.log(size_m / height_m)
+                if abs(seen + told) < abs(seen - told):
+                    raise InputError(f"rectangle measures width/height {np.exp(seen):.2f} but size_m/height_m is "
+                                     f"{np.exp(told):.2f}: it is turned by 90 degrees; swap size_m and height_m")
+                if K is not None:
+                    try:
+                        out["z_pose_m"] = rectangle_pose_distance(fit.corners, K, size_m, height_m)
+                    except InputError:
+                        out["z_pose_m"] = float("nan")
+            else:
+                out["z_pose_m"] = float("nan")
+            return out
     else:
         fit = fit_circle(x, y, aspect=fx / fy, cy_px=cy)
         out = {"size_px": fit.diameter_px, "size_tb_px": float("nan"), "size_seed_px": float("nan"),
@@ -129,14 +170,9 @@ def design_fields(gt: dict) -> dict:
 def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[str], keep_points: bool = False,
                   name: str = "image", options: dict | None = None) -> ImageResult:
     """Run steps 1-5 on one image; ``gt`` supplies only the target's shape/size (and the scoring truth)."""
-    from edgetruth import locate
-    from edgetruth.evaluate.method_order import resolve
-    from edgetruth.evaluate.target_finding import target_candidates
-
     shape = gt["target"]["shape"]
     size_m = float(gt["target"]["size_m"])
     z_true = float(gt["true_distance_m"])
-    fx, fy, cy = cal.fx, cal.fy, cal.cy
     base = {"image": name, "spec": gt.get("spec", ""), "group": gt.get("group", ""),
             "target": gt["target"]["id"], "shape": shape, "true_distance_m": z_true,
             "interval": interval_label(100 * z_true), **design_fields(gt)}
@@ -144,9 +180,25 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
     f_true = float(gt["camera"]["fx_px"])
     base["model_floor_cm"] = 100.0 * (distance_from_size(f_true, size_m, floor_l) - z_true)
     base["pose_floor_cm"] = 100.0 * (true_pose_distance(gt) - z_true)
-    und = undistorter(image)
+    return range_undistorted(undistorter(image), undistorter.valid_mask(), shape, size_m, z_true, cal, methods, base,
+                             keep_points=keep_points, name=name, options=options, l_true_px=floor_l)
+
+
+def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m: float, cal, methods: list[str],
+                      base: dict, keep_points: bool = False, name: str = "image", options: dict | None = None,
+                      l_true_px: float = float("nan"), polarity: str = "dark",
+                      height_m: float | None = None) -> ImageResult:
+    """Steps 2-5 on an undistorted image: find the target (``polarity``: see target_finding), refine
+    its boundary with every method, size it and range it; errors against ``z_ref_m`` (the truth of a
+    render, or a photo's reference distance), size errors against ``l_true_px`` when it is known.
+    ``base``: the fields every row of this image starts from."""
+    from edgetruth import locate
+    from edgetruth.evaluate.method_order import resolve
+    from edgetruth.evaluate.target_finding import target_candidates
+
+    fx, fy, cy = cal.fx, cal.fy, cal.cy
     try:
-        tc = target_candidates(und, undistorter.valid_mask())
+        tc = target_candidates(und, valid, polarity=polarity)
     except InputError as exc:
         return ImageResult(name, [dict(base, method=m, status=f"no target: {exc}", z_hat_m=float("nan"),
                                        error_cm=float("nan"), rel_error_pct=float("nan")) for m in methods],
@@ -154,7 +206,9 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
     x0, y0 = tc.offset
     res = ImageResult(name, [], len(tc.all_candidates), len(tc.candidates),
                       {"bbox": list(tc.region.bbox), "solidity": tc.region.solidity,
-                       "shape_guess": tc.region.shape_guess, "interior_ratio": tc.region.interior_ratio},
+                       "shape_guess": tc.region.shape_guess, "interior_ratio": tc.region.interior_ratio,
+                       "polarity": tc.region.polarity, "contrast": tc.region.score,
+                       **({"contrast_by_polarity": tc.region.scores} if tc.region.scores else {})},
                       crop=(x0, y0, tc.crop.shape[1], tc.crop.shape[0]))
     if keep_points:
         res.points["_canny_all"] = (tc.all_candidates.x + x0, tc.all_candidates.y + y0)
@@ -166,11 +220,11 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
             mid, kw = resolve(m, options)
             pts = locate.refine(tc.crop, tc.candidates, mid, **kw)
             x, y = pts.x + x0, pts.y + y0
-            s = size_of(shape, x, y, pts.nx, pts.ny, fx, fy, cy, K=cal.K, size_m=size_m)
+            s = size_of(shape, x, y, pts.nx, pts.ny, fx, fy, cy, K=cal.K, size_m=size_m, height_m=height_m)
             z = distance_from_size(fx, size_m, s["size_px"])
             row.update(s, status="ok", converged_frac=float(np.mean(pts.converged)), time_s=pts.elapsed_s,
-                       z_hat_m=z, error_cm=100.0 * (z - z_true), rel_error_pct=100.0 * abs(z - z_true) / z_true,
-                       size_error_px=s["size_px"] - floor_l, error_pose_cm=100.0 * (s["z_pose_m"] - z_true))
+                       z_hat_m=z, error_cm=100.0 * (z - z_ref_m), rel_error_pct=100.0 * abs(z - z_ref_m) / z_ref_m,
+                       size_error_px=s["size_px"] - l_true_px, error_pose_cm=100.0 * (s["z_pose_m"] - z_ref_m))
             if keep_points:
                 res.points[m] = (x, y)
         except InputError as exc:

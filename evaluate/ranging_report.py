@@ -333,8 +333,18 @@ def figures(rows, methods, examples, fig_dir: Path) -> dict:
 
 # --- the report ---------------------------------------------------------------------------
 def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), header: dict | None = None,
-                 synthetic_report: str | None = None, title: str = "ranging report", points=None) -> Path:
-    """Write ``report.md`` (+ ``figures/``, ``ranging_summary.json``) and return its path."""
+                 synthetic_report: str | None = None, title: str = "ranging report", points=None,
+                 reference: str | None = None, sections=()) -> Path:
+    """Write ``report.md`` (+ ``figures/``, ``ranging_summary.json``) and return its path.
+
+    ``reference``: None for renders (errors against their exact truth).  For real photos, the words
+    naming what the errors are measured against (the reference distances of a CSV): the report then
+    says there is no render truth (no model floor, no size error l_hat - l_true, no per-point
+    tables), shows distances outside 50-300 cm in their own columns, and replaces Tables 16-17's
+    design levels by one table over the rows' own ``group`` (the CSV's).  ``sections``: Markdown
+    lines placed after the calibration (a photo set's table of photos)."""
+    from edgetruth.fileio import atomic_write_text
+
     out_dir = Path(out_dir)
     all_rows = rows
     rows = main_rows(all_rows)
@@ -353,12 +363,20 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     vs = verdicts(all_rows, methods)
     for k, v in enumerate(vs, 1):
         L.append(f"{k}. **{v['claim']}** — {v['verdict']}.  \n   Observed: {v['observed']}.")
-    floor = np.array([r["model_floor_cm"] for r in rows if r["method"] == methods[0]])
-    L += ["", "Every claim above is about *this* data (rendered, known ground truth); shapes, not digits, are "
-              "comparable with the seed.",
-          f"Ranging-model floor (true outline, true fx: the error tilt and lateral offset alone cause): mean |e| "
-          f"{_f(np.mean(np.abs(floor)))} cm, max {_f(np.max(np.abs(floor)) if floor.size else np.nan)} cm — part of "
-          "every method's error, and the same for all."]
+    floor = np.array([r.get("model_floor_cm", np.nan) for r in rows if r["method"] == methods[0]], float)
+    if reference is None:
+        L += ["", "Every claim above is about *this* data (rendered, known ground truth); shapes, not digits, are "
+                  "comparable with the seed.",
+              f"Ranging-model floor (true outline, true fx: the error tilt and lateral offset alone cause): mean |e| "
+              f"{_f(np.mean(np.abs(floor)))} cm, max {_f(np.max(np.abs(floor)) if floor.size else np.nan)} cm — part "
+              "of every method's error, and the same for all."]
+    else:
+        L += ["", f"Every claim above is about *these photos*: errors are against {reference}, whose own "
+                  "uncertainty is part of every method's error (and the same for all); shapes, not digits, are "
+                  "comparable with the seed.",
+              "No render truth: no ranging-model floor, no size error l_hat − l_true (the size columns below are "
+              "empty) and no per-point tables — those need the exact outline of a render "
+              "(`edgetruth evaluate DATASET`)."]
     if calibration is not None:
         c = calibration.to_dict()
         t = c.get("truth") or {}
@@ -376,6 +394,7 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
                      + [[k, _f(a, 5), _f(b, 5), _f(a - b, 5)] for k, a, b in
                         zip(("k1", "k2", "p1", "p2", "k3"), c["dist_coeffs_opencv"], t.get("dist_coeffs_opencv", [np.nan] * 5))]),
               "", "(k2 and k3 trade off against each other; compare the distortion *field*, not the coefficients.)"]
+    L += list(sections)
     seed_marks = {m: " ★" for m in SEED_TABLE13}
     order = sorted(methods, key=lambda m: (st[m]["rmse"] if st[m]["n"] else np.inf))
     if any(r.get("levels") for r in rows) and len(rows) != len(all_rows):
@@ -392,19 +411,25 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
                    _f(st[m]["size_rmse_px"]), _f(st[m]["size_bias_px"], 3),
                    f"{SEED_MAE_CM[m]:.2f}/{SEED_RMSE_CM[m]:.2f}" if m in SEED_MAE_CM else ""] for m in order])]
     pose_floor = np.array([r.get("pose_floor_cm", np.nan) for r in rows if r["method"] == methods[0]], float)
+    if reference is None:
+        why = ("The same refined points, the target's full pose instead of Z = fx·S/l: the tilt and off-axis floor "
+               f"of the size model (mean |e| {_f(np.mean(np.abs(floor)) if floor.size else np.nan)} cm with the true "
+               "outline) drops to the pose model's own floor (mean |e| "
+               f"{_f(np.nanmean(np.abs(pose_floor)) if pose_floor.size else np.nan, 4)} cm with the true outline), "
+               "so what remains is the edge localisation's effect on distance.")
+    else:
+        why = ("The same refined points, the target's full pose instead of Z = fx·S/l: a tilted or off-axis target "
+               "biases the size model but not the pose model (a rectangle needs height_m for its pose).")
     L += ["", "## Table 13b — pose-based ranging (cm): PnP on the fitted square corners, conic pose of the circle",
-          "",
-          "The same refined points, the target's full pose instead of Z = fx·S/l: the tilt and off-axis floor "
-          f"of the size model (mean |e| {_f(np.mean(np.abs(floor)) if floor.size else np.nan)} cm with the true "
-          "outline) drops to the pose model's own floor (mean |e| "
-          f"{_f(np.nanmean(np.abs(pose_floor)) if pose_floor.size else np.nan, 4)} cm with the true outline), "
-          "so what remains is the edge localisation's effect on distance.", "",
+          "", why, "",
           _table(["method", "n", "MAE", "RMSE", "RMSE 95 % CI", "median", "max", "size-model RMSE"],
                  [[_label(m), st[m]["pose"]["n"], _f(st[m]["pose"]["mae"]), _f(st[m]["pose"]["rmse"]),
                    _ci(st[m]["pose"]["rmse_ci"]), _f(st[m]["pose"]["median"]), _f(st[m]["pose"]["max"]),
                    _f(st[m]["rmse"])]
                   for m in sorted(methods, key=lambda m: st[m]["pose"]["rmse"] if st[m]["pose"]["n"] else np.inf)])]
     labels = [f"{a}-{b}" for a, b in INTERVALS_CM]
+    if reference is not None:  # photos may lie outside the study's 50-300 cm: show them too
+        labels = ["<50"] + labels + [">300"]
     present = [lb for lb in labels if any(r["interval"] == lb for r in rows)]
     L += ["", "## Table 14 — MAE ± SD (cm) per distance interval", "",
           _table(["method"] + [f"{lb} cm" for lb in present],
@@ -415,7 +440,10 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
                  [[_label(m)] + [_f(method_stats([r for r in per[m] if r["interval"] == lb])["mean_rel_pct"])
                                  for lb in present] for m in order])]
     rep = [m for m in SEED_ROBUSTNESS if m in methods]
-    for title, prefix in (("Table 16 — SNR groups G1–G4", "G"), ("Table 17 — targets T1–T4", "T")):
+    if reference is not None:
+        L += group_table(all_rows, methods, rep or list(methods))
+    for title, prefix in (() if reference is not None else
+                          (("Table 16 — SNR groups G1–G4", "G"), ("Table 17 — targets T1–T4", "T"))):
         g_rows = group_rows(all_rows, prefix)
         groups = sorted({r["group"] for r in g_rows})
         if not groups:
@@ -465,7 +493,44 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
           if points is not None else "",
           "- `calibration.json`" if calibration is not None else ""]
     path = out_dir / "report.md"
-    path.write_text("\n".join(L) + "\n")
-    (out_dir / "ranging_summary.json").write_text(json.dumps(
+    atomic_write_text(path, "\n".join(L) + "\n")
+    atomic_write_text(out_dir / "ranging_summary.json", json.dumps(
         {"per_method": st, "verdicts": vs}, indent=1, default=float))
     return path
+
+
+def group_table(rows, methods, shown) -> list[str]:
+    """Tables 16-17 for rows whose ``group`` is free text (a photo CSV's): the ``shown`` methods per
+    group, the lowest-RMSE method of all per group, and a Kruskal–Wallis test across the groups."""
+    from scipy.stats import kruskal
+
+    groups = sorted({str(r["group"]) for r in rows})
+    per = by_method(rows, methods)
+    body, best = [], []
+    for g in groups:
+        st = {m: method_stats([r for r in per[m] if str(r["group"]) == g]) for m in methods}
+        for m in shown:
+            s = st[m]
+            body.append([g, _label(m), s["n"], _f(s["mae"]), _f(s["rmse"]), _f(s["sd"]), _f(s["median"]),
+                         _f(s["iqr"]), _f(s["max"]), _f(s["mean_rel_pct"]), _f(s["pose"]["rmse"])])
+        ok = [m for m in methods if st[m]["n"]]
+        if ok:
+            m = min(ok, key=lambda m: st[m]["rmse"])
+            best.append(f"{g}: {_label(m)} {_f(st[m]['rmse'])} cm (n = {st[m]['n']})")
+    L = ["", "## Tables 16–17 — per group (cm; the rows' own `group`, representative methods as in the seed)", "",
+         "pose RMSE: the pose model's ranging RMSE (cm).", "",
+         _table(["group", "method", "n", "MAE", "RMSE", "SD", "median", "IQR", "max", "mean rel. err (%)",
+                 "pose RMSE"], body),
+         "", "Lowest RMSE of all methods per group: " + ("; ".join(best) or "—") + "."]
+    if len(groups) >= 2:
+        L += ["", "Across the groups (unpaired: each group holds its own photos), Kruskal–Wallis on |e|: "]
+        for m in shown:
+            vals = [np.abs([r["error_cm"] for r in _ok(per[m]) if str(r["group"]) == g]) for g in groups]
+            n = min(v.size for v in vals)
+            try:
+                p = float(kruskal(*vals).pvalue) if n >= 2 else float("nan")
+            except ValueError:  # every |e| identical
+                p = float("nan")
+            L.append(f"- {_label(m)}: p = {_f(p, 3)} (n ≥ {n} per group)" if n >= 2 else
+                     f"- {_label(m)}: not tested (a group has {n} valid photos)")
+    return L

@@ -23,6 +23,24 @@ Nothing here reads the ground truth: the target is found from the image alone.
    ``boundary_tol_px`` of the mask boundary *and* its gradient normal points
    outwards (from the dark target to the bright board).  Highlight edges inside
    T4 and the board's texture fail one of the two tests.
+
+**Polarity** (``polarity=``): ``dark`` (the default, what every render holds) is the above.
+``light`` finds a light target on a darker background (a white sheet on a wall): the
+background level is a grey *opening* (min then max) instead of the closing, so the light
+target disappears from it, and the steps above run on ``q = 2 - image / background``, which
+is ~1 on the background and falls below 1 on the target exactly as the dark ratio does (a
+sheet 3x as bright as the wall has q = -1); the ladder then asks for a target at least
+45 / 35 / 25 % brighter than its surroundings, the mid-level threshold is the intensity
+midpoint between the two, and a kept candidate's normal (dark -> bright) points *into* the
+target.  ``auto`` runs both and keeps the region with the larger *local contrast*
+(``TargetRegion.score``): the Michelson contrast (o - i) / (o + i) of the median levels inside
+it (i, from 3 px inside its boundary) and in a band around it (o, 3-8 px outside), sign
+flipped for a light target, so a region that is not darker (lighter) than its own
+surroundings scores <= 0.  The wrong polarity can only find the smoothed background's halo
+next to the true target (a strip of board beside it, or a ring whose filled interior is the
+target itself), which has little or the wrong-signed contrast.  A photo in which the board
+carrying a dark target is itself a compact light region fully in view (a small white card on
+a dark wall) holds two real candidates: pass the polarity explicitly there.
 """
 from __future__ import annotations
 
@@ -39,6 +57,11 @@ DARK_RATIO = 0.55
 DARK_RATIO_LADDER = (DARK_RATIO, 0.65, 0.75)
 MIN_AREA_PX = 64
 MIN_SOLIDITY = 0.85
+#: ``find_target``'s polarity choices: a dark target on a light board, a light one on a darker
+#: background, or whichever of the two is found with the larger contrast
+POLARITIES = ("dark", "light", "auto")
+#: longer / shorter side of the outline's min-area rectangle above which a quadrilateral is a rectangle
+RECTANGLE_ASPECT = 1.2
 
 
 @dataclass
@@ -50,7 +73,10 @@ class TargetRegion:
     solidity: float
     interior_ratio: float  # interior level / board level
     threshold_ratio: float
-    shape_guess: str  # "square" or "circle" from the outline (a check against the declared shape)
+    shape_guess: str  # "square", "rectangle" or "circle" from the outline (a check against the declared shape)
+    polarity: str = "dark"  # "dark" target on a light board or "light" target on a darker background
+    score: float = float("nan")  # local contrast against the surroundings, > 0 (auto keeps the larger)
+    scores: dict | None = None  # auto polarity: the score of each polarity tried (nan: nothing found)
 
     def crop_box(self, shape, margin_px: int) -> tuple[int, int, int, int]:
         """(x0, y0, x1, y1) exclusive, the bbox grown by ``margin_px`` and clipped to the image."""
@@ -70,6 +96,21 @@ def board_level(image: np.ndarray, factor: int = 4) -> np.ndarray:
     closed = cv2.morphologyEx(small, cv2.MORPH_CLOSE, ker, borderType=cv2.BORDER_REPLICATE)
     closed = cv2.GaussianBlur(closed, (0, 0), 2.0)
     return cv2.resize(closed, (w, h), interpolation=cv2.INTER_LINEAR).astype(np.float64)
+
+
+def background_level(image: np.ndarray, polarity: str = "dark", factor: int = 4) -> np.ndarray:
+    """The level around the target: ``board_level`` (a grey closing) for a dark target, the same
+    with a grey opening (min then max) for a light one, so that the target vanishes from it."""
+    if polarity == "dark":
+        return board_level(image, factor)
+    img = np.asarray(image, np.float32)
+    h, w = img.shape
+    small = cv2.resize(img, (max(1, w // factor), max(1, h // factor)), interpolation=cv2.INTER_AREA)
+    k = max(3, int(min(h, w) / 2 / factor) | 1)
+    ker = cv2.getStructuringElement(cv2.MORPH_RECT, (k, k))
+    opened = cv2.morphologyEx(small, cv2.MORPH_OPEN, ker, borderType=cv2.BORDER_REPLICATE)
+    opened = cv2.GaussianBlur(opened, (0, 0), 2.0)
+    return cv2.resize(opened, (w, h), interpolation=cv2.INTER_LINEAR).astype(np.float64)
 
 
 def _fill_holes(mask: np.ndarray) -> np.ndarray:
@@ -109,8 +150,33 @@ def _best_component(dark, valid):
     return best
 
 
+def local_contrast(image: np.ndarray, mask: np.ndarray, polarity: str, valid: np.ndarray | None = None) -> float:
+    """Michelson contrast (o - i) / (|o| + |i|) of the median level i inside ``mask`` (3 px in from its
+    boundary) against the median o of the band 3-8 px outside it; negated for a light target."""
+    ys, xs = np.nonzero(mask)
+    if ys.size == 0:
+        return float("nan")
+    h, w = mask.shape
+    y0, y1, x0, x1 = max(0, ys.min() - 10), min(h, ys.max() + 11), max(0, xs.min() - 10), min(w, xs.max() + 11)
+    m = mask[y0:y1, x0:x1].astype(np.uint8)
+    k = np.ones((3, 3), np.uint8)
+    inner = cv2.erode(m, k, iterations=3).astype(bool)
+    if inner.sum() < 10:
+        inner = m.astype(bool)
+    band = cv2.dilate(m, k, iterations=8).astype(bool) & ~cv2.dilate(m, k, iterations=3).astype(bool)
+    if valid is not None:
+        band &= valid[y0:y1, x0:x1]
+    if not band.any():
+        return float("nan")
+    img = np.asarray(image, np.float64)[y0:y1, x0:x1]
+    i, o = float(np.median(img[inner])), float(np.median(img[band]))
+    c = (o - i) / max(abs(o) + abs(i), 1e-12)
+    return c if polarity == "dark" else -c
+
+
 def _shape_guess(mask: np.ndarray) -> str:
-    """'square' if the outline is closer to its min-area rectangle than to its min enclosing circle."""
+    """'square' if the outline is closer to its min-area rectangle than to its min enclosing circle
+    ('rectangle' when that rectangle's sides differ by more than ``RECTANGLE_ASPECT``), else 'circle'."""
     cnts, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     c = max(cnts, key=cv2.contourArea)
     area = float(mask.sum())
@@ -118,14 +184,41 @@ def _shape_guess(mask: np.ndarray) -> str:
     (_, _), r = cv2.minEnclosingCircle(c)
     rect_fill = area / max(rw * rh, 1.0)
     circ_fill = area / max(np.pi * r * r, 1.0)
-    return "square" if rect_fill > circ_fill else "circle"
+    if rect_fill <= circ_fill:
+        return "circle"
+    return "rectangle" if max(rw, rh) > RECTANGLE_ASPECT * max(min(rw, rh), 1.0) else "square"
 
 
-def find_target(image: np.ndarray, valid: np.ndarray | None = None) -> TargetRegion:
-    """The dark target on the bright board (see the module docstring)."""
+def find_target(image: np.ndarray, valid: np.ndarray | None = None, polarity: str = "dark") -> TargetRegion:
+    """The target: dark on a bright board (default), light on a darker background, or ``auto``
+    (the polarity found with the larger contrast; see the module docstring)."""
+    if polarity not in POLARITIES:
+        raise InputError(f"target finding: polarity {polarity!r}; choose one of {', '.join(POLARITIES)}")
     img = np.asarray(image, np.float64)
-    bg = board_level(img)
+    if polarity != "auto":
+        return _find(img, valid, polarity)
+    found, scores = {}, {}
+    for pol in ("dark", "light"):
+        try:
+            found[pol] = _find(img, valid, pol)
+            scores[pol] = found[pol].score
+        except InputError:
+            scores[pol] = float("nan")
+    if not found:
+        raise InputError("target finding: no compact dark or light region away from the image border; "
+                         "is the target in view and in contrast with its background?")
+    best = max(found.values(), key=lambda r: r.score if np.isfinite(r.score) else -np.inf)
+    best.scores = scores
+    return best
+
+
+def _find(img: np.ndarray, valid: np.ndarray | None, polarity: str) -> TargetRegion:
+    """``find_target`` for one polarity.  A light target runs the dark target's steps on
+    q = 2 - image / background (~1 on the background, < 1 on the target, linear in intensity)."""
+    bg = background_level(img, polarity)
     ratio = img / np.maximum(bg, 1e-9 + 1e-6 * float(bg.max()))
+    if polarity == "light":
+        ratio = 2.0 - ratio
     open_k = np.ones((3, 3), np.uint8)
     for dark_ratio in DARK_RATIO_LADDER:
         dark = cv2.morphologyEx((ratio < dark_ratio).astype(np.uint8), cv2.MORPH_OPEN, open_k).astype(bool)
@@ -133,6 +226,9 @@ def find_target(image: np.ndarray, valid: np.ndarray | None = None) -> TargetReg
         if best is not None:
             break
     if best is None:
+        if polarity == "light":
+            raise InputError("target finding: no compact light region away from the image border; "
+                             "is the target in view and brighter than its background?")
         raise InputError("target finding: no compact dark region away from the image border; "
                          "is the target in view and darker than the board?")
     k, m, (x0, y0, bw, bh), solidity = best
@@ -157,8 +253,11 @@ def find_target(image: np.ndarray, valid: np.ndarray | None = None) -> TargetReg
     else:
         thr = dark_ratio
     yy, xx = np.nonzero(full)
+    if polarity == "light":  # back from q to the intensity ratio image / background
+        interior, thr = 2.0 - interior, 2.0 - thr
     return TargetRegion(full, (x0, y0, bw, bh), (float(xx.mean()), float(yy.mean())), float(full.sum()),
-                        float(solidity), interior, float(thr), _shape_guess(full[y0:y0 + bh, x0:x0 + bw]))
+                        float(solidity), interior, float(thr), _shape_guess(full[y0:y0 + bh, x0:x0 + bw]),
+                        polarity, local_contrast(img, full, polarity, valid))
 
 
 def boundary_distance(mask: np.ndarray) -> np.ndarray:
@@ -179,12 +278,13 @@ class TargetCandidates:
 
 
 def target_candidates(image: np.ndarray, valid: np.ndarray | None = None, margin_px: int = 12,
-                      boundary_tol_px: float = 2.0, sigma_px: float = 1.0) -> TargetCandidates:
-    """Find the target, crop around it, run Canny there and keep the candidates on its boundary."""
+                      boundary_tol_px: float = 2.0, sigma_px: float = 1.0, polarity: str = "dark") -> TargetCandidates:
+    """Find the target, crop around it, run Canny there and keep the candidates on its boundary
+    (their dark -> bright normal points out of a dark target, into a light one)."""
     from edgetruth import locate
 
     img = np.asarray(image, np.float64)
-    region = find_target(img, valid)
+    region = find_target(img, valid, polarity)
     x0, y0, x1, y1 = region.crop_box(img.shape, margin_px)
     crop = np.ascontiguousarray(img[y0:y1, x0:x1])
     cand = locate.candidates(crop, sigma_px=sigma_px)
@@ -192,8 +292,8 @@ def target_candidates(image: np.ndarray, valid: np.ndarray | None = None, margin
     xi, yi = cand.x.astype(np.intp), cand.y.astype(np.intp)
     near = dist[yi, xi] <= boundary_tol_px
     cx, cy = region.centroid[0] - x0, region.centroid[1] - y0
-    outward = cand.nx * (cand.x - cx) + cand.ny * (cand.y - cy) > 0
-    keep = near & outward
+    out = cand.nx * (cand.x - cx) + cand.ny * (cand.y - cy)
+    keep = near & ((out > 0) if region.polarity == "dark" else (out < 0))
     if keep.sum() < 8:
         raise InputError(f"target finding: only {int(keep.sum())} Canny candidates on the target boundary")
     return TargetCandidates(region, crop, (x0, y0), cand, cand.subset(keep), keep)

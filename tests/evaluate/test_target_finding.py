@@ -72,3 +72,56 @@ def test_a_glossy_sheen_still_finds_the_whole_target(sheen):
     reg = find_target(img)
     assert reg.centroid == pytest.approx((cx, cy), abs=1.0)
     assert reg.area_px == pytest.approx((2 * half) ** 2, rel=0.05)
+
+
+@pytest.mark.parametrize("shape", ["square", "circle"])
+def test_a_light_target_on_a_darker_background(shape):
+    """A sheet 3x as bright as the wall (shading, an unlit border strip, noise): polarity 'light' finds it
+    and keeps the candidates whose dark -> bright normal points into it; 'auto' picks 'light'."""
+    img, (cx, cy, half) = scene(shape, gray=3.0)
+    try:  # the default polarity (dark) finds at most the background estimate's halo around the sheet
+        assert not find_target(img).score > 0.1
+    except InputError:
+        pass
+    for polarity in ("light", "auto"):
+        reg = find_target(img, polarity=polarity)
+        assert reg.polarity == "light" and reg.shape_guess == shape
+        assert reg.centroid == pytest.approx((cx, cy), abs=1.0)
+        assert reg.interior_ratio == pytest.approx(3.0, rel=0.1)
+        assert reg.score == pytest.approx(0.5, abs=0.03)  # (3 - 1) / (3 + 1)
+    assert find_target(img, polarity="auto").scores["light"] > 0.45
+    tc = target_candidates(img, polarity="auto")
+    x, y = tc.candidates.x + tc.offset[0], tc.candidates.y + tc.offset[1]
+    if shape == "square":
+        d = np.maximum(np.abs(x - cx), np.abs(y - cy)) - half
+    else:
+        d = np.hypot(x - cx, y - cy) - half
+    assert np.all(np.abs(d) <= 1.5)
+    assert np.all(tc.candidates.nx * (x - cx) + tc.candidates.ny * (y - cy) < 0)  # normals point inwards
+    assert len(tc.candidates) > 0.8 * (8 * half if shape == "square" else 2 * np.pi * half)
+
+
+@pytest.mark.parametrize("gray", [0.05, 0.3])
+def test_auto_keeps_a_dark_target_dark(gray):
+    """The light polarity can only find the background estimate's halo beside a dark target: its local
+    contrast is about zero or negative, the dark target's (1 - g) / (1 + g)."""
+    img, (cx, cy, _) = scene("square", gray=gray)
+    reg = find_target(img, polarity="auto")
+    assert reg.polarity == "dark" and reg.centroid == pytest.approx((cx, cy), abs=1.0)
+    assert reg.score == pytest.approx((1 - gray) / (1 + gray), abs=0.03)
+    assert not reg.scores["light"] > 0.1
+    assert find_target(img).bbox == reg.bbox  # the same region as the dark polarity's
+
+
+def test_a_rectangle_is_guessed_as_one():
+    h, w, ss = 240, 320, 4
+    yy, xx = (np.mgrid[0:h * ss, 0:w * ss] + 0.5) / ss - 0.5
+    inside = (np.abs(xx - 160.3) <= 60.0) & (np.abs(yy - 118.7) <= 40.0)
+    img = np.where(inside, 0.05, 1.0).reshape(h, ss, w, ss).mean(axis=(1, 3)) * 3000.0
+    assert find_target(img).shape_guess == "rectangle"
+
+
+def test_an_unknown_polarity_is_an_input_error():
+    img, _ = scene("square")
+    with pytest.raises(InputError, match="polarity"):
+        find_target(img, polarity="grey")

@@ -1,9 +1,14 @@
-"""``edgetruth evaluate DATASET...``: the ranging and edge-level evaluation of rendered datasets.
+"""``edgetruth evaluate DATASET...``: the ranging and edge-level evaluation of rendered datasets;
+``edgetruth evaluate --photos DIR --distances FILE.csv --calibration FILE|DIR``: ranging on real photos.
 
 For datasets rendered with your own specs (``edgetruth render MYSPEC.toml -o DIR``):
 every target image is undistorted with the calibration, its target found, its boundary
 refined by every method and ranged (Z = fx S / l); the report compares each with the
-exact ground truth, as ``edgetruth run`` does for the shipped study.
+exact ground truth, as ``edgetruth run`` does for the shipped study.  For real photos
+(--photos), a CSV gives each photo's reference distance, target shape, size, group and
+polarity (docs/formats.md, "Distances CSV for real photos"): the same chain and the same
+ranging tables, paired tests and verdicts against those distances (no per-point tables:
+a photo has no exact outline).
 """
 from __future__ import annotations
 
@@ -12,15 +17,20 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    from edgetruth.cli import add_backend_options, add_plugin_option, add_progress_option
+    from edgetruth.cli import add_backend_options, add_image_options, add_plugin_option, add_progress_option
 
     p = sub.add_parser("evaluate", help="rank every method on datasets you rendered (ranging + edge error report)",
                        description=__doc__.split("\n\n")[1], formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("datasets", nargs="+", metavar="DATASET", type=Path,
-                   help="dataset directories (the -o of `edgetruth render`)")
+    p.add_argument("datasets", nargs="*", metavar="DATASET", type=Path,
+                   help="dataset directories (the -o of `edgetruth render`); or none, with --photos")
+    p.add_argument("--photos", metavar="DIR", type=Path, default=None,
+                   help="real photos instead of datasets: the folder holding them (with --distances and --calibration)")
+    p.add_argument("--distances", metavar="FILE.csv", type=Path, default=None,
+                   help="with --photos: one row per photo: image, distance_cm, size_m, shape, group[, height_m, "
+                        "polarity] (docs/formats.md)")
     p.add_argument("--calibration", metavar="FILE|DIR", default=None,
-                   help="calibration.json of an earlier run, or a dataset of checkerboard renders to calibrate from "
-                        "(default: the checkerboards among the DATASETs)")
+                   help="calibration.json (of a run or `edgetruth calibrate`), or a dataset of checkerboard renders "
+                        "to calibrate from (default: the checkerboards among the DATASETs; required with --photos)")
     p.add_argument("--methods", default=None, help="comma-separated method ids (default: all, plug-ins included)")
     p.add_argument("--thresholds", default=None, metavar="FILE",
                    help="entropy thresholds for the dynamic methods (default: the shipped ones)")
@@ -30,6 +40,7 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", metavar="DIR", type=Path, default=None,
                    help="report directory (default ./runs/<UTC stamp>-evaluate)")
     add_backend_options(p, "worker processes (default: the cores)")
+    add_image_options(p)
     add_plugin_option(p)
     add_progress_option(p)
     p.set_defaults(handler=run)
@@ -52,6 +63,11 @@ def run(args: argparse.Namespace) -> int:
     mo.thresholds_in_use(args.thresholds)
     if args.camera_thresholds is not None:
         mo.thresholds_in_use(args.camera_thresholds)
+    if args.photos is not None or args.distances is not None:
+        return run_photos(args, methods)
+    if not args.datasets:
+        raise InputError("no input: give DATASET... (rendered datasets), or --photos DIR --distances FILE.csv "
+                         "--calibration FILE|DIR (real photos)")
     sets = [open_dataset(d) for d in args.datasets]  # each must be a dataset
     if not any(ds.targets() for ds in sets):
         raise InputError(f"{' '.join(map(str, args.datasets))}: no target images to evaluate; render a spec with "
@@ -87,5 +103,54 @@ def run(args: argparse.Namespace) -> int:
                                progress=not args.no_progress, backend=args.backend,
                                workers=args.workers or default_workers(), address=args.address, header=header,
                                camera_thresholds=args.camera_thresholds)
+    console.say(f"evaluate: report {report}")
+    return 0
+
+
+def run_photos(args: argparse.Namespace, methods) -> int:
+    """``--photos DIR --distances FILE.csv --calibration FILE|DIR``: every check before anything is written."""
+    from edgetruth import console
+    from edgetruth.backends import default_workers
+    from edgetruth.errors import InputError
+    from edgetruth.evaluate.calibration import load_calibration
+    from edgetruth.evaluate.photo_ranging import check_photos, evaluate_photos, read_distances, unlisted_photos
+    from edgetruth.evaluate.pipeline import check_run_dir, prepare_run_dir, utc_stamp
+    from edgetruth.fileio import check_input_file, write_json
+    from edgetruth.resources import default_runs_dir
+
+    if args.datasets:
+        raise InputError(f"{args.datasets[0]}: give either DATASET... (renders) or --photos DIR (real photos), not both")
+    if args.photos is None:
+        raise InputError("--distances needs --photos DIR (the folder holding the photos)")
+    if args.distances is None:
+        raise InputError("--photos needs --distances FILE.csv (one row per photo; docs/formats.md, "
+                         "\"Distances CSV for real photos\")")
+    if args.calibration is None:
+        raise InputError("--photos needs --calibration FILE|DIR (a calibration.json of this camera, or a dataset "
+                         "of checkerboard renders)")
+    if not args.photos.is_dir():
+        raise InputError(f"--photos {args.photos}: not a directory; pass the folder that holds the photos")
+    records = read_distances(args.distances, args.photos)
+    cal_path = Path(args.calibration)
+    if not cal_path.is_dir():
+        check_input_file(cal_path, "calibration JSON")
+    out = check_run_dir(args.output or default_runs_dir() / f"{utc_stamp()}-evaluate", "evaluate")
+    cal = load_calibration(cal_path, progress=not args.no_progress)
+    check_photos(records, cal.image_size, args.distances, channel=args.channel, progress=not args.no_progress)
+    extra = unlisted_photos(records, args.photos)
+    out = prepare_run_dir(out, "evaluate", {"photos": str(args.photos), "distances": str(args.distances),
+                                            "calibration": str(args.calibration), "methods": methods,
+                                            "channel": args.channel, "thresholds": args.thresholds,
+                                            "camera_thresholds": args.camera_thresholds})
+    write_json(out / "calibration.json", cal.to_dict())
+    header = {"photos": f"{args.photos} ({len(records)} in {args.distances.name}"
+                        + (f"; {len(extra)} more image files there are not in the CSV and were not evaluated"
+                           if extra else "") + ")",
+              "distances": str(args.distances), "calibration": str(args.calibration),
+              "gray from colour": args.channel, "UTC": utc_stamp()}
+    report = evaluate_photos(records, cal, out, args.photos, methods=methods, thresholds=args.thresholds,
+                             camera_thresholds=args.camera_thresholds, channel=args.channel,
+                             progress=not args.no_progress, backend=args.backend,
+                             workers=args.workers or default_workers(), address=args.address, header=header)
     console.say(f"evaluate: report {report}")
     return 0

@@ -1,0 +1,340 @@
+"""Ranging on real photos: a distances CSV, a calibration, and every method against a reference distance.
+
+``edgetruth evaluate --photos DIR --distances FILE.csv --calibration FILE|DIR``.  A photo has no
+ground-truth JSON: what the experimenter knows is written in the CSV (docs/formats.md, "Distances
+CSV for real photos"), one row per photo:
+
+``image``        the photo, relative to ``--photos DIR`` (looked up first) or to the CSV's folder, or absolute
+``distance_cm``  the reference distance: Z of the target's centre in the camera frame, i.e. along the
+                 optical axis from the camera's centre of projection (for a target square-on to the
+                 camera: the distance to the target plane) -- the quantity a render's
+                 ``true_distance_m`` holds and Z = fx·S/l estimates
+``size_m``       square side, circle diameter, rectangle width (its horizontal side in the photo)
+``height_m``     rectangles only, optional: the vertical side (for the pose and a 90-degree check)
+``shape``        square | circle | rectangle
+``group``        free text: the per-group table's grouping
+``polarity``     optional: dark (target darker than its surroundings) | light | auto (default)
+``note``         optional free text, ignored
+
+Every row is checked (and every photo decoded, its size compared with the calibration's) before
+anything is written; a bad row is one line naming the CSV's line.  Each photo is then read as the
+other commands read photos (``edgetruth.image_io.read_gray``, ``--channel``), undistorted with the
+calibration, its target found (``target_finding``, the row's polarity), its boundary refined by
+every method on the same candidates, sized and ranged (``ranging.range_undistorted``, the code the
+renders go through), and the errors e = Z_hat - distance go into the same tables, paired tests and
+verdicts as a render study's (``ranging_report.write_report``).  There is no per-point truth.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from edgetruth.errors import InputError
+from edgetruth.evaluate.ranging import SHAPES, ImageResult, interval_label
+
+REQUIRED_COLUMNS = ("image", "distance_cm", "size_m", "shape", "group")
+OPTIONAL_COLUMNS = ("height_m", "polarity", "note")
+PHOTO_POLARITIES = ("dark", "light", "auto")
+#: a physical size above this is almost surely centimetres typed into a metres column
+MAX_SIZE_M = 10.0
+#: what the errors of a photo set are measured against (the report says it)
+REFERENCE = ("the CSV's reference distances (distance_cm: Z of the target centre along the optical axis, "
+             "measured by the experimenter)")
+
+
+@dataclass(frozen=True)
+class PhotoRecord:
+    """One row of the distances CSV, checked."""
+
+    line: int  # line of the CSV (the header is line 1)
+    image: str  # as written in the CSV (the row's name in every table)
+    path: str  # the file it resolved to
+    distance_cm: float
+    size_m: float
+    shape: str
+    group: str
+    polarity: str = "auto"
+    height_m: float | None = None
+
+
+def _number(text: str, where: str, column: str, unit_hint: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise InputError(f"{where}: {column} {text!r} is not a number; give {unit_hint}") from None
+    if not math.isfinite(v) or v <= 0:
+        raise InputError(f"{where}: {column} {text!r} must be a positive finite number ({unit_hint})")
+    return v
+
+
+def _resolve(image: str, where: str, photos_dir: Path | None, csv_dir: Path) -> Path:
+    from edgetruth.fileio import check_input_file
+
+    p = Path(image)
+    if p.is_absolute():
+        tried = [p]
+    else:
+        tried = ([photos_dir / p] if photos_dir is not None else []) + [csv_dir / p]
+    for q in tried:
+        if q.exists():
+            try:
+                return check_input_file(q, "photo")
+            except InputError as exc:
+                raise InputError(f"{where}: {exc}") from None
+    raise InputError(f"{where}: image {image!r} not found (looked in {', '.join(str(q.parent) for q in tried)}); "
+                     "give a path relative to --photos DIR or to the CSV's folder")
+
+
+def read_distances(csv_path: str | Path, photos_dir: str | Path | None = None) -> list[PhotoRecord]:
+    """The checked rows of a distances CSV (see the module docstring); one-line ``InputError`` for the
+    first bad row (missing file, bad number, unknown shape or polarity, duplicate photo, ...)."""
+    from edgetruth.fileio import check_input_file
+
+    csv_path = check_input_file(csv_path, "distances CSV")
+    photos_dir = Path(photos_dir) if photos_dir is not None else None
+    if photos_dir is not None and not photos_dir.is_dir():
+        raise InputError(f"--photos {photos_dir}: not a directory; pass the folder that holds the photos")
+    try:
+        text = csv_path.read_text(encoding="utf-8-sig")
+    except (UnicodeDecodeError, OSError) as exc:
+        raise InputError(f"{csv_path}: not a readable UTF-8 text file ({type(exc).__name__}); save it as CSV") from None
+    reader = csv.DictReader(text.splitlines())
+    header = [h.strip().lower() for h in (reader.fieldnames or [])]
+    if not header:
+        raise InputError(f"{csv_path}: empty; the first line must name the columns "
+                         f"{', '.join(REQUIRED_COLUMNS)} (optional {', '.join(OPTIONAL_COLUMNS)})")
+    missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
+    dup = sorted({c for c in header if header.count(c) > 1})
+    if missing or unknown or dup:
+        what = "; ".join(x for x in (f"missing column(s) {', '.join(missing)}" if missing else "",
+                                     f"unknown column(s) {', '.join(unknown)}" if unknown else "",
+                                     f"repeated column(s) {', '.join(dup)}" if dup else "") if x)
+        raise InputError(f"{csv_path} line 1: {what}; the columns are {', '.join(REQUIRED_COLUMNS)} "
+                         f"(optional {', '.join(OPTIONAL_COLUMNS)})")
+    reader.fieldnames = header
+    out: list[PhotoRecord] = []
+    seen: dict[str, int] = {}
+    for raw in reader:
+        line = reader.line_num
+        if None in raw:
+            raise InputError(f"{csv_path} line {line}: more fields than the header's {len(header)}; "
+                             "quote a field that holds a comma")
+        row = {k: (v or "").strip() for k, v in raw.items()}
+        if not any(row.values()):
+            continue  # a blank line
+        if any(v is None for v in raw.values()):
+            raise InputError(f"{csv_path} line {line}: fewer fields than the header's {len(header)}; "
+                             "give every column (empty optional ones as ,,)")
+        image = row["image"]
+        where = f"{csv_path} line {line} ({image or 'no image'})"
+        if not image:
+            raise InputError(f"{where}: the image column is empty; name the photo")
+        shape = row["shape"].lower()
+        if shape not in SHAPES:
+            raise InputError(f"{where}: shape {row['shape']!r} is unknown; choose one of {', '.join(SHAPES)}")
+        distance_cm = _number(row["distance_cm"], where, "distance_cm", "the reference distance in cm, e.g. 150")
+        size_m = _number(row["size_m"], where, "size_m", "the target's size in metres, e.g. 0.13")
+        if size_m > MAX_SIZE_M:
+            raise InputError(f"{where}: size_m {row['size_m']} is over {MAX_SIZE_M:g} m; give metres "
+                             "(13 cm = 0.13)")
+        height_m = None
+        if row.get("height_m"):
+            if shape != "rectangle":
+                raise InputError(f"{where}: height_m is for rectangles only; leave it empty for a {shape}")
+            height_m = _number(row["height_m"], where, "height_m", "the rectangle's vertical side in metres")
+            if height_m > MAX_SIZE_M:
+                raise InputError(f"{where}: height_m {row['height_m']} is over {MAX_SIZE_M:g} m; give metres")
+        polarity = (row.get("polarity") or "auto").lower()
+        if polarity not in PHOTO_POLARITIES:
+            raise InputError(f"{where}: polarity {row['polarity']!r} is unknown; choose one of "
+                             f"{', '.join(PHOTO_POLARITIES)} (or leave it empty: auto)")
+        group = row["group"]
+        if not group:
+            raise InputError(f"{where}: the group column is empty; name the photo's group (any text)")
+        path = _resolve(image, where, photos_dir, csv_path.parent)
+        key = os.path.realpath(path)
+        if key in seen:
+            raise InputError(f"{where}: the same photo as line {seen[key]}; one row per photo")
+        seen[key] = line
+        out.append(PhotoRecord(line, image, str(path), distance_cm, size_m, shape, group, polarity, height_m))
+    if not out:
+        raise InputError(f"{csv_path}: no rows; add one row per photo under the header")
+    return out
+
+
+def check_photos(records: list[PhotoRecord], image_size: tuple[int, int], csv_path="distances CSV",
+                 channel: str = "luma", progress: bool = True) -> None:
+    """Decode every photo and check it against the calibration's image size (before anything is written)."""
+    from edgetruth import console
+    from edgetruth.image_io import read_gray
+
+    w, h = (int(v) for v in image_size)
+    for r in console.track(records, "check photos", "photo", enabled=progress):
+        where = f"{csv_path} line {r.line} ({r.image})"
+        try:
+            img = read_gray(r.path, channel=channel)
+        except InputError as exc:
+            raise InputError(f"{where}: {exc}") from None
+        if img.ndim != 2:
+            raise InputError(f"{where}: not a 2-D gray image (shape {img.shape}); save it as a gray or colour photo")
+        if (img.shape[1], img.shape[0]) != (w, h):
+            raise InputError(f"{where}: {img.shape[1]} x {img.shape[0]} px, the calibration is for {w} x {h} px; "
+                             "calibrate with photos of the same camera at the same resolution and orientation")
+        if not np.all(np.isfinite(img)):
+            raise InputError(f"{where}: holds NaN or infinite pixels; re-export the photo")
+
+
+def unlisted_photos(records: list[PhotoRecord], photos_dir: str | Path) -> list[str]:
+    """Image files directly in ``photos_dir`` that no row names (reported, not evaluated)."""
+    from edgetruth.image_io import SUFFIXES
+
+    listed = {os.path.realpath(r.path) for r in records}
+    return sorted(p.name for p in Path(photos_dir).iterdir()
+                  if p.is_file() and p.suffix.lower() in SUFFIXES and os.path.realpath(p) not in listed)
+
+
+def photo_base(r: PhotoRecord) -> dict:
+    """The fields every ``ranging_rows.csv`` row of a photo starts from (no render truth: floors NaN)."""
+    size = f"{r.size_m:g} m" if r.height_m is None else f"{r.size_m:g} x {r.height_m:g} m"
+    return {"image": r.image, "spec": "", "group": r.group, "target": f"{r.shape} {size}", "shape": r.shape,
+            "true_distance_m": r.distance_cm / 100.0, "interval": interval_label(r.distance_cm),
+            "slot": "", "levels": "", "off_base": "", "model_floor_cm": float("nan"), "pose_floor_cm": float("nan")}
+
+
+def range_photo(image: np.ndarray, record: PhotoRecord, cal, methods: list[str], keep_points: bool = False,
+                options: dict | None = None, undistorter=None) -> ImageResult:
+    """Undistort one photo (a 2-D array) with ``cal``, find its target and range it with every method."""
+    from edgetruth.evaluate.ranging import range_undistorted
+    from edgetruth.evaluate.undistort import from_calibration
+
+    und = undistorter or from_calibration(cal)
+    img = und(np.asarray(image, np.float64))
+    return range_undistorted(img, und.valid_mask(), record.shape, record.size_m, record.distance_cm / 100.0, cal,
+                             methods, photo_base(record), keep_points=keep_points, name=record.image,
+                             options=options, polarity=record.polarity, height_m=record.height_m)
+
+
+_undistorters: dict = {}
+
+
+def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options, channel):
+    """One photo (a pure function of its arguments; runs in worker processes)."""
+    from edgetruth.evaluate.undistort import from_calibration
+    from edgetruth.image_io import read_gray
+
+    key = (cal.K.tobytes(), cal.dist.tobytes(), tuple(cal.image_size))
+    if key not in _undistorters:
+        _undistorters[key] = from_calibration(cal)
+    image = read_gray(record.path, channel=channel)
+    return k, range_photo(image, record, cal, methods, keep_points, options, _undistorters[key])
+
+
+def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir: str | Path | None = None,
+                      methods: list[str] | None = None, options: dict | None = None, channel: str = "luma",
+                      progress: bool = True, backend: str = "local", workers: int | None = 1,
+                      address: str | None = None, figure_examples: int = 3) -> dict:
+    """Range every photo with every method; write ``ranging_rows.csv`` and ``ranging_images.json``.
+    Returns {"rows", "examples", "per_image", "methods"} (as ``ranging.run_ranging``)."""
+    from edgetruth import console, locate
+    from edgetruth.backends import make_backend
+    from edgetruth.evaluate.ranging import write_rows
+    from edgetruth.fileio import write_json
+    from edgetruth.locate import plugins
+
+    methods = list(methods or locate.METHODS)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    keep, shown = set(), set()
+    for k, r in enumerate(records):  # figure examples: the first photo of each shape
+        if len(keep) < figure_examples and r.shape not in shown:
+            keep.add(k)
+            shown.add(r.shape)
+    tasks = [(k, r, cal, methods, k in keep, options or {}, channel) for k, r in enumerate(records)]
+    n_workers = min(1 if workers is None else int(workers), max(1, len(tasks)))
+    init, initargs = plugins.backend_initializer(backend, n_workers, methods)
+    results: dict = {}
+    with make_backend(backend, n_workers, address, gpu=False, initializer=init, initargs=initargs) as be, \
+            console.bar(total=len(tasks), desc="photos", unit="photo", enabled=progress) as bar:
+        for k, res in be.map_unordered(_photo_task, tasks):
+            results[k] = res
+            bar.update(1)
+    dataset = os.path.relpath(Path(photos_dir) if photos_dir is not None else Path(records[0].path).parent, out_dir)
+    rows, per_image, examples = [], [], []
+    for k, rec in enumerate(records):
+        res = results[k]
+        if k in keep and not res.error:
+            examples.append(res)
+        rows += [dict(row, dataset=dataset) for row in res.rows]
+        per_image.append({"image": rec.image, "path": rec.path, "csv_line": rec.line, "group": rec.group,
+                          "shape": rec.shape, "size_m": rec.size_m, "height_m": rec.height_m,
+                          "distance_cm": rec.distance_cm, "polarity_requested": rec.polarity,
+                          "n_candidates": res.n_candidates, "n_boundary": res.n_boundary, **res.region,
+                          "methods_ok": sum(row.get("status") == "ok" for row in res.rows), "error": res.error})
+    write_rows(out_dir / "ranging_rows.csv", rows)
+    write_json(out_dir / "ranging_images.json", per_image)
+    return {"rows": rows, "examples": examples, "per_image": per_image, "methods": methods}
+
+
+def photo_section(per_image: list[dict]) -> list[str]:
+    """The report's table of photos: what each row declared and what target finding saw."""
+    from edgetruth.evaluate.report_format import num, table
+
+    body = []
+    for p in per_image:
+        pol = p.get("polarity", "—")
+        if p["polarity_requested"] == "auto" and p.get("polarity"):
+            pol = f"auto → {pol}"
+        found = p.get("shape_guess", "")
+        flag = "" if not found or found == p["shape"] else f" (looks like a {found})"
+        size = f"{p['size_m']:g}" + (f" × {p['height_m']:g}" if p.get("height_m") else "")
+        body.append([p["image"], p["group"], p["shape"] + flag, size, f"{p['distance_cm']:g}", pol,
+                     num(p.get("contrast", float("nan")), 2), p["n_boundary"], p["methods_ok"], p["error"] or "ok"])
+    n_light = sum(p.get("polarity") == "light" for p in per_image)
+    n_dark = sum(p.get("polarity") == "dark" for p in per_image)
+    n_none = len(per_image) - n_dark - n_light
+    return ["", "## Photos", "",
+            f"{len(per_image)} photos: {n_dark} dark targets, {n_light} light targets"
+            + (f", {n_none} without a target found" if n_none else "")
+            + ".  Polarity: what the CSV asked → what target finding used (auto keeps the polarity whose region "
+            "stands out more from the band around it: the contrast column, (o − i)/(o + i) of the median levels "
+            "outside and inside, sign flipped for a light target).  l is the side of a square, the "
+            "diameter of a circle and the *width* (left/right side lines) of a rectangle, with size_m its "
+            "horizontal side.  No per-point tables: a photo has no exact outline to score points against.", "",
+            table(["image", "group", "shape", "size (m)", "distance (cm)", "polarity", "contrast",
+                   "boundary candidates", "methods ranged", "target finding"], body),
+            "", "A method that did not range a photo says why in `ranging_rows.csv` (`status`)."]
+
+
+def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_dir: str | Path | None = None,
+                    methods=None, thresholds=None, camera_thresholds=None, channel: str = "luma",
+                    progress: bool = True, backend: str = "local", workers: int | None = 1,
+                    address: str | None = None, header: dict | None = None) -> Path:
+    """Range every photo of ``records`` with every method and write ``report.md`` into ``out``
+    (Tables 13-17, paired tests and verdicts against the reference distances)."""
+    from edgetruth import locate
+    from edgetruth.evaluate import method_order as mo
+    from edgetruth.evaluate.ranging_report import write_report
+
+    options = mo.study_options(thresholds, camera_thresholds)
+    tau = mo.thresholds_in_use(thresholds)
+    if camera_thresholds is not None:
+        methods = mo.ordered(list(methods or locate.METHODS) + [
+            v for v in mo.variant_labels(options) if options[v]["method"] in (methods or locate.METHODS)])
+    result = run_photo_ranging(records, calibration, out, photos_dir, methods=methods, options=options,
+                               channel=channel, progress=progress, backend=backend, workers=workers, address=address)
+    head = dict(header or {})
+    head.setdefault("photos", len(records))
+    head.setdefault("methods", len(result["methods"]))
+    head["entropy thresholds"] = f"2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']})"
+    if camera_thresholds is not None:
+        ct = mo.thresholds_in_use(camera_thresholds)
+        head["entropy thresholds for this camera (camera τ)"] = (
+            f"2P {tuple(ct['2p'])}, 4P {tuple(ct['4p'])} (from {Path(camera_thresholds).name})")
+    return write_report(out, result["rows"], result["methods"], calibration, result["examples"], head,
+                        title="photo ranging report", reference=REFERENCE, sections=photo_section(result["per_image"]))
