@@ -1,4 +1,5 @@
-"""Camera calibration by Zhang's method on rendered checkerboards (OpenCV), as a real user would.
+"""Camera calibration by Zhang's method (OpenCV) on rendered checkerboards, as a real user would,
+and on real photographs (``calibrate_photos``, the ``edgetruth calibrate`` command).
 
 Per board image: ``cv2.findChessboardCorners`` (on an 8-bit copy scaled to the
 image's own 0.5/99.5 percentiles), then ``cv2.cornerSubPix`` on the float
@@ -9,6 +10,10 @@ What the user "knows" is the printed board (pattern size and square size, read
 from the dataset's board description); the intrinsics, distortion and corner
 positions recorded in the ground truth are used *only* to report the
 calibration error next to the recovered values.
+
+The cornerSubPix window: by default (``window_px=None``) 0.4 of the smallest imaged square
+side (``subpix_window``), iterated to 1e-4 px; a fixed half-window can be asked for
+(``window_px=5`` is the 11 x 11 px window of OpenCV's own sample and regression test).
 """
 from __future__ import annotations
 
@@ -22,6 +27,16 @@ from edgetruth.errors import InputError
 
 #: cornerSubPix termination: 100 iterations or 1e-4 px.
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
+
+#: The distortion models ``calibrate_photos`` offers -> (cv2.calibrateCamera flags, description).
+#: The coefficients a model does not estimate are held at 0; ``dist_coeffs_opencv`` always has 5 terms.
+DIST_MODELS = {
+    "k1k2k3p1p2": (0, "5-term Brown-Conrady k1, k2, p1, p2, k3, OpenCV's default"),
+    "k1k2p1p2": (cv2.CALIB_FIX_K3, "4-term Brown-Conrady k1, k2, p1, p2, k3 = 0"),
+    "k1k2": (cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST, "radial k1, k2 only, p1 = p2 = k3 = 0"),
+}
+DEFAULT_DIST_MODEL = "k1k2k3p1p2"
+ZHANG_METHOD = "Zhang (cv2.calibrateCamera, 5-term Brown-Conrady), cornerSubPix corners"
 
 
 def to_uint8(image: np.ndarray) -> np.ndarray:
@@ -54,14 +69,17 @@ def subpix_window(corners: np.ndarray, pattern_size: tuple[int, int]) -> int:
     return int(np.clip(np.floor(min(dx, dy) / 2.5), 2, 30))
 
 
-def detect_corners(image: np.ndarray, pattern_size: tuple[int, int]) -> np.ndarray | None:
-    """Subpixel inner corners (N, 2) in OpenCV pixel coordinates, or None if the board is not found."""
+def detect_corners(image: np.ndarray, pattern_size: tuple[int, int], window_px: int | None = None) -> np.ndarray | None:
+    """Subpixel inner corners (N, 2) in OpenCV pixel coordinates, or None if the board is not found.
+
+    ``window_px``: cornerSubPix half-window (OpenCV's winSize; the window is 2 * window_px + 1 px
+    wide); None = ``subpix_window`` (0.4 of the smallest imaged square side)."""
     img8 = to_uint8(image)
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH + cv2.CALIB_CB_NORMALIZE_IMAGE
     found, corners = cv2.findChessboardCorners(img8, tuple(pattern_size), flags=flags)
     if not found:
         return None
-    win = subpix_window(corners.reshape(-1, 2), pattern_size)
+    win = subpix_window(corners.reshape(-1, 2), pattern_size) if window_px is None else int(window_px)
     img32 = np.asarray(image, dtype=np.float32)
     refined = cv2.cornerSubPix(img32, corners.astype(np.float32), (win, win), (-1, -1), _SUBPIX_CRITERIA)
     return refined.reshape(-1, 2).astype(np.float64)
@@ -81,6 +99,7 @@ class Calibration:
     rejected: list[str] = field(default_factory=list)
     corner_error_px: dict = field(default_factory=dict)  # detected vs true corners (check only)
     truth: dict | None = None  # true intrinsics from the ground truth (check only)
+    method: str = ZHANG_METHOD  # how it was determined, in words
 
     @property
     def fx(self) -> float:
@@ -109,7 +128,7 @@ class Calibration:
                 "dist": (self.dist - np.asarray(t["dist_coeffs_opencv"])).tolist()}
 
     def to_dict(self) -> dict:
-        return {"method": "Zhang (cv2.calibrateCamera, 5-term Brown-Conrady), cornerSubPix corners",
+        return {"method": self.method,
                 "K": self.K.tolist(), "fx_px": self.fx, "fy_px": self.fy, "cx_px": self.cx, "cy_px": self.cy,
                 "dist_coeffs_opencv": self.dist.tolist(), "image_size": list(self.image_size),
                 "reprojection_rms_px": self.rms_px, "n_views": self.n_views,
@@ -133,7 +152,7 @@ class Calibration:
                    rms_px=float(d.get("reprojection_rms_px", float("nan"))), n_views=int(d.get("n_views", 0)),
                    per_view_rms_px=list(d.get("per_view_rms_px", [])), used=list(d.get("used", [])),
                    rejected=list(d.get("rejected", [])), corner_error_px=dict(d.get("corner_detection_error_px", {})),
-                   truth=d.get("truth"))
+                   truth=d.get("truth"), method=str(d.get("method", ZHANG_METHOD)))
 
 
 def load_calibration(ref: str | Path, progress: bool = False) -> Calibration:
@@ -151,6 +170,19 @@ def _match_order(detected: np.ndarray, true_px: np.ndarray) -> np.ndarray:
     fwd = np.linalg.norm(detected - true_px, axis=1).mean()
     rev = np.linalg.norm(detected[::-1] - true_px, axis=1).mean()
     return detected if fwd <= rev else detected[::-1]
+
+
+def _solve(obj_list, img_list, size_wh: tuple[int, int], flags: int):
+    """cv2.calibrateCamera (iterated to 1e-12) -> (rms_px, K, dist (5,), per-view RMS px)."""
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj_list, img_list, tuple(size_wh), None, None, flags=flags,
+                                                     criteria=crit)
+    per_view = []
+    for o, i, r, t in zip(obj_list, img_list, rvecs, tvecs):
+        p, _ = cv2.projectPoints(o, r, t, K, dist)
+        per_view.append(float(np.sqrt(np.mean(np.sum((p.reshape(-1, 2) - i.reshape(-1, 2)) ** 2, 1)))))
+    dist = np.pad(np.asarray(dist, float).ravel(), (0, 5))[:5]
+    return float(rms), np.asarray(K, float), dist, per_view
 
 
 def calibrate(views: list[tuple[str, np.ndarray]], pattern_size: tuple[int, int], square_m: float,
@@ -182,13 +214,7 @@ def calibrate(views: list[tuple[str, np.ndarray]], pattern_size: tuple[int, int]
         raise InputError(f"calibration: the board was found in only {len(used)} of {len(views)} images "
                          f"(need >= 3); check the pattern size {tuple(pattern_size)}")
     h, w = shape
-    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
-    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj_list, img_list, (w, h), None, None, flags=flags,
-                                                     criteria=crit)
-    per_view = []
-    for o, i, r, t in zip(obj_list, img_list, rvecs, tvecs):
-        p, _ = cv2.projectPoints(o, r, t, K, dist)
-        per_view.append(float(np.sqrt(np.mean(np.sum((p.reshape(-1, 2) - i.reshape(-1, 2)) ** 2, 1)))))
+    rms, K, dist, per_view = _solve(obj_list, img_list, (w, h), flags)
     cerr = {}
     if corner_err:
         e = np.concatenate(corner_err)
@@ -218,3 +244,136 @@ def calibrate_dataset(out_dir: str | Path, names: list[str] | None = None, progr
 
     return calibrate(views, tuple(board["pattern_size"]), float(board["square_m"]), truths,
                      progress=lambda it: console.track(it, desc="calibrate", unit="board", enabled=progress))
+
+
+# --- real photographs ----------------------------------------------------------------------------------
+def parse_pattern(text: str, option: str = "--pattern") -> tuple[int, int]:
+    """``"9x6"`` -> (9, 6): inner corners per row x per column (OpenCV's patternSize)."""
+    parts = str(text).strip().lower().replace("×", "x").split("x")
+    try:
+        nx, ny = (int(v) for v in parts)
+    except ValueError:
+        nx = ny = 0
+    if len(parts) != 2 or not (2 <= nx <= 1000 and 2 <= ny <= 1000):
+        raise InputError(f"{option} {text!r}: give the board's inner corners as COLSxROWS, e.g. 9x6 "
+                         "(corners where four squares meet, each count 2..1000; a 10 x 7-square board is 9x6)")
+    return nx, ny
+
+
+def find_photos(refs) -> list[tuple[str, Path]]:
+    """[(name, path)] of the photos that ``refs`` name, in order, each file once.
+
+    A ref is an image file, a folder (every image inside, sorted by name, not recursive), a glob
+    pattern (``photos/*.jpg``: the image files it matches, sorted), or the name of a shipped real set (``opencv_left``;
+    ``edgetruth.resources.real_set``).  Names are the ref as given (a folder's or a set's files as
+    ``FOLDER/FILE``).  Raises ``InputError`` for a ref that names nothing.
+    """
+    import glob
+
+    from edgetruth.fileio import check_input_file
+    from edgetruth.image_io import SUFFIXES
+    from edgetruth.resources import real_set, shipped_real_set_names
+
+    def images_in(folder: Path, label: str) -> list[tuple[str, Path]]:
+        files = sorted(f for f in folder.iterdir() if f.suffix.lower() in SUFFIXES and f.is_file())
+        if not files:
+            raise InputError(f"{label}: no images in this folder ({', '.join(SUFFIXES)}); give photo files")
+        return [(f"{label.rstrip('/')}/{f.name}", f) for f in files]
+
+    out, seen = [], set()
+    for ref in refs:
+        ref = str(ref)
+        p = Path(ref)
+        if p.is_dir():
+            found = images_in(p, ref)
+        elif p.exists() or p.is_symlink():
+            found = [(ref, check_input_file(p, "photo"))]
+        elif any(ch in ref for ch in "*?["):
+            found = [(m, Path(m)) for m in sorted(glob.glob(ref))
+                     if Path(m).is_file() and Path(m).suffix.lower() in SUFFIXES]
+            if not found:
+                raise InputError(f"{ref}: no image file matches this pattern ({', '.join(SUFFIXES)}); check the path")
+        elif "/" not in ref and ref in shipped_real_set_names():
+            found = images_in(real_set(ref), ref)
+        else:
+            raise InputError(f"{ref}: no such photo, folder or shipped photo set (shipped: "
+                             f"{', '.join(shipped_real_set_names()) or 'none'}); check the path")
+        for name, path in found:
+            key = path.resolve()
+            if key not in seen:
+                seen.add(key)
+                out.append((name, path))
+    if not out:
+        raise InputError("no photos given; pass image files, folders, globs or a shipped set such as opencv_left")
+    return out
+
+
+@dataclass
+class PhotoResult:
+    """What became of one photo in ``calibrate_photos``."""
+
+    photo: str
+    found: bool
+    corners: int
+    rms_px: float | None = None  # its reprojection RMS under the calibration (found boards only)
+    subpix_window_px: int | None = None  # cornerSubPix half-window used
+
+    def to_dict(self) -> dict:
+        return {"photo": self.photo, "found": self.found, "corners": self.corners, "rms_px": self.rms_px,
+                "subpix_window_px": self.subpix_window_px}
+
+
+def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, int], square_m: float,
+                     model: str = DEFAULT_DIST_MODEL, window_px: int | None = None, channel: str = "luma",
+                     progress=None) -> tuple[Calibration, list[PhotoResult]]:
+    """Zhang's calibration from real photos of a chessboard: ``photos`` = [(name, path)] (``find_photos``).
+
+    Each photo is read with ``edgetruth.image_io.read_gray(path, channel)``; its corners with
+    ``detect_corners(image, pattern_size, window_px)``.  A photo where the board is not found is
+    kept in the results (``found = False``) and left out of the fit; fewer than 3 boards, or photos
+    of different sizes, raise ``InputError``.  ``square_m`` (metres) scales the board, hence the
+    poses only: K and the distortion do not depend on it.
+    """
+    from edgetruth.image_io import read_gray
+
+    if model not in DIST_MODELS:
+        raise InputError(f"model {model!r}: unknown distortion model; choose one of {', '.join(DIST_MODELS)}")
+    if not (np.isfinite(square_m) and square_m > 0):
+        raise InputError(f"square side {square_m!r} m: must be a positive number of metres")
+    if window_px is not None and int(window_px) < 1:
+        raise InputError(f"cornerSubPix window {window_px!r}: must be at least 1 px")
+    nx, ny = pattern_size
+    obj = object_points(pattern_size, square_m)
+    results: list[PhotoResult] = []
+    obj_list, img_list, size, first = [], [], None, None
+    it = photos if progress is None else progress(photos)
+    for name, path in it:
+        image = read_gray(path, channel)
+        h, w = image.shape[:2]
+        if size is None:
+            size, first = (w, h), name
+        elif (w, h) != size:
+            raise InputError(f"{name}: {w} x {h} px, but {first} is {size[0]} x {size[1]} px; calibrate photos of "
+                             "one camera at one resolution and orientation")
+        corners = detect_corners(image, pattern_size, window_px)
+        if corners is None:
+            results.append(PhotoResult(name, False, 0))
+            continue
+        win = subpix_window(corners, pattern_size) if window_px is None else int(window_px)
+        results.append(PhotoResult(name, True, len(corners), subpix_window_px=win))
+        obj_list.append(obj)
+        img_list.append(corners.astype(np.float32).reshape(-1, 1, 2))
+    used = [r.photo for r in results if r.found]
+    if len(used) < 3:
+        missing = ", ".join(r.photo for r in results if not r.found)
+        raise InputError(f"the {nx}x{ny} board was found in only {len(used)} of {len(results)} photos (need >= 3; "
+                         f"not found: {missing or 'none'}); check --pattern counts the inner corners (COLSxROWS)")
+    flags, words = DIST_MODELS[model]
+    rms, K, dist, per_view = _solve(obj_list, img_list, size, flags)
+    for r, v in zip([r for r in results if r.found], per_view):
+        r.rms_px = v
+    window = "0.4 of the smallest imaged square side" if window_px is None else f"half-window {int(window_px)} px"
+    cal = Calibration(K=K, dist=dist, image_size=size, rms_px=rms, n_views=len(used), per_view_rms_px=per_view,
+                      used=used, rejected=[r.photo for r in results if not r.found],
+                      method=f"Zhang (cv2.calibrateCamera, {words}), cornerSubPix corners ({window})")
+    return cal, results

@@ -50,7 +50,8 @@ def _make_bad_images(d: Path) -> None:
     inf = GOOD.astype(np.float32)
     inf[7, 3] = -np.inf
     _exr(d / "inf.exr", {"Y": inf})
-    _exr(d / "rgb.exr", {"R": GOOD, "G": GOOD * 0.5, "B": GOOD})
+    # colour with an alpha that is not fully opaque: what lies behind is unknown (colour itself is read by luma)
+    _exr(d / "rgba.exr", {"R": GOOD, "G": GOOD * 0.5, "B": GOOD, "A": np.where(GOOD > 0, 1.0, 0.5)})
     _exr(d / "tiny.exr", {"Y": np.zeros((2, 2))})
     (d / "trunc.exr").write_bytes(exr[: len(exr) // 2])
     np.save(d / "nan.npy", nan)
@@ -64,7 +65,7 @@ def _make_bad_images(d: Path) -> None:
     np.save(d / "object.npy", np.array([[1, None]], dtype=object), allow_pickle=True)
     np.save(d / "2x2.npy", np.zeros((2, 2)))
     (d / "bad.npy").write_bytes(b"\x93NUMPY garbage")
-    cv2.imwrite(str(d / "colour.png"), np.dstack([GOOD, GOOD // 2, GOOD]))
+    cv2.imwrite(str(d / "alpha.png"), np.dstack([GOOD, GOOD // 2, GOOD, np.where(GOOD > 0, 255, 0).astype(np.uint8)]))
     cv2.imwrite(str(d / "1x1.png"), np.zeros((1, 1), np.uint8))
     (d / "image.txt").write_text("1 2 3")
     (d / "adir").mkdir()
@@ -97,10 +98,10 @@ LOCATE_FILES = [
     ("trunc.png", "cannot be decoded"), ("garbage.png", "cannot be decoded"), ("empty.png", "cannot be decoded"),
     ("header_only.png", "cannot be decoded"), ("trunc.tif", "cannot be decoded"),
     ("garbage.exr", "EXR"), ("empty.exr", "EXR"), ("nan.exr", "NaN or Inf"), ("inf.exr", "NaN or Inf"),
-    ("rgb.exr", "colour"), ("tiny.exr", "too small"), ("nan.npy", "NaN or Inf"), ("inf.npy", "NaN or Inf"),
+    ("rgba.exr", "not fully opaque"), ("tiny.exr", "too small"), ("nan.npy", "NaN or Inf"), ("inf.npy", "NaN or Inf"),
     ("3d.npy", "2-D"), ("1d.npy", "2-D"), ("0d.npy", "2-D"), ("zero.npy", "too small"), ("str.npy", "not numeric"),
     ("complex.npy", "complex"), ("object.npy", ".npy"), ("2x2.npy", "too small"), ("bad.npy", ".npy"),
-    ("colour.png", "colour"), ("1x1.png", "too small"), ("image.txt", "cannot be decoded"),
+    ("alpha.png", "not fully opaque"), ("1x1.png", "too small"), ("image.txt", "cannot be decoded"),
     ("adir", "is a directory"), ("missing.png", "no such image"),
     ("huge.png", "60000 x 60000"), ("fifo.png", "not a regular file"),
 ]
@@ -184,7 +185,7 @@ CASES += [
     ("run-out-parent-file", ["run", "-o", "{B}/afile/run"], "is a file"),
     ("run-out-dataset", ["run", "-o", "{O}"], "not an edgetruth run directory"),
     ("run-thr-missing", ["run", "-o", "{O}/../newrun", "--thresholds", "{B}/none.json"], "does not exist"),
-    ("run-plugin-bad", ["run", "--plugin", "no_such_module_xyz", "-o", "{O}/../newrun"], "import failed"),
+    ("run-plugin-bad", ["run", "--plugin", "no_such_module_xyz", "-o", "{O}/../newrun"], "no module named"),
     ("study-out-dataset", ["study", "synthetic", "-o", "{O}"], "holds no synthetic study"),
     ("study-out-file", ["study", "synthetic", "-o", "{B}/good.png"], "is a file"),
     ("study-thr-bad", ["study", "synthetic", "-o", "{O}/../s", "--thresholds", "{B}/thr_tau.json"], "thr_tau.json"),

@@ -1,0 +1,100 @@
+"""``edgetruth calibrate PHOTOS... --pattern 9x6 --square-m 0.025 -o calibration.json``: Zhang's
+calibration of a real camera from photos of a chessboard.
+
+The JSON it writes is the ``calibration.json`` of ``edgetruth run`` (``Calibration.to_dict``), so
+``edgetruth evaluate --calibration FILE`` reads it, plus what the command was told and what became
+of each photo (docs/formats.md, *Camera calibration JSON*).  Photos where the board is not found
+are listed and left out; fewer than 3 boards is an error and nothing is written.
+"""
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub) -> None:
+    from edgetruth.cli import add_image_options, add_progress_option
+    from edgetruth.evaluate.calibration import DEFAULT_DIST_MODEL, DIST_MODELS
+
+    p = sub.add_parser("calibrate", help="calibrate a camera from photos of a chessboard (Zhang) -> JSON",
+                       description="Zhang's calibration (cv2.findChessboardCorners, cornerSubPix, calibrateCamera) "
+                                   "from real photos of a printed chessboard; writes K, the distortion "
+                                   "coefficients and the reprojection RMS, per photo whether the board was found "
+                                   "and its RMS.  The JSON is what `edgetruth evaluate --calibration FILE` reads.")
+    p.add_argument("photos", nargs="*", metavar="PHOTOS",  # none: our own one-line error, not argparse's usage
+                   help="image files, folders (every image inside, sorted), glob patterns (quoted), or the name "
+                        "of a shipped photo set (opencv_left)")
+    p.add_argument("--pattern", required=True, metavar="COLSxROWS",
+                   help="inner corners of the board, per row x per column (OpenCV's patternSize; a board of "
+                        "10 x 7 squares has 9x6)")
+    p.add_argument("--square-m", required=True, metavar="METRES",
+                   help="side of one printed square in metres (e.g. 0.025); it scales the board poses only, "
+                        "not K or the distortion")
+    p.add_argument("--model", choices=tuple(DIST_MODELS), default=DEFAULT_DIST_MODEL,
+                   help="distortion terms to estimate (the others are held at 0): "
+                        + "; ".join(f"{k}: {v[1]}" for k, v in DIST_MODELS.items())
+                        + f" (default {DEFAULT_DIST_MODEL})")
+    p.add_argument("--subpix-window", default="auto", metavar="auto|N",
+                   help="cornerSubPix half-window in px (OpenCV's winSize; the window is 2N+1 px wide): 'auto' "
+                        "(default) = 0.4 of the smallest imaged square side, per photo; 5 = the window of OpenCV's "
+                        "sample and regression test (docs/formats.md has both measured on its left01-14 photos)")
+    p.add_argument("-o", "--output", required=True, help="JSON file to write (written atomically)")
+    add_image_options(p)
+    add_progress_option(p)
+    p.set_defaults(handler=run)
+
+
+def _square_m(text: str) -> float:
+    from edgetruth.errors import InputError
+
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (v > 0 and v < 1e3):  # NaN fails too
+        raise InputError(f"--square-m {text!r}: give the side of one square in metres, a positive number "
+                         "(e.g. 0.025 for 25 mm)")
+    return v
+
+
+def _window(text: str) -> int | None:
+    from edgetruth.errors import InputError
+
+    if str(text).strip().lower() == "auto":
+        return None
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if not 1 <= n <= 100:
+        raise InputError(f"--subpix-window {text!r}: give 'auto' or a half-window of 1..100 px (5 is OpenCV's)")
+    return n
+
+
+def run(args: argparse.Namespace) -> int:
+    from edgetruth import console
+    from edgetruth.errors import InputError
+    from edgetruth.evaluate.calibration import calibrate_photos, find_photos, parse_pattern
+    from edgetruth.fileio import check_output_file, write_json
+
+    pattern = parse_pattern(args.pattern)
+    square_m = _square_m(args.square_m)
+    window = _window(args.subpix_window)
+    photos = find_photos(args.photos)
+    out = check_output_file(args.output, "-o", inputs=[path for _, path in photos])
+    cal, results = calibrate_photos(
+        photos, pattern, square_m, model=args.model, window_px=window, channel=args.channel,
+        progress=lambda it: console.track(it, desc="calibrate", unit="photo", enabled=not args.no_progress))
+    doc = cal.to_dict()
+    doc.update({"pattern_size": list(pattern), "square_m": square_m, "model": args.model,
+                "subpix_window": "auto" if window is None else window, "channel": args.channel,
+                "photos": [r.to_dict() for r in results]})
+    try:
+        write_json(out, doc)
+    except OSError as exc:
+        raise InputError(f"-o {out}: cannot write ({exc.strerror}); choose a writable location") from exc
+    missing = [r.photo for r in results if not r.found]
+    console.say(f"calibrate: board found in {cal.n_views} of {len(results)} photos"
+                + (f" (not found: {', '.join(missing)})" if missing else "")
+                + f"; RMS {cal.rms_px:.4f} px, fx {cal.fx:.2f} fy {cal.fy:.2f} cx {cal.cx:.2f} cy {cal.cy:.2f} px"
+                + f" -> {out}")
+    return 0
