@@ -39,7 +39,7 @@ def _window_throughput(variant: str, spec) -> tuple[float, float]:
     w, h = BENCH_WINDOW
     crop = ((camera.width_px - w) // 2, (camera.height_px - h) // 2, w, h)
     rig = get_rig("target", camera, settings, spec.target_size_m, crop)
-    rig.set_state(job.target, pose, job.irradiance_w_m2)
+    rig.set_state(job.target, pose, job.irradiance_w_m2, job.light_position_m)
     rig.render(1)  # warm-up (JIT compilation)
     t0 = time.perf_counter()
     rig.render(2)

@@ -1,6 +1,13 @@
 """The camera: intrinsics, thin-lens aperture, Brown–Conrady distortion, lens PSF, relative
 illumination and camera motion from a spec.
 
+Intrinsics: by default fx = fy = f / pitch and the principal point at the image centre
+(cx = W/2 − 1/2, cy = H/2 − 1/2).  A camera may state them instead (``fx_px``, ``fy_px``,
+``cx_px``, ``cy_px``: e.g. a calibrated camera's K); the focal length in millimetres then follows
+from fx (f = fx · pitch) unless given, when the two must agree.  fy ≠ fx means non-square
+pixels (``pitch_um`` is the pitch along x; the vertical pitch is pitch · fx / fy); the lens PSF
+stays isotropic in pixels (its size in µm is divided by the x pitch).  Skew is not modelled.
+
 All image coordinates are OpenCV's (see ``edgetruth.conventions``); points in
 camera space are in the OpenCV camera frame (x right, y down, z forward), metres.
 The renderer uses the same frame as its world frame, so a pose is simply where
@@ -22,11 +29,13 @@ from edgetruth.render.optics import optics_ground_truth
 from edgetruth.render.schema import Key, parse_table
 
 DEFAULT_CAMERA = "default"
+#: A stated fx and the focal length / pitch must agree to this relative tolerance.
+INTRINSICS_RTOL = 1e-6
 
 
 @dataclass(frozen=True)
 class Camera:
-    """A thin-lens camera with square pixels and a centred optical axis."""
+    """A thin-lens camera: square pixels and a centred optical axis unless its intrinsics say otherwise."""
 
     width_px: int = 1280
     height_px: int = 1024
@@ -51,6 +60,12 @@ class Camera:
     #: Camera motion during the exposure (camera frame at mid-exposure): linear and angular velocity.
     velocity_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
     angular_velocity_deg_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: Stated intrinsics (pixels, OpenCV convention); None: derived (fx = fy = f / pitch, centred).
+    #: With ``focal_x_px`` set, ``focal_length_mm`` must equal fx · pitch (``Camera.from_intrinsics``).
+    focal_x_px: float | None = None
+    focal_y_px: float | None = None
+    principal_x_px: float | None = None
+    principal_y_px: float | None = None
     name: str = field(default="custom", compare=False)
 
     def __post_init__(self) -> None:
@@ -65,6 +80,29 @@ class Camera:
                 "(sigma may not turn negative at the corner)")
         require(len(self.velocity_m_s) == 3 and len(self.angular_velocity_deg_s) == 3,
                 f"camera {self.name}: velocities need 3 components (x, y, z in the camera frame)")
+        for k in ("focal_x_px", "focal_y_px"):
+            v = getattr(self, k)
+            require(v is None or (math.isfinite(v) and v > 0), f"camera {self.name}: {k} must be positive")
+        if self.focal_x_px is not None:
+            derived = self.focal_length_m / self.pitch_m
+            require(abs(derived / self.focal_x_px - 1.0) <= INTRINSICS_RTOL,
+                    f"camera {self.name}: focal_length_mm = {self.focal_length_mm:g} and pitch_um = {self.pitch_um:g} "
+                    f"give fx = {derived:.6g} px, not fx_px = {self.focal_x_px:g}; leave focal_length_mm out (it "
+                    "follows from fx_px x pitch_um) or make the two agree")
+        for k, n in (("principal_x_px", self.width_px), ("principal_y_px", self.height_px)):
+            v = getattr(self, k)
+            require(v is None or (math.isfinite(v) and -0.5 <= v <= n - 0.5),
+                    f"camera {self.name}: {k} = {v} must lie on the image, in [-0.5, {n - 0.5}] px")
+
+    @classmethod
+    def from_intrinsics(cls, fx_px: float, fy_px: float | None = None, cx_px: float | None = None,
+                        cy_px: float | None = None, **kw) -> "Camera":
+        """A camera with stated intrinsics; its focal length (mm) follows from fx and the pitch."""
+        pitch = kw.get("pitch_um", cls.pitch_um)
+        kw.setdefault("focal_length_mm", fx_px * pitch * 1e-3)
+        return cls(focal_x_px=float(fx_px), focal_y_px=None if fy_px is None else float(fy_px),
+                   principal_x_px=None if cx_px is None else float(cx_px),
+                   principal_y_px=None if cy_px is None else float(cy_px), **kw)
 
     # --- derived quantities -------------------------------------------------
     @property
@@ -77,18 +115,31 @@ class Camera:
 
     @property
     def fx_px(self) -> float:
+        if self.focal_x_px is not None:
+            return float(self.focal_x_px)
         return focal_length_px(self.focal_length_m, self.pitch_m)
 
     @property
+    def fy_px(self) -> float:
+        return self.fx_px if self.focal_y_px is None else float(self.focal_y_px)
+
+    @property
     def principal_point_px(self) -> tuple[float, float]:
-        return principal_point_centred(self.width_px, self.height_px)
+        cx, cy = principal_point_centred(self.width_px, self.height_px)
+        return (cx if self.principal_x_px is None else float(self.principal_x_px),
+                cy if self.principal_y_px is None else float(self.principal_y_px))
+
+    @property
+    def stated_intrinsics(self) -> bool:
+        """True when any of fx, fy, cx, cy is stated rather than derived."""
+        return any(v is not None for v in (self.focal_x_px, self.focal_y_px, self.principal_x_px,
+                                           self.principal_y_px))
 
     @property
     def K(self) -> np.ndarray:
-        """3×3 intrinsic matrix, OpenCV convention."""
+        """3×3 intrinsic matrix, OpenCV convention (no skew)."""
         cx, cy = self.principal_point_px
-        f = self.fx_px
-        return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+        return np.array([[self.fx_px, 0.0, cx], [0.0, self.fy_px, cy], [0.0, 0.0, 1.0]])
 
     @property
     def dist_coeffs(self) -> np.ndarray:
@@ -114,7 +165,9 @@ class Camera:
 
     @property
     def half_diagonal_px(self) -> float:
-        """Distance from the principal point to the image corner (field height 1), pixels."""
+        """Half the image diagonal (field height 1), pixels: the distance from a centred principal point
+        to the image corner (with a stated principal point the corners' distances differ; field
+        heights stay normalised by this)."""
         return math.hypot(self.width_px / 2.0, self.height_px / 2.0)
 
     def ideal_optics(self) -> "Camera":
@@ -137,25 +190,35 @@ class Camera:
         if distorted:
             x, y = distort_normalized(x, y, self.distortion)
         cx, cy = self.principal_point_px
-        return np.stack([self.fx_px * x + cx, self.fx_px * y + cy], axis=1)
+        return np.stack([self.fx_px * x + cx, self.fy_px * y + cy], axis=1)
 
     def undistort_pixels(self, pts_px: np.ndarray) -> np.ndarray:
         """Distorted pixel coords (N, 2) -> ideal (undistorted) pixel coords with the same K."""
         p = np.asarray(pts_px, dtype=np.float64).reshape(-1, 2)
         cx, cy = self.principal_point_px
-        xu, yu = undistort_normalized((p[:, 0] - cx) / self.fx_px, (p[:, 1] - cy) / self.fx_px, self.distortion, 50)
-        return np.stack([self.fx_px * xu + cx, self.fx_px * yu + cy], axis=1)
+        xu, yu = undistort_normalized((p[:, 0] - cx) / self.fx_px, (p[:, 1] - cy) / self.fy_px, self.distortion, 50)
+        return np.stack([self.fx_px * xu + cx, self.fy_px * yu + cy], axis=1)
 
     # --- (de)serialisation ---------------------------------------------------
     def scaled(self, factor: int) -> "Camera":
         """The same optics with ``factor``× fewer pixels per side (pitch ×factor): same field of view."""
         require(self.width_px % factor == 0 and self.height_px % factor == 0,
                 f"camera {self.name}: resolution not divisible by {factor}")
+        stated = {}
+        for k in ("focal_x_px", "focal_y_px"):
+            if getattr(self, k) is not None:
+                stated[k] = getattr(self, k) / factor
+        for k in ("principal_x_px", "principal_y_px"):  # pixel centre c of the fine grid -> (c + 1/2) / factor - 1/2
+            if getattr(self, k) is not None:
+                stated[k] = (getattr(self, k) + 0.5) / factor - 0.5
         return replace(self, width_px=self.width_px // factor, height_px=self.height_px // factor,
-                       pitch_um=self.pitch_um * factor)
+                       pitch_um=self.pitch_um * factor, **stated)
 
     def to_dict(self) -> dict:
         d = asdict(self)
+        for k in ("focal_x_px", "focal_y_px", "principal_x_px", "principal_y_px"):
+            if d[k] is None:  # derived: not part of a default camera's identity (unchanged spec hashes)
+                del d[k]
         d["distortion"] = {k: float(v) for k, v in zip(("k1", "k2", "p1", "p2", "k3"), self.distortion)}
         d["velocity_m_s"] = list(self.velocity_m_s)
         d["angular_velocity_deg_s"] = list(self.angular_velocity_deg_s)
@@ -176,7 +239,7 @@ class Camera:
             "convention": "opencv: pixel (r, c) centre at x=c, y=r",
             "K": self.K.tolist(),
             "fx_px": self.fx_px,
-            "fy_px": self.fx_px,
+            "fy_px": self.fy_px,
             "cx_px": cx,
             "cy_px": cy,
             "dist_coeffs_opencv": self.dist_coeffs.tolist(),
@@ -191,7 +254,15 @@ CAMERA_KEYS = [
     Key("width_px", "int", _D.width_px, "px", "image width", 8, 16384),
     Key("height_px", "int", _D.height_px, "px", "image height", 8, 16384),
     Key("pitch_um", "float", _D.pitch_um, "um", "pixel pitch (square pixels, 100 % fill factor)", 0.1, 1000.0),
-    Key("focal_length_mm", "float", _D.focal_length_mm, "mm", "focal length f; fx = fy = f / pitch", 0.1, 10000.0),
+    Key("focal_length_mm", "float", _D.focal_length_mm, "mm", "focal length f; fx = fy = f / pitch unless fx_px "
+        "/ fy_px are given (then f = fx_px x pitch follows from them when left out)", 0.1, 10000.0),
+    Key("fx_px", "float", None, "px", "focal length in pixels along x (a calibrated K's fx); default: f / pitch",
+        1.0, 1e7),
+    Key("fy_px", "float", None, "px", "focal length in pixels along y (fy != fx: non-square pixels, vertical "
+        "pitch = pitch x fx / fy); default: fx", 1.0, 1e7),
+    Key("cx_px", "float", None, "px", "principal point x (OpenCV: pixel centres at integers); default: the image "
+        "centre W/2 - 1/2; must lie on the image", -0.5, 16384.0),
+    Key("cy_px", "float", None, "px", "principal point y; default: H/2 - 1/2; must lie on the image", -0.5, 16384.0),
     Key("f_number", "float", _D.f_number, "", "f-number N; thin-lens aperture radius R = f / (2N); 0 = pinhole",
         0.0, 1000.0, per_group=True, check=lambda v: None if v == 0 or v >= 0.5 else "use 0 (pinhole) or >= 0.5"),
     Key("focus_distance_m", "float", _D.focus_distance_m, "m", "distance of the plane in focus", 1e-3, 1e6,
@@ -225,6 +296,10 @@ DISTORTION_KEYS = [Key(k, "float", 0.0, "", f"distortion coefficient {k}", -10.0
 MAX_PIXELS = 1 << 27  # the largest image edgetruth reads back (``edgetruth.image_io.MAX_IMAGE_PIXELS``)
 
 
+#: camera TOML key -> ``Camera`` field of the stated intrinsics
+_STATED = {"fx_px": "focal_x_px", "fy_px": "focal_y_px", "cx_px": "principal_x_px", "cy_px": "principal_y_px"}
+
+
 def _tuples(v: dict) -> dict:
     for k in ("velocity_m_s", "angular_velocity_deg_s"):
         if k in v:
@@ -248,7 +323,21 @@ def camera_from_dict(d: dict, name: str = "custom", where: str | None = None) ->
     if v["width_px"] * v["height_px"] > MAX_PIXELS:
         raise InputError(f"{where}: {v['width_px']} x {v['height_px']} px exceeds {MAX_PIXELS:,} pixels; "
                          "use a smaller resolution (or camera_scale)")
-    cam = Camera(**v, distortion=tuple(dist[k] for k in ("k1", "k2", "p1", "p2", "k3")), name=name)
+    stated = {field_: v.pop(key) for key, field_ in _STATED.items()}
+    if stated["focal_x_px"] is not None:
+        derived = v["focal_length_mm"] * 1e-3 / (v["pitch_um"] * 1e-6)
+        if "focal_length_mm" not in d:
+            v["focal_length_mm"] = stated["focal_x_px"] * v["pitch_um"] * 1e-3
+        elif abs(derived / stated["focal_x_px"] - 1.0) > INTRINSICS_RTOL:
+            raise InputError(f"{where}: fx_px = {stated['focal_x_px']:g} but focal_length_mm / pitch_um give "
+                             f"{derived:.6g} px; leave focal_length_mm out (it follows from fx_px x pitch_um) or "
+                             "make the two agree")
+    for key, n in (("cx_px", v["width_px"]), ("cy_px", v["height_px"])):
+        c = stated[_STATED[key]]
+        if c is not None and not -0.5 <= c <= n - 0.5:
+            raise InputError(f"{where}: {key} = {c:g}: the principal point must lie on the image, in "
+                             f"[-0.5, {n - 0.5:g}] px")
+    cam = Camera(**v, **stated, distortion=tuple(dist[k] for k in ("k1", "k2", "p1", "p2", "k3")), name=name)
     check_optics(cam, where)
     return cam
 

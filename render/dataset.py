@@ -18,7 +18,8 @@ import numpy as np
 from edgetruth import __version__
 from edgetruth.errors import InputError
 from edgetruth.render.camera import Camera
-from edgetruth.render.ground_truth import checker_ground_truth, outline_in_view, target_ground_truth, target_outline_local
+from edgetruth.render.ground_truth import (checker_ground_truth, outline_in_view, squares_ground_truth,
+                                           target_ground_truth, target_outline_local)
 from edgetruth.render.mitsuba_scene import CheckerRig, RenderSettings, TargetRig
 from edgetruth.render.pose import Pose
 from edgetruth.render.sensor import make_rng
@@ -41,7 +42,7 @@ def get_rig(kind: str, camera: Camera, settings: RenderSettings, extra=None, cro
     if key not in _rigs:
         if kind == "target":
             _rigs[key] = TargetRig(camera, settings, target_size_m=extra, crop=crop)
-        else:
+        else:  # checkerboard or squares: ``extra`` is the board
             _rigs[key] = CheckerRig(camera, settings, board=extra, crop=crop)
     return _rigs[key]
 
@@ -51,8 +52,10 @@ def _half_view_m(camera: Camera, distance_m: float) -> np.ndarray:
 
 
 def job_pose(job: Job, camera: Camera, outline_local: np.ndarray) -> Pose:
-    """The pose of a job: distance from the spec, lateral offset and tilts drawn from the job seed,
-    redrawn (deterministically) until the outline lies inside the image."""
+    """The pose of a job: its explicit pose if it has one; else distance from the spec, lateral offset and
+    tilts drawn from the job seed, redrawn (deterministically) until the outline lies inside the image."""
+    if job.pose is not None:
+        return job.pose
     rng = make_rng(job.pose_seed, POSE_STREAM)
     d = job.distance_cm / 100.0
     extent = float(np.max(np.abs(outline_local[:, :2])))
@@ -101,20 +104,26 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
         shape = "square" if job.slot is not None else TARGETS[job.target]["shape"]
         pose = job_pose(job, camera, target_outline_local(shape, size_m))
         rig = get_rig("target", camera, settings, size_m, crop)
-        le = rig.set_state(job.target, pose, e_render)
+        le = rig.set_state(job.target, pose, e_render, job.light_position_m)
         gt = target_ground_truth(camera, pose, job.target, size_m, exposure_s=sensor.exposure_s)
         cx, cy = gt["centre"]["distorted_px"][0]
         h = float(field_height(camera, cx, cy))
         gt["optics_at_target"] = {"field_height": h, "defocus_radius_px": gt["defocus_radius_px"],
                                   "mtf50_cy_px": predicted_mtf50(camera, h, gt["defocus_radius_px"]),
                                   "meaning": "analytic MTF50 (pixel x PSF x defocus disk) at the target centre"}
+    elif job.kind == "squares":
+        board = spec.squares
+        pose = job_pose(job, camera, board.plate_corners_local())
+        rig = get_rig("squares", camera, settings, board, crop)
+        le = rig.set_state(pose, e_render, job.light_position_m)
+        gt = squares_ground_truth(camera, pose, board)
     else:
         board = spec.checkerboard
         if settings.checkerboard_spp:  # the board's own spp; the JSON's render.spp says what was used
             settings = replace(settings, spp=settings.checkerboard_spp, checkerboard_spp=0)
         pose = job_pose(job, camera, board.plate_corners_local())
         rig = get_rig("checkerboard", camera, settings, board, crop)
-        le = rig.set_state(pose, e_render)
+        le = rig.set_state(pose, e_render, job.light_position_m)
         gt = checker_ground_truth(camera, pose, board)
     key = (spec.identity_sha256, job.radiance_unit, job.slot, crop)
     t0 = time.perf_counter()
@@ -138,7 +147,7 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
     if scale != 1.0:
         radiance = (radiance * np.float32(scale)).astype(np.float32)
         le *= scale
-    image, captured = capture(radiance, camera, sensor, make_rng(job.seed, SENSOR_STREAM), name=job.name)
+    image, captured = capture(radiance, camera, sensor, make_rng(job.seed, SENSOR_STREAM), name=job.name, crop=crop)
     full = {
         "format": FORMAT_VERSION,
         "name": job.name, "index": job.index, "spec": spec.name, "group": job.group, "kind": job.kind,

@@ -119,7 +119,7 @@ def render_edge_band(radiance, camera, settings, job, pose, gt, crop, irradiance
     frame = tuple(crop) if crop else (0, 0, camera.width_px, camera.height_px)
     tiles = band_tiles(outlines, frame, width)
     trig = tile_rig(camera, replace(settings, spp=settings.edge_spp), float(gt["target"]["size_m"]))
-    trig.set_state(job.target, pose, irradiance_w_m2)
+    trig.set_state(job.target, pose, irradiance_w_m2, getattr(job, "light_position_m", None))
     n, render_s = render_band(radiance, frame[:2], trig, tiles, job.render_seed)
     return {"render_s": render_s, "spp": settings.edge_spp, "band_px": width, "tile_px": TILE_PX,
             "tiles": len(tiles), "pixels": n, "meaning": "pixels within band_px of the outline (at any time of the exposure) rendered at spp, "

@@ -1,4 +1,5 @@
-"""Ground truth geometry of a posed board: target outlines and checkerboard corners in pixels.
+"""Ground truth geometry of a posed board: target outlines, checkerboard corners and the squares of a
+board of squares in pixels.
 
 Points are projected with the camera's exact model (``Camera.project``), in OpenCV
 pixel coordinates, both distorted (what the image shows) and undistorted (the ideal
@@ -13,7 +14,8 @@ import numpy as np
 
 from edgetruth.render.camera import Camera
 from edgetruth.render.outline import OutlineCurve, camera_points_at
-from edgetruth.render.targets import BOARD_HALF_SIZE_M, BOARD_REFLECTANCE, TARGET_STANDOFF_M, TARGETS, Checkerboard
+from edgetruth.render.targets import (BOARD_HALF_SIZE_M, BOARD_REFLECTANCE, TARGET_STANDOFF_M, TARGETS, Checkerboard,
+                                      SquareBoard)
 from edgetruth.render.pose import Pose
 
 CIRCLE_OUTLINE_POINTS = 720
@@ -95,6 +97,55 @@ def checker_ground_truth(camera: Camera, pose: Pose, board: Checkerboard) -> dic
                     "object_points_m": board.inner_corners_local(0.0).tolist(),
                     **_project_both(camera, corners)},
         "true_distance_m": float(pose.distance_m),
+    }
+
+
+def model_pose(pose: Pose, board: SquareBoard) -> dict:
+    """The pose of a squares board's *model* frame: X_cam = R X_model + t (the rendering's board frame
+    is centred on the squares: X_model = X_board + c)."""
+    r = pose.rotation
+    t = pose.translation_m - r @ board.centre_model_m
+    return {"R": r.tolist(), "t_m": t.tolist(), "t_model_unit": (t / board.model_unit_m).tolist(),
+            "meaning": "X_cam = R X_model + t (model frame of squares.model_points_m; t_model_unit: t in the "
+                       "model's unit, model_unit_m)"}
+
+
+def squares_ground_truth(camera: Camera, pose: Pose, board: SquareBoard) -> dict:
+    """Every square's corners (model order), in the image and undistorted, and its exact distorted
+    outline as a dense polyline; the model points and the model frame's pose."""
+    quads = board.quads_local(-TARGET_STANDOFF_M)  # the printed squares (flush: 10 um in front of the plate)
+    n = len(quads)
+    cam_pts = pose.to_camera(quads.reshape(-1, 3))
+    dist = camera.project(cam_pts, distorted=True).reshape(n, 4, 2)
+    und = camera.project(cam_pts, distorted=False).reshape(n, 4, 2)
+    from edgetruth.conventions import inside_image
+
+    in_view = inside_image(dist[..., 0], dist[..., 1], camera.shape).all(axis=1) & (cam_pts[:, 2].reshape(n, 4) > 0).all(1)
+    polylines, params, chord = [], [], 0.0
+    for q in quads:
+        curve = OutlineCurve.polygon(camera, pose, q)
+        t = curve.parameters()
+        polylines.append(curve.points(t).tolist())
+        params.append(t.tolist())
+        chord = max(chord, curve.chord_error_px())
+    return {
+        "squares": {**board.to_dict(), "standoff_m": TARGET_STANDOFF_M, "count": n,
+                    "order": "model order (the model file's lines, or a pattern row-major from the top-left "
+                             "square); each square's corners in the model's order (a pattern: top-left, top-right, "
+                             "bottom-right, bottom-left)",
+                    "model_points_m": board.model_points(0.0).tolist(),
+                    "pose_model": model_pose(pose, board),
+                    "corners_distorted_px": dist.tolist(),
+                    "corners_undistorted_px": und.tolist(),
+                    "in_view": in_view.tolist(),
+                    "polylines_distorted_px": polylines,
+                    "polylines_parameter": params,
+                    "polyline_meaning": "per square, dense points ON its exact distorted outline (its straight "
+                                        "sides through the lens), from corner 0 in the model's corner order; "
+                                        "parameter t in [0, 1): side floor(4t) from corner floor(4t) to the next; "
+                                        "edgetruth.render.outline.OutlineCurve.polygon evaluates it exactly",
+                    "polyline_chord_error_px": chord},
+        "true_distance_m": float(pose.translation_m[2]),
     }
 
 

@@ -70,6 +70,7 @@ def register() -> str:
         def __init__(self, props):
             super().__init__(props)
             self.fx = float(props.get("fx_px"))
+            self.fy = float(props.get("fy_px", self.fx))
             self.cx = float(props.get("cx_px"))
             self.cy = float(props.get("cy_px"))
             self.coeffs = tuple(float(props.get(k, 0.0)) for k in ("k1", "k2", "p1", "p2", "k3"))
@@ -130,7 +131,7 @@ def register() -> str:
 
         def sample_ray(self, time, wavelength_sample, position_sample, aperture_sample, active=True):
             xs, ys = self._sensor_point(position_sample)
-            xd, yd = (xs - self.cx) / self.fx, (ys - self.cy) / self.fx
+            xd, yd = (xs - self.cx) / self.fx, (ys - self.cy) / self.fy
             x, y = undistort_normalized(xd, yd, self.coeffs) if self.distorted else (xd, yd)
             weight = 1.0
             if self.aperture_radius > 0.0:
@@ -168,7 +169,7 @@ def register() -> str:
             return mi.ScalarBoundingBox3f(mi.ScalarPoint3f(0.0))
 
         def to_string(self):
-            return f"LensSensor[fx={self.fx}, R={self.aperture_radius}, zf={self.focus_distance}]"
+            return f"LensSensor[fx={self.fx}, fy={self.fy}, R={self.aperture_radius}, zf={self.focus_distance}]"
 
     mi.register_sensor(PLUGIN_NAME, lambda props: LensSensor(props))
     _registered.add(variant)
@@ -204,7 +205,7 @@ def sensor_dict(camera, sampler: dict, crop: tuple[int, int, int, int] | None = 
     p = psf_params(camera)
     out = {
         "type": register(),
-        "fx_px": camera.fx_px, "cx_px": cx, "cy_px": cy,
+        "fx_px": camera.fx_px, "fy_px": camera.fy_px, "cx_px": cx, "cy_px": cy,
         "k1": k1, "k2": k2, "p1": p1, "p2": p2, "k3": k3,
         "aperture_radius_m": camera.aperture_radius_m,
         "focus_distance_m": camera.focus_distance_m,

@@ -10,10 +10,11 @@ T1 black matte square, T2 black matte disk, T3 gray matte square, T4 glossy blac
 square (rough plastic: specular highlights from the light).
 
 Checkerboard scene: a white plate with black matte squares (one mesh with an explicit diffuse
-BSDF of ``CHECKER_BLACK_REFLECTANCE``, its triangles facing the camera), flush likewise.
+BSDF of ``CHECKER_BLACK_REFLECTANCE``, its triangles facing the camera), flush likewise.  A board of
+squares (``SquareBoard``) is the same scene with its own quads, plate and reflectances.
 
 Light: one square area light beside the camera (behind its image plane, so never
-in view), aimed at the board centre; its radiance is set so that the board's
+in view; ``LIGHT_OFFSET_M`` unless a group places it), aimed at the board centre; its radiance is set so that the board's
 irradiance at its centre equals the requested ``irradiance_w_m2`` whatever the
 distance (one light: emitter selection adds no Monte-Carlo noise).
 The world frame is the OpenCV camera frame (see ``edgetruth.render.pose``).
@@ -148,8 +149,9 @@ class _Rig:
         dr.make_opaque(t)
         self.params[key] = t
 
-    def _set_light(self, pose: Pose, irradiance_w_m2: float) -> float:
-        pos = LIGHT_OFFSET_M
+    def _set_light(self, pose: Pose, irradiance_w_m2: float, position_m=None) -> float:
+        pos = LIGHT_OFFSET_M if position_m is None else np.asarray(position_m, dtype=np.float64)
+        self._light_pos = pos
         m = _look_at(pos, pose.translation_m) @ np.diag([LIGHT_HALF_SIZE_M, LIGHT_HALF_SIZE_M, 1.0, 1.0])
         self._set_transform("light.to_world", m)
         le = light_radiance_for(irradiance_w_m2, pose, pos)
@@ -170,8 +172,9 @@ class _Rig:
         return arr[..., 1].copy()  # achromatic scene: R = G = B exactly
 
     def light_ground_truth(self, pose: Pose, le: float, irradiance_w_m2: float) -> dict:
+        pos = getattr(self, "_light_pos", LIGHT_OFFSET_M)
         return {"type": "square area light", "side_m": 2 * LIGHT_HALF_SIZE_M,
-                "position_m": LIGHT_OFFSET_M.tolist(), "aimed_at": "board centre",
+                "position_m": np.asarray(pos, dtype=np.float64).tolist(), "aimed_at": "board centre",
                 "radiance_w_m2_sr": le, "board_centre_irradiance_w_m2": irradiance_w_m2}
 
 
@@ -201,7 +204,7 @@ class TargetRig(_Rig):
                                        "diffuse_reflectance": TARGETS["T4"]["reflectance"]}},
         }
 
-    def set_state(self, target: str, pose: Pose, irradiance_w_m2: float) -> float:
+    def set_state(self, target: str, pose: Pose, irradiance_w_m2: float, light_position_m=None) -> float:
         """Place ``target`` (T1..T4) at ``pose``; returns the light's radiance."""
         board = pose.matrix @ _rect_local(*BOARD_HALF_SIZE_M, 0.0)
         self._set_transform("board.to_world", board)
@@ -210,17 +213,20 @@ class TargetRig(_Rig):
         for key in _SHAPE_KEY.values():
             m = pose.matrix @ _rect_local(half, half, -TARGET_STANDOFF_M) if key == active else _PARKED
             self._set_transform(f"{key}.to_world", m)
-        le = self._set_light(pose, irradiance_w_m2)
+        le = self._set_light(pose, irradiance_w_m2, light_position_m)
         self.params.update()
         return le
 
 
 class CheckerRig(_Rig):
-    """The checkerboard scene: black squares as one triangle mesh on a white plate."""
+    """The checkerboard scene: black squares as one triangle mesh on a white plate.  ``board``: a
+    ``Checkerboard`` or a ``SquareBoard`` (anything with ``black_quads_local``, ``half_size_m`` and,
+    optionally, ``square_reflectance`` and ``board_reflectance``)."""
 
-    def __init__(self, camera: Camera, settings: RenderSettings, board: Checkerboard = Checkerboard(), crop=None):
+    def __init__(self, camera: Camera, settings: RenderSettings, board: Checkerboard = Checkerboard(), crop=None,
+                 window=None):
         self.board = board
-        super().__init__(camera, settings, crop)
+        super().__init__(camera, settings, crop, window)
 
     def _mesh(self):
         mi = self.mi
@@ -233,7 +239,8 @@ class CheckerRig(_Rig):
                                 np.stack([4 * np.arange(n), 4 * np.arange(n) + 3, 4 * np.arange(n) + 2], 1)])
         props = mi.Properties()
         # without a BSDF of its own a mesh gets Mitsuba's default diffuse 0.5
-        props["bsdf"] = mi.load_dict({"type": "diffuse", "reflectance": CHECKER_BLACK_REFLECTANCE})
+        props["bsdf"] = mi.load_dict({"type": "diffuse", "reflectance": float(
+            getattr(self.board, "square_reflectance", CHECKER_BLACK_REFLECTANCE))})
         mesh = mi.Mesh("checker", vertex_count=len(verts), face_count=len(faces), has_vertex_normals=False,
                        has_vertex_texcoords=False, props=props)
         params = mi.traverse(mesh)
@@ -246,22 +253,21 @@ class CheckerRig(_Rig):
         return mesh
 
     def _shapes(self) -> dict:
-        b = self.board
-        half_x = b.cols * b.square_m / 2 + b.margin_m
-        half_y = b.rows * b.square_m / 2 + b.margin_m
+        half_x, half_y = self.board.half_size_m
         self._plate_local = _rect_local(half_x, half_y, 0.0)
         mesh = self._mesh()
         return {
             "light": self._light_dict(),
             "plate": {"type": "rectangle", "to_world": self._T(self._plate_local),
-                      "bsdf": {"type": "diffuse", "reflectance": BOARD_REFLECTANCE}},
+                      "bsdf": {"type": "diffuse", "reflectance": float(
+                          getattr(self.board, "board_reflectance", BOARD_REFLECTANCE))}},
             "checker": mesh,
         }
 
-    def set_state(self, pose: Pose, irradiance_w_m2: float) -> float:
+    def set_state(self, pose: Pose, irradiance_w_m2: float, light_position_m=None) -> float:
         self._set_transform("plate.to_world", pose.matrix @ self._plate_local)
         self.params["checker.vertex_positions"] = self._vertex_type(
             pose.to_camera(self._verts_local).astype(np.float32).ravel())
-        le = self._set_light(pose, irradiance_w_m2)
+        le = self._set_light(pose, irradiance_w_m2, light_position_m)
         self.params.update()
         return le

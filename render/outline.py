@@ -8,6 +8,10 @@ top-left corner clockwise in the board frame, or the circle's angle 2πt), gives
 whose chords stay within a stated distance of the curve, and signed distances of image points
 to the curve (positive outside, on the bright board).
 
+A ``polygon`` outline (``OutlineCurve.polygon``) is any planar polygon on the board, e.g. one square
+of a board of squares anywhere on it: its straight sides, traversed in the given vertex order,
+parameter t in [0, 1) with side floor(n t) from vertex floor(n t) to the next.
+
 With a moving camera the outline at time τ (seconds from mid-exposure) is the board point seen
 from the camera moved by v·τ and rotated by ω·τ (``at_time``).
 """
@@ -47,19 +51,38 @@ def camera_points_at(camera: Camera, points_mid_m: np.ndarray, tau_s: float) -> 
 
 @dataclass(frozen=True)
 class OutlineCurve:
-    """The outline of a square (side) or circle (diameter) ``size_m`` at ``pose``, seen by ``camera``."""
+    """The outline of a square (side) or circle (diameter) ``size_m`` at ``pose``, seen by ``camera``;
+    or (``shape = "polygon"``) the polygon of ``vertices`` (board frame, (n, 3) as nested tuples)."""
 
     camera: Camera
     pose: Pose
     shape: str
     size_m: float
     standoff_m: float = TARGET_STANDOFF_M
+    vertices: tuple | None = None
+
+    @classmethod
+    def polygon(cls, camera: Camera, pose: Pose, vertices_local) -> "OutlineCurve":
+        """The outline of the polygon with ``vertices_local`` ((n, 3) board frame, z included)."""
+        v = np.asarray(vertices_local, dtype=np.float64).reshape(-1, 3)
+        return cls(camera, pose, "polygon", 0.0, standoff_m=float(-v[0, 2]),
+                   vertices=tuple(tuple(float(c) for c in row) for row in v))
+
+    def _pieces(self) -> int:
+        return {"square": 4, "polygon": len(self.vertices or ())}.get(self.shape, 1)
 
     def local(self, t) -> np.ndarray:
         """Board-frame points at curve parameters t (N,) -> (N, 3)."""
         t = np.mod(np.asarray(t, float), 1.0)
         h = self.size_m / 2.0
         z = np.full_like(t, -self.standoff_m)
+        if self.shape == "polygon":
+            v = np.asarray(self.vertices, dtype=np.float64)
+            n = len(v)
+            k = np.minimum((n * t).astype(int), n - 1)
+            s = n * t - k
+            nxt = np.roll(v, -1, axis=0)
+            return v[k] + (nxt[k] - v[k]) * s[:, None]
         if self.shape == "square":
             corners = np.array([[-h, -h], [h, -h], [h, h], [-h, h], [-h, -h]])  # TL, TR, BR, BL (board frame)
             k = np.minimum((4.0 * t).astype(int), 3)
@@ -78,7 +101,7 @@ class OutlineCurve:
 
     def default_step_px(self) -> float:
         """``POLYLINE_STEP_PX``, finer for circles: chords within ``CHORD_TOLERANCE_PX`` of the curve."""
-        if self.shape == "square":
+        if self.shape in ("square", "polygon"):
             return POLYLINE_STEP_PX
         ring = self.points(np.linspace(0.0, 1.0, 64, endpoint=False))
         r_px = 0.5 * float(np.min(np.ptp(ring, axis=0)))
@@ -86,9 +109,9 @@ class OutlineCurve:
         return min(POLYLINE_STEP_PX, 0.8 * math.sqrt(8.0 * CHORD_TOLERANCE_PX * max(r_px, 1.0)))
 
     def parameters(self, step_px: float | None = None) -> np.ndarray:
-        """Curve parameters spaced at most ``step_px`` apart in the image (the square's corners included)."""
+        """Curve parameters spaced at most ``step_px`` apart in the image (the corners included)."""
         step_px = step_px or self.default_step_px()
-        pieces = 4 if self.shape == "square" else 1
+        pieces = self._pieces()
         out = []
         for k in range(pieces):
             t0, t1 = k / pieces, (k + 1) / pieces

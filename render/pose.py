@@ -55,3 +55,50 @@ class Pose:
         d["t_cam_from_board_m"] = self.translation_m.tolist()
         d["frame"] = "opencv camera frame (x right, y down, z forward); board local z points away from the camera"
         return d
+
+
+#: A given rotation must be orthonormal (RᵀR = I) to this, with det +1; it is then replaced by the
+#: nearest rotation (SVD), so the board stays rigid whatever rounding the numbers carry.
+ROTATION_TOLERANCE = 1e-3
+
+
+def nearest_rotation(r) -> np.ndarray:
+    """The rotation closest to ``r`` (3×3) in the Frobenius norm (polar decomposition by SVD)."""
+    u, _, vt = np.linalg.svd(np.asarray(r, dtype=np.float64))
+    m = u @ vt
+    if np.linalg.det(m) < 0:  # pragma: no cover - callers check det > 0 first
+        u[:, -1] *= -1
+        m = u @ vt
+    return m
+
+
+@dataclass(frozen=True)
+class ExplicitPose(Pose):
+    """A pose given as a rotation R (3×3, rows) and a translation t (m): X_cam = R X_board + t, the board
+    frame as for ``Pose`` (x right, y down, z into the board).  ``distance_m`` and ``lateral_*_m`` are t;
+    the tilt angles are unused (0).  ``rotation_rows`` must be a rotation (``nearest_rotation``)."""
+
+    rotation_rows: tuple = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+    @classmethod
+    def from_rt(cls, r, t_m) -> "ExplicitPose":
+        r = np.asarray(r, dtype=np.float64).reshape(3, 3)
+        t = np.asarray(t_m, dtype=np.float64).reshape(3)
+        return cls(distance_m=float(t[2]), lateral_x_m=float(t[0]), lateral_y_m=float(t[1]),
+                   rotation_rows=tuple(tuple(float(v) for v in row) for row in r))
+
+    @property
+    def rotation(self) -> np.ndarray:
+        return np.array(self.rotation_rows, dtype=np.float64)
+
+    def moved_origin(self, offset_board_m) -> "ExplicitPose":
+        """The same placement with the board frame's origin moved to ``offset_board_m`` (board frame):
+        X_cam = R (X' + c) + t = R X' + (R c + t)."""
+        return ExplicitPose.from_rt(self.rotation, self.rotation @ np.asarray(offset_board_m, float) + self.translation_m)
+
+    def to_dict(self) -> dict:
+        return {"explicit": True, "distance_m": self.distance_m, "lateral_x_m": self.lateral_x_m,
+                "lateral_y_m": self.lateral_y_m, "R_cam_from_board": self.rotation.tolist(),
+                "t_cam_from_board_m": self.translation_m.tolist(),
+                "frame": "opencv camera frame (x right, y down, z forward); board local z points away from the "
+                         "camera; X_cam = R_cam_from_board X_board + t_cam_from_board_m"}

@@ -3,11 +3,11 @@
     from edgetruth.render import open_dataset
     ds = open_dataset("runs/render/quick")
     for s in ds:                      # complete images, in index order
-        s.name, s.kind, s.group       # "0000_T1", "target" | "checkerboard", "T1"
+        s.name, s.kind, s.group       # "0000_T1", "target" | "checkerboard" | "squares", "T1"
         s.image                       # uint16 (H, W) sensor image, raw DN (read on first use)
         s.radiance                    # float32 (H, W) linear radiance, W m^-2 sr^-1 (EXR)
         s.truth                       # the ground-truth JSON (docs/formats.md)
-    ds["0003_T4"], ds[0], len(ds), ds.targets(), ds.checkerboards()
+    ds["0003_T4"], ds[0], len(ds), ds.targets(), ds.checkerboards(), ds.square_boards()
 
 The layout: per image ``NAME.exr``, ``NAME.png`` and ``NAME.json``; ``manifest.json``
 lists every image with the SHA-256 of each file, and while a render runs (or after it was
@@ -140,6 +140,10 @@ class Dataset:
 
     def checkerboards(self) -> list[Sample]:
         return [s for s in self._samples if s.kind == "checkerboard"]
+
+    def square_boards(self) -> list[Sample]:
+        """Images of boards of squares (``kind = "squares"``; their truth's ``squares`` block)."""
+        return [s for s in self._samples if s.kind == "squares"]
 
     def __repr__(self) -> str:
         return f"Dataset({str(self.path)!r}, spec={self.spec_name!r}, {len(self)}/{self.n_declared} images)"

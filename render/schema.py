@@ -25,7 +25,7 @@ REQUIRED = object()
 class Key:
     name: str
     type: str  # "int", "float", "str", "bool", "name", "table", "tables" (a list of tables), "range2" (a [lo, hi]
-    # pair), "ranges" ([[lo, hi], ...]), "vec3" ([x, y, z], each in [lo, hi])
+    # pair), "ranges" ([[lo, hi], ...]), "vec3" ([x, y, z], each in [lo, hi]), "vec2" ([x, y], each in [lo, hi])
     default: Any
     unit: str
     meaning: str
@@ -93,6 +93,10 @@ def check_value(k: Key, v, where: str):
     elif k.type == "vec3":
         if not (isinstance(v, list) and len(v) == 3 and all(_is_num(x) and _in(k, x) for x in v)):
             bad(f"give [x, y, z], each a number in {rng}" + (f" {k.unit}" if k.unit else ""))
+        v = tuple(float(x) for x in v)
+    elif k.type == "vec2":
+        if not (isinstance(v, list) and len(v) == 2 and all(_is_num(x) and _in(k, x) for x in v)):
+            bad(f"give [x, y], each a number in {rng}" + (f" {k.unit}" if k.unit else ""))
         v = tuple(float(x) for x in v)
     elif k.type == "table":
         if not isinstance(v, dict):

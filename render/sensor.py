@@ -56,6 +56,10 @@ DEFECT_MAX_FRACTION = 0.01
 FPN_SEED_MAX = 10 ** 9
 
 
+#: the fixed-pattern keys (left out of a spec's identity while no pattern is on)
+FPN_KEYS = ("dsnu_e", "prnu_pct", "hot_pixel_fraction", "hot_pixel_current_e_s", "dead_pixel_fraction", "fpn_seed")
+
+
 @dataclass(frozen=True)
 class SensorModel:
     """Sensor parameters.  Defaults: a 12-bit CCD-like sensor; 0 dB maps the full well to ~full scale."""
@@ -99,6 +103,15 @@ class SensorModel:
                 f"[0, {DEFECT_MAX_FRACTION:g}]")
         require(self.hot_pixel_current_e_s >= 0, "sensor: hot_pixel_current_e_s must be >= 0")
         require(0 <= int(self.fpn_seed) <= FPN_SEED_MAX, f"sensor: fpn_seed must be in [0, {FPN_SEED_MAX}]")
+
+    def identity(self) -> dict:
+        """The values that determine the images, for a spec's identity hash: the fixed-pattern keys
+        appear only when a pattern is on, so datasets rendered before they existed still resume."""
+        d = asdict(self)
+        if not self.has_fixed_pattern:
+            for k in FPN_KEYS:
+                d.pop(k)
+        return d
 
     @property
     def gain_dn_per_e(self) -> float:

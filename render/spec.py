@@ -7,6 +7,10 @@ validates it in one pass against the key tables (``SPEC_KEYS``, ``GROUP_KEYS``,
 documented in ``docs/spec.md``): every problem is one ``InputError`` naming the file,
 the table, the key and the fix, before anything renders.
 
+A group shows a target on a board, a checkerboard (``[spec] checkerboard``) or a board of dark
+squares (``[spec] squares``: a model file such as Zhang's ``Model.txt``, or a pattern); its poses
+are drawn from ranges or listed explicitly (``poses``: R, t per image).
+
 The camera is a shipped name (``assets/cameras/NAME.toml``) or a TOML path relative to
 the spec's own folder; a group may override the keys marked per-group (f-number,
 focus distance, ...) and any sensor key, so one spec can sweep them.
@@ -29,12 +33,13 @@ import numpy as np
 from edgetruth.errors import InputError
 from edgetruth.fileio import read_toml
 from edgetruth.render.camera import DEFAULT_CAMERA, Camera, camera_overrides, load_camera
-from edgetruth.render.mitsuba_scene import RenderSettings
-from edgetruth.render.schema import REQUIRED, Key, parse_table
+from edgetruth.render.mitsuba_scene import LIGHT_OFFSET_M, RenderSettings
+from edgetruth.render.pose import ROTATION_TOLERANCE, ExplicitPose, nearest_rotation
+from edgetruth.render.schema import REQUIRED, Key, _is_num, parse_table
 from edgetruth.render.sensor import SensorModel, sensor_from_dict
-from edgetruth.render.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard
+from edgetruth.render.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard, SquareBoard, square_board_from_dict
 
-KINDS = ("target", "checkerboard")
+KINDS = ("target", "checkerboard", "squares")
 SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
 MAX_SPP = 1 << 16
 MAX_IMAGES = 10_000_000
@@ -60,10 +65,14 @@ SPEC_KEYS = [
         "Mitsuba 3.9: its renders differ in the last bit from run to run)", choices=SAMPLERS),
     Key("target_size_m", "float", 0.13, "m", "target side (square) or diameter (circle)", 1e-3, 10.0),
     Key("checkerboard", "table", {}, "", "the calibration board {cols, rows, square_m, margin_m}"),
+    Key("squares", "table", {}, "", "the board of dark squares of kind = \"squares\" groups {model, "
+        "model_unit_m | rows, cols, side_m, pitch_m; margin_m, plate_size_m, square_reflectance, "
+        "board_reflectance}"),
 ]
 GROUP_KEYS = [
     Key("name", "name", REQUIRED, "", "group name (unique in the spec; part of every image name)"),
-    Key("kind", "str", "target", "", "what the images show", choices=KINDS),
+    Key("kind", "str", "target", "", "what the images show: a target on a board, a checkerboard, or a board "
+        "of dark squares ([spec] squares)", choices=KINDS),
     Key("target", "str", "T1", "", "target id (kind = target)", choices=tuple(TARGETS)),
     Key("count", "int", 1, "images", "images over distance_range_cm (one per equal sub-interval)", 1, MAX_IMAGES),
     Key("distance_range_cm", "range2", (150.0, 150.0), "cm", "[near, far] distance of the board centre", 1.0, 1e5),
@@ -78,11 +87,23 @@ GROUP_KEYS = [
         "(sets the light's power)", 1e-9, 1e6),
     Key("sensor", "table", {}, "", "sensor overrides for this group (any [sensor] key)"),
     Key("camera", "table", {}, "", "camera overrides for this group (per-group camera keys only)"),
+    Key("poses", "tables", None, "", "explicit poses [{R = [[r11, r12, r13], [...], [...]], t = [tx, ty, tz]}, "
+        "...]: one image per pose, instead of count, distances, lateral_fraction, tilts and roll; "
+        "X_cam = R X_board + t (OpenCV camera frame); the board frame: kind squares: the model's frame "
+        "([spec] squares), else centred on the board (x right, y down, z into it); R must be a rotation "
+        f"(R^T R = I within {ROTATION_TOLERANCE:g}, det +1; the nearest rotation is used); t in pose_unit_m"),
+    Key("pose_unit_m", "float", 1.0, "m", "unit of the explicit poses' t (1: metres; 0.0254: inches)", 1e-9, 1e3),
+    Key("light_position_m", "vec3", tuple(float(v) for v in LIGHT_OFFSET_M), "m", "where the square area light "
+        "sits (camera frame), aimed at the board centre; z < 0 (behind the image plane: never in view)",
+        -100.0, 100.0, check=lambda v: None if v[2] < 0 else "z must be < 0 (behind the camera's image plane), "
+        "or the light could stand in view or shade the board"),
 ]
 
 
 POSE_KEYS = ("count", "distance_range_cm", "distance_intervals_cm", "count_per_interval", "lateral_fraction",
              "tilt_max_deg", "roll_max_deg")
+#: a group's own keys that a [design] does not take (explicit poses and the light's place are per group)
+GROUP_ONLY_KEYS = ("poses", "pose_unit_m", "light_position_m")
 DESIGN_MODES = ("one_at_a_time", "full")
 DESIGN_KEYS = [
     Key("kind", "str", "target", "", "what the images show", choices=KINDS),
@@ -98,7 +119,7 @@ FACTOR_KEYS = [
 ]
 #: keys a level may set: the group's own keys except its name, kind and the pose keys (shared by every cell)
 LEVEL_KEYS = [Key("name", "name", REQUIRED, "", "level name (part of the cell name)")] + [
-    k for k in GROUP_KEYS if k.name not in POSE_KEYS and k.name not in ("name", "kind")]
+    k for k in GROUP_KEYS if k.name not in POSE_KEYS and k.name not in ("name", "kind") + GROUP_ONLY_KEYS]
 
 
 def image_seed(spec_name: str, index: int) -> int:
@@ -140,6 +161,9 @@ class Group:
     base_levels: dict | None = None
     radiance_unit: int | None = None
     unit_irradiance_w_m2: float | None = None
+    #: explicit poses (``ExplicitPose``, in the rendering's board frame: centred on the board), one per image
+    poses: tuple | None = None
+    light_position_m: tuple | None = None  # None: ``LIGHT_OFFSET_M``
 
     @property
     def count(self) -> int:
@@ -179,6 +203,9 @@ class Job:
     #: the radiance of this image is the unit's render at ``unit_irradiance_w_m2``, scaled by
     #: irradiance_w_m2 / unit_irradiance_w_m2 (light transport is linear in emitted power)
     unit_irradiance_w_m2: float | None = None
+    #: an explicit pose (``ExplicitPose``, rendering board frame), or None: drawn from the pose seed
+    pose: ExplicitPose | None = None
+    light_position_m: tuple | None = None
 
 
 class Jobs:
@@ -213,7 +240,8 @@ class Jobs:
                    lateral_fraction=g.lateral_fraction, tilt_max_deg=g.tilt_max_deg, roll_max_deg=g.roll_max_deg,
                    irradiance_w_m2=g.irradiance_w_m2, sensor=g.sensor, camera=g.camera, pose_seed=pose_seed,
                    render_seed=render_seed, slot=k if g.paired else None, levels=g.levels, base_levels=g.base_levels,
-                   radiance_unit=g.radiance_unit, unit_irradiance_w_m2=g.unit_irradiance_w_m2)
+                   radiance_unit=g.radiance_unit, unit_irradiance_w_m2=g.unit_irradiance_w_m2,
+                   pose=None if g.poses is None else g.poses[k], light_position_m=g.light_position_m)
 
     def __iter__(self):
         for i in range(len(self)):
@@ -236,6 +264,7 @@ class Spec:
     sensor: SensorModel
     groups: tuple
     text_sha256: str = ""
+    squares: SquareBoard | None = None
 
     @property
     def n_images(self) -> int:
@@ -253,16 +282,28 @@ class Spec:
         raise KeyError(name)
 
     def resolved(self) -> dict:
-        """Every value that determines the images (no paths): what ``identity_sha256`` hashes."""
-        return {"name": self.name, "camera": self.camera.to_dict(), "camera_scale": self.camera_scale,
-                "render": self.render.to_dict(), "target_size_m": self.target_size_m,
-                "checkerboard": asdict(self.checkerboard), "sensor": asdict(self.sensor),
-                "groups": [{"name": g.name, "kind": g.kind, "target": g.target, "count": g.count,
-                            "distances_cm": list(g.distances_cm), "lateral_fraction": g.lateral_fraction,
-                            "tilt_max_deg": g.tilt_max_deg, "roll_max_deg": g.roll_max_deg,
-                            "irradiance_w_m2": g.irradiance_w_m2, "sensor": asdict(g.sensor),
-                            "camera": g.camera.to_dict(), "levels": g.levels, "radiance_unit": g.radiance_unit,
-                            "unit_irradiance_w_m2": g.unit_irradiance_w_m2} for g in self.groups]}
+        """Every value that determines the images (no paths): what ``identity_sha256`` hashes.  The
+        keys of the squares board, explicit poses and the light's place appear only when used (the
+        hashes of specs without them are unchanged)."""
+        groups = []
+        for g in self.groups:
+            d = {"name": g.name, "kind": g.kind, "target": g.target, "count": g.count,
+                 "distances_cm": list(g.distances_cm), "lateral_fraction": g.lateral_fraction,
+                 "tilt_max_deg": g.tilt_max_deg, "roll_max_deg": g.roll_max_deg,
+                 "irradiance_w_m2": g.irradiance_w_m2, "sensor": g.sensor.identity(),
+                 "camera": g.camera.to_dict(), "levels": g.levels, "radiance_unit": g.radiance_unit,
+                 "unit_irradiance_w_m2": g.unit_irradiance_w_m2}
+            if g.poses is not None:
+                d["poses"] = [p.to_dict() for p in g.poses]
+            if g.light_position_m is not None:
+                d["light_position_m"] = list(g.light_position_m)
+            groups.append(d)
+        out = {"name": self.name, "camera": self.camera.to_dict(), "camera_scale": self.camera_scale,
+               "render": self.render.to_dict(), "target_size_m": self.target_size_m,
+               "checkerboard": asdict(self.checkerboard), "sensor": self.sensor.identity(), "groups": groups}
+        if any(g.kind == "squares" for g in self.groups):
+            out["squares"] = self.squares.resolved()
+        return out
 
     def units(self) -> list[list[int]]:
         """Image indices that share one radiance render (a design slot of one radiance unit); every
@@ -368,9 +409,55 @@ def _design_cells(design, where: str) -> list[tuple[dict, dict]]:
 
 
 def _n_images(g: dict) -> int:
+    if g.get("poses") is not None:
+        return len(g["poses"])
     if g.get("distance_intervals_cm") is not None:
         return len(g["distance_intervals_cm"]) * g["count_per_interval"]
     return g["count"]
+
+
+def parse_poses(poses: list, unit_m: float, where: str) -> tuple:
+    """Explicit poses -> ``ExplicitPose`` (nearest rotation, t in metres), each checked: R a 3 x 3 rotation
+    (within ``ROTATION_TOLERANCE``, det +1), t three numbers."""
+    out = []
+    for i, p in enumerate(poses):
+        pw = f"{where}: poses[{i}]"
+        unknown = sorted(set(p) - {"R", "t"})
+        if unknown or "R" not in p or "t" not in p:
+            raise InputError(f"{pw}: give exactly R (3 x 3, by rows) and t (3 numbers)"
+                             + (f"; unknown key(s) {', '.join(unknown)}" if unknown else ""))
+        r, t = p["R"], p["t"]
+        if not (isinstance(r, list) and len(r) == 3 and all(isinstance(row, list) and len(row) == 3
+                                                            and all(_is_num(v) for v in row) for row in r)):
+            raise InputError(f"{pw}: R = {r!r}: give a 3 x 3 matrix by rows, [[r11, r12, r13], [r21, ...], [...]]")
+        if not (isinstance(t, list) and len(t) == 3 and all(_is_num(v) for v in t)):
+            raise InputError(f"{pw}: t = {t!r}: give [tx, ty, tz] (in pose_unit_m)")
+        rm = np.asarray(r, dtype=np.float64)
+        dev = float(np.max(np.abs(rm.T @ rm - np.eye(3))))
+        if dev > ROTATION_TOLERANCE or np.linalg.det(rm) <= 0:
+            raise InputError(f"{pw}: R is not a rotation (max |R^T R - I| = {dev:.3g}, det = {np.linalg.det(rm):.4g}); "
+                             f"give an orthonormal matrix with det +1 (to {ROTATION_TOLERANCE:g})")
+        out.append(ExplicitPose.from_rt(nearest_rotation(rm), np.asarray(t, dtype=np.float64) * unit_m))
+    return tuple(out)
+
+
+def _check_explicit_poses(poses: tuple, g: dict, spec_parts: dict, camera: Camera, where: str) -> None:
+    """The board must lie in front of the camera; a target's outline in the image."""
+    from edgetruth.render.ground_truth import outline_in_view, target_outline_local
+
+    for i, pose in enumerate(poses):
+        if g["kind"] == "squares":
+            pts = spec_parts["squares"].plate_corners_local()
+        elif g["kind"] == "checkerboard":
+            pts = spec_parts["checkerboard"].plate_corners_local()
+        else:
+            pts = target_outline_local(TARGETS[g["target"]]["shape"], spec_parts["target_size_m"])
+        cam_pts = pose.to_camera(pts)
+        if np.any(cam_pts[:, 2] <= 0):
+            raise InputError(f"{where}: poses[{i}]: the board reaches behind the camera (z <= 0); check R, t and "
+                             "pose_unit_m (the board frame's z axis points away from the camera)")
+        if g["kind"] == "target" and not outline_in_view(camera, cam_pts, 0.0):
+            raise InputError(f"{where}: poses[{i}]: the target's outline leaves the image; move it into view")
 
 
 #: Dr.Jit's LLVM backend splits a render into blocks of 2^14 samples: with a power-of-two spp up to
@@ -417,6 +504,7 @@ def load_spec(name_or_path: str | Path) -> Spec:
 
     check_value(SPEC_KEYS[0], name, f"{src} [spec] (default name from the file name)")
     board = Checkerboard(**parse_table(s["checkerboard"], CHECKERBOARD_KEYS, f"{src} [spec] checkerboard"))
+    squares = square_board_from_dict(s["squares"], path.parent, f"{src} [spec] squares")
     try:
         base_camera = load_camera(s["camera"], base_dir=path.parent)
     except InputError as exc:
@@ -444,8 +532,15 @@ def load_spec(name_or_path: str | Path) -> Spec:
         if g["name"] in names:
             raise InputError(f"{where}: name = {g['name']!r}: group names must be unique")
         names.add(g["name"])
-        if g["kind"] == "checkerboard" and "target" in raw:
-            raise InputError(f"{where}: target = {raw['target']!r}: a checkerboard group has no target; remove it")
+        if g["kind"] != "target" and "target" in raw:
+            raise InputError(f"{where}: target = {raw['target']!r}: a {g['kind']} group has no target; remove it")
+        if g.get("poses") is not None:
+            given = sorted(k for k in POSE_KEYS if k in raw)
+            if given:
+                raise InputError(f"{where}: poses and {', '.join(given)}: explicit poses replace the drawn ones "
+                                 "(one image per pose); remove one or the other")
+        elif "pose_unit_m" in raw:
+            raise InputError(f"{where}: pose_unit_m applies to explicit poses; remove it or add poses")
         if g.get("distance_intervals_cm") is not None and ("count" in raw or "distance_range_cm" in raw):
             raise InputError(f"{where}: give either distance_intervals_cm (+ count_per_interval) or "
                              "distance_range_cm (+ count), not both")
@@ -455,6 +550,14 @@ def load_spec(name_or_path: str | Path) -> Spec:
         sensor = sensor_from_dict(g["sensor"], base_sensor, where=f"{where} sensor")
         cam_over = camera_overrides(g["camera"], f"{where} camera")
         camera = replace(base_camera, **cam_over) if cam_over else base_camera
+        poses = None
+        if g.get("poses") is not None:
+            poses = parse_poses(g["poses"], g["pose_unit_m"], where)
+            if g["kind"] == "squares":  # model frame -> the rendering's board frame (centred on the squares)
+                poses = tuple(p.moved_origin(squares.centre_model_m) for p in poses)
+            _check_explicit_poses(poses, g, {"squares": squares, "checkerboard": board,
+                                             "target_size_m": s["target_size_m"]}, camera, where)
+        light = None if "light_position_m" not in raw else tuple(g["light_position_m"])
         unit = unit_e = None
         if levels is not None:
             # cells that differ only in light power and sensor settings share one radiance render
@@ -463,6 +566,8 @@ def load_spec(name_or_path: str | Path) -> Spec:
                 key += (sensor.exposure_s,)
             unit, unit_e = units.setdefault(key, (len(units), g["irradiance_w_m2"]))
             dists = _distances_cm(key_seed(name, "design/distances"), g)  # the slots: one stream for all cells
+        elif poses is not None:
+            dists = tuple(100.0 * p.distance_m for p in poses)  # the board centre's z
         else:
             dists = _distances_cm(image_seed(name, -1 - first), g)  # seeded by the group's first image index
         groups.append(Group(name=g["name"], kind=g["kind"], target=g["target"] if g["kind"] == "target" else None,
@@ -471,7 +576,7 @@ def load_spec(name_or_path: str | Path) -> Spec:
                             roll_max_deg=g["roll_max_deg"], irradiance_w_m2=g["irradiance_w_m2"], sensor=sensor,
                             camera=camera, camera_overrides=cam_over, sensor_overrides=dict(g["sensor"]),
                             levels=levels, base_levels=cell["base"] if cell else None, radiance_unit=unit,
-                            unit_irradiance_w_m2=unit_e))
+                            unit_irradiance_w_m2=unit_e, poses=poses, light_position_m=light))
         first += n
     _check_sample_counts(s, f"{src} [spec]")
     return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
@@ -479,4 +584,4 @@ def load_spec(name_or_path: str | Path) -> Spec:
                                                                          edge_spp=s["edge_spp"],
                                                                          checkerboard_spp=s["checkerboard_spp"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
-                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest())
+                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares)

@@ -8,13 +8,13 @@ from edgetruth.render.camera import CAMERA_KEYS, DISTORTION_KEYS
 from edgetruth.render.schema import REQUIRED, Key
 from edgetruth.render.sensor import SENSOR_KEYS
 from edgetruth.render.spec import DESIGN_KEYS, FACTOR_KEYS, GROUP_KEYS, LEVEL_KEYS, SPEC_KEYS
-from edgetruth.render.targets import CHECKERBOARD_KEYS, TARGETS
+from edgetruth.render.targets import CHECKERBOARD_KEYS, SQUARES_KEYS, TARGETS
 
 INTRO = """# Render specs and cameras
 
 A **spec** (TOML) declares a dataset: `edgetruth render SPEC -o DIR` renders every image
 of it, each a pure function of (spec, index).  `SPEC` is a shipped name (`quick`,
-`study`, `calibration`) or a path.  A spec has a `[spec]` table, an
+`study`, `calibration`, `zhang1998_twin`, ...) or a path.  A spec has a `[spec]` table, an
 optional `[sensor]` table, `[[group]]` tables (each draws its own poses) and/or a
 `[design]` (paired cells on shared pose slots); a **camera** is a TOML file
 with a `[camera]` table, named by `[spec] camera` (a shipped name, or a path relative to
@@ -88,12 +88,34 @@ def spec_markdown() -> str:
     parts = [INTRO,
              "## `[spec]`", "", table(SPEC_KEYS), "",
              "### `[spec] checkerboard = {...}`", "", table(CHECKERBOARD_KEYS), "",
+             "### `[spec] squares = {...}` (or a `[spec.squares]` table)", "",
+             "The board of `kind = \"squares\"` groups: dark squares (any convex quads) printed flush on a "
+             "white plate, rendered like the checkerboard (one mesh on the plate).  The squares come from a "
+             "model file (Zhang's `Model.txt` layout: one square per line, x y of its 4 corners, in "
+             "`model_unit_m`) or from a pattern of `rows` x `cols` squares of `side_m` every `pitch_m` "
+             "(row-major from the top-left square, model origin at its top-left corner).  The model's frame "
+             "has x right, y down on the board and z into it (the frame explicit poses map); sampled poses "
+             "place the centre of the squares' bounding box.  The ground truth lists every square's corners "
+             "(model order) and its exact distorted outline (docs/formats.md).", "",
+             table(SQUARES_KEYS), "",
              "## `[[group]]`", "",
              "A group's images are spread over its distances (one per equal sub-interval, uniform inside it); "
              "lateral offset, tilts and roll are drawn per image from the image's seed, and redrawn "
              "(deterministically) until the board's outline lies inside the image.", "",
              table(GROUP_KEYS), "",
              "Targets (`target`):", "", "| id | shape | material | Lambertian albedo |", "|---|---|---|---|", targets, "",
+             "### Explicit poses", "",
+             "A group may list its poses instead of drawing them (one image per pose, in order): each is a "
+             "rotation `R` (3 x 3, by rows) and a translation `t` (in `pose_unit_m`) with "
+             "X_cam = R X_board + t in the OpenCV camera frame (x right, y down, z forward).  For "
+             "`kind = \"squares\"` X_board is the model's frame (e.g. a published calibration's extrinsics "
+             "with its model points); for targets and checkerboards the board frame centred on the board.  "
+             "`R` is checked to be a rotation and replaced by the nearest one (SVD); the board must lie in "
+             "front of the camera, and a target's outline in the image.  Each image's ground truth records "
+             "the pose it used (`pose`; for squares also `squares.pose_model`).", "",
+             "```toml", "[[group]]", 'name = "zhang"', 'kind = "squares"', "pose_unit_m = 0.0254   # t in inches",
+             "", "[[group.poses]]", "R = [[0.992759, -0.026319, 0.117201], [0.0139247, 0.994339, 0.105341], "
+             "[-0.11931, -0.102947, 0.987505]]", "t = [-3.84019, 3.65164, 12.791]", "```", "",
              "## `[design]`: a paired design", "",
              "Every cell of a design renders the *same pose slots* (slot k has one seed: the same distance, "
              "offset, tilt and roll in every cell), so levels are compared on the same poses.  A cell is one "
@@ -114,10 +136,22 @@ def spec_markdown() -> str:
              "## `[sensor]` (and a group's `sensor = {...}`)", "",
              "EMVA 1288 linear model: electrons = QE x photons (Poisson), + dark noise, clipped at the full "
              "well, x gain K = K0 10^(G/20) DN/e-, + black level, rounded and clipped to 2^bits - 1.", "",
+             "Fixed-pattern noise (EMVA 1288 spatial non-uniformity; all off by default) is the camera's: drawn "
+             "once from `fpn_seed` over the camera's frame, the same in every image whatever its seed.  PRNU "
+             "scales each pixel's photo-electrons before shot noise (electrons = Poisson(QE x photons x "
+             "(1 + prnu_pct/100 z_g) + hot dark current)); DSNU adds dsnu_e z_d electrons after the full well "
+             "(z_g, z_d: standard normal maps set to mean 0, SD 1 over the frame), so EMVA 1288's DSNU1288 and "
+             "PRNU1288 measure `dsnu_e` and `prnu_pct`; dead pixels read the black level.  Every image's ground "
+             "truth records it under `fixed_pattern`: `dsnu_e` and `prnu_pct` over that image's pixels, "
+             "`fpn_seed`, `origin_xy` (the image's top-left in the frame), `hot_pixels` and `dead_pixels` "
+             "(`count`, and `xy`: [column, row] of each), `model` (docs/optics.md).", "",
              table(SENSOR_KEYS), "",
              "## Camera TOML: `[camera]`", "",
              "Keys marked *per group* may be overridden by a group's `camera = {...}`; the others fix the "
-             "intrinsics of the whole spec (one calibration).", "",
+             "intrinsics of the whole spec (one calibration).  By default fx = fy = f / pitch and the "
+             "principal point is the image centre; `fx_px`, `fy_px`, `cx_px`, `cy_px` state a calibrated K "
+             "instead (skew is not modelled; `assets/cameras/zhang1998.toml` states Zhang's).  The renderer "
+             "and `Camera.project` use the same K and distortion (OpenCV's model).", "",
              table(CAMERA_KEYS, per_group_column=True), "",
              "### `[camera.distortion]`", "", table(DISTORTION_KEYS), ""]
     return "\n".join(parts)
