@@ -1,40 +1,82 @@
-"""``edgetruth study synthetic``: the seed's synthetic study on analytic ground truth."""
+"""``edgetruth study synthetic|board``: the seed's synthetic study on analytic ground truth, and the board
+study on real photographs of a board of squares."""
 from __future__ import annotations
 
 import datetime as _dt
 from pathlib import Path
 
+from edgetruth.errors import InputError
+
+#: options that belong to one kind of study only (dest -> the kind), refused with the other
+_SYNTHETIC_ONLY = {"preset": "--preset", "images_per_scenario": "--images-per-scenario", "workers": "-j/--workers",
+                   "address": "--address"}
+_BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model"}
+
 
 def register(sub) -> None:
-    from edgetruth.cli import add_backend_options, add_plugin_option, add_progress_option, positive_int
+    from edgetruth.cli import (add_backend_options, add_image_options, add_plugin_option, add_progress_option,
+                               positive_int)
 
     p = sub.add_parser("study", help="run a study and write its report",
-                       description="The seed's synthetic study (Tables 3-8, Figures 4-7) on analytic edges "
-                                   "with exact ground truth; re-running into the same directory resumes.")
-    p.add_argument("kind", choices=["synthetic"], help="which study")
-    p.add_argument("--preset", choices=["quick", "full"], default="quick",
-                   help="quick: 24 images per scenario (~1 min); full: 200 per scenario (the seed's scale)")
-    p.add_argument("--images-per-scenario", type=positive_int, default=None, help="override the preset's image count")
+                       description="synthetic: the seed's synthetic study (Tables 3-8, Figures 4-7) on analytic "
+                                   "edges with exact ground truth; re-running into the same directory resumes. "
+                                   "board: every method on real photos of a board of squares (straightness of the "
+                                   "sides, Zhang calibration of the corners, leave-one-image-out, side lengths; "
+                                   "docs/board.md), e.g. `edgetruth study board zhang1998 -o DIR` or "
+                                   "`edgetruth study board PHOTOS... --model Model.txt -o DIR`.")
+    p.add_argument("kind", choices=["synthetic", "board"], help="which study")
+    p.add_argument("inputs", nargs="*", metavar="PHOTOS",
+                   help="board: photo files, folders of photos, or a shipped set's name (zhang1998: its photos, "
+                        "model, corners and published calibration)")
+    p.add_argument("--model", default=None, metavar="FILE",
+                   help="board: the board model, one square per line, x y of its four corners in board units "
+                        "(Zhang's Model.txt layout)")
+    p.add_argument("--preset", choices=["quick", "full"], default=None,
+                   help="synthetic: quick (default): 24 images per scenario (~1 min); full: 200 per scenario "
+                        "(the seed's scale)")
+    p.add_argument("--images-per-scenario", type=positive_int, default=None,
+                   help="synthetic: override the preset's image count")
     p.add_argument("--methods", default=None, help="comma-separated method ids (default: all, plug-ins included)")
     p.add_argument("--thresholds", default=None, metavar="FILE",
                    help="entropy thresholds for the dynamic methods (default: the shipped ones)")
-    p.add_argument("-o", "--output", default=None, help="output directory (default ./runs/<UTC stamp>-synthetic); "
-                   "re-running into the same directory resumes")
-    add_backend_options(p, "local worker processes (default 1 = in-process; timings are cleanest with 1)")
+    p.add_argument("-o", "--output", default=None, help="output directory (default ./runs/<UTC stamp>-<kind>); "
+                   "synthetic: re-running into the same directory resumes; board: re-running with the same "
+                   "settings re-makes it, other settings are refused")
+    add_backend_options(p, "synthetic: local worker processes (default 1 = in-process; timings are cleanest with 1)")
+    add_image_options(p)
     add_plugin_option(p)
     add_progress_option(p)
     p.set_defaults(handler=run)
 
 
+def _refuse(args, only: dict, kind: str) -> None:
+    for dest, flag in only.items():
+        v = getattr(args, dest, None)
+        if v not in (None, []):
+            raise InputError(f"{flag}: not an option of `study {kind}`; drop it")
+
+
 def run(args) -> int:
     from edgetruth import console
     from edgetruth.cli import method_list
-    from edgetruth.evaluate.synthetic_study import run_synthetic_study
     from edgetruth.resources import default_runs_dir
 
     out = Path(args.output) if args.output else default_runs_dir() / (
-        _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d-%H%M%S") + "-synthetic")
-    report = run_synthetic_study(out, args.preset, method_list(args.methods), progress=not args.no_progress,
+        _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d-%H%M%S") + f"-{args.kind}")
+    if args.kind == "board":
+        from edgetruth.evaluate.board.study import run_board_study
+
+        _refuse(args, _SYNTHETIC_ONLY, "board")
+        if args.backend != "local":
+            raise InputError("--backend: not an option of `study board` (it runs in-process); drop it")
+        report = run_board_study(args.inputs, out, model=args.model, methods=method_list(args.methods),
+                                 channel=args.channel, thresholds=args.thresholds, progress=not args.no_progress)
+        console.say(f"report: {report}")
+        return 0
+    from edgetruth.evaluate.synthetic_study import run_synthetic_study
+
+    _refuse(args, _BOARD_ONLY, "synthetic")
+    report = run_synthetic_study(out, args.preset or "quick", method_list(args.methods), progress=not args.no_progress,
                                  images_per_scenario=args.images_per_scenario, backend=args.backend,
                                  workers=args.workers or 1, address=args.address, thresholds=args.thresholds)
     console.say(f"report: {report}")

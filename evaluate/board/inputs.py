@@ -1,0 +1,114 @@
+"""What the board study reads: photos (files, folders or a shipped set's name), the model, the reference.
+
+``resolve_inputs`` checks everything it can before any work starts (paths exist and are files,
+a shipped set is known, at least ``MIN_PHOTOS`` photos, no photo twice, a model given) and
+returns a ``BoardInputs``; ``load_photos`` then reads every photo (decodable, gray, one size).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from edgetruth.errors import InputError
+from edgetruth.evaluate.board.model import BoardModel, read_model
+from edgetruth.evaluate.board.reference import read_corners, read_zhang_calibration, shipped_set
+from edgetruth.fileio import check_input_file
+
+#: Leave-one-image-out calibrates on the other photos: Zhang's method needs at least 2 views.
+MIN_PHOTOS = 3
+#: File types read from a folder (``edgetruth.image_io`` reads them).
+PHOTO_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".pgm", ".bmp", ".exr", ".npy")
+
+
+@dataclass
+class BoardInputs:
+    photos: list[Path]
+    model: BoardModel
+    #: per photo (S, 4, 2) reference corners (a shipped set's own), else None
+    reference_corners: list[np.ndarray] | None = None
+    #: the set's published intrinsics {'fx', ..., 'k2'} and where they come from, else None
+    reference_calibration: dict | None = None
+    set_name: str | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def names(self) -> list[str]:
+        return [p.name for p in self.photos]
+
+
+def _shipped_names() -> list[str]:
+    from edgetruth.resources import shipped_real_set_names
+
+    return shipped_real_set_names()
+
+
+def resolve_inputs(items: list[str], model_path: str | None = None) -> BoardInputs:
+    """Photos, folders or one shipped set name -> ``BoardInputs`` (one InputError line on bad input)."""
+    if not items:
+        raise InputError("board study: no photos; give photo files, folders, or a shipped set name "
+                         f"({', '.join(_shipped_names())})")
+    shipped = [s for s in items if not Path(s).exists() and s in _shipped_names()]
+    if shipped:
+        name = shipped[0]
+        if len(items) > 1:
+            raise InputError(f"{name}: a shipped set is studied on its own; give either {name} or photo paths")
+        if model_path is not None:
+            raise InputError(f"{name}: the shipped set supplies its own model; drop --model")
+        s = shipped_set(name)
+        if s is None:
+            raise InputError(f"{name}: this shipped set has no board model (Model.txt); the board study "
+                             "needs one (give the photos with --model FILE)")
+        model = read_model(s["model"])
+        if name == "zhang1998":
+            model = replace(model, units="in")  # assets/real/README.md: Zhang's model is in inches
+        ref_cal = None
+        if s["calibration"] is not None:
+            ref_cal = read_zhang_calibration(s["calibration"])
+            ref_cal["source"] = f"{name}/{s['calibration'].name}"
+        return BoardInputs(list(s["photos"]), model, [read_corners(c, len(model)) for c in s["corners"]],
+                           ref_cal, name)
+    photos: list[Path] = []
+    for item in items:
+        p = Path(item)
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.suffix.lower() in PHOTO_SUFFIXES and q.is_file())
+            if not found:
+                raise InputError(f"{p}: folder holds no photos ({', '.join(PHOTO_SUFFIXES)}); give photo files")
+            photos += found
+        elif not p.exists() and not p.suffix and item.isidentifier():
+            raise InputError(f"{item}: no such photo, folder or shipped set; shipped sets: "
+                             f"{', '.join(_shipped_names())}")
+        else:
+            photos.append(check_input_file(p, "photo"))
+    seen = {}
+    for p in photos:
+        key = p.resolve()
+        if key in seen:
+            raise InputError(f"{p}: given twice (also as {seen[key]}); give each photo once")
+        seen[key] = p
+    if len(photos) < MIN_PHOTOS:
+        raise InputError(f"board study: {len(photos)} photo(s); calibration with leave-one-image-out needs at "
+                         f"least {MIN_PHOTOS} photos of the board")
+    if model_path is None:
+        raise InputError("board study: no board model; give --model FILE (one square per line: x y of its "
+                         "four corners)")
+    return BoardInputs(photos, read_model(model_path))
+
+
+def load_photos(photos: list[Path], channel: str = "luma") -> list[np.ndarray]:
+    """Every photo as a 2-D array (``edgetruth.image_io.read_gray``), all of one size."""
+    from edgetruth.image_io import read_gray
+
+    images = []
+    for p in photos:
+        img = read_gray(p, channel=channel)
+        if img.ndim != 2:
+            raise InputError(f"{p}: expected a gray image, got an array of shape {img.shape}; give a 2-D image")
+        if images and img.shape != images[0].shape:
+            raise InputError(f"{p}: {img.shape[1]}x{img.shape[0]} px, but {photos[0].name} is "
+                             f"{images[0].shape[1]}x{images[0].shape[0]}; every photo must come from one camera "
+                             "at one resolution")
+        images.append(img)
+    return images

@@ -1,0 +1,152 @@
+"""The board study: subpixel edge methods judged on real photographs of a board of squares.
+
+No ground truth is known for a photo, so the methods are judged by what a correct edge must do:
+the points of a straight printed side lie on a line (*straightness*), and corners from the side
+lines must calibrate a camera consistently (*reprojection RMS*, *leave-one-image-out RMS*,
+intrinsics against the set's published ones, *side lengths* in the board plane against the
+model).  Steps (docs/board.md):
+
+1. photos, model and (for a shipped set) the set's own corners and calibration
+   (``inputs``, ``model``, ``reference``); everything checked before any work;
+2. per photo: the dark quads (``quads``) and the model's squares among them (``correspond``),
+   and the Canny candidates, once, shared by every method;
+3. per method: the refined points, side lines and corners (``sides``, ``measure``); then per row
+   (every method, and the set's own corners as the reference row) the calibration, LOO and side
+   lengths (``calibrate``);
+4. per-row figures (``summary``), paired tests (``compare``), files (``report``, ``figures``).
+
+Nothing is written until every step has run; the run directory holds ``run.json``.  Running again
+into the same directory with the same settings re-makes it (the study takes well under a minute);
+with other settings it is refused.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from edgetruth import console, locate
+from edgetruth.errors import InputError
+from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.board.compare import compare_all
+from edgetruth.evaluate.board.correspond import match_squares
+from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, resolve_inputs
+from edgetruth.evaluate.board.measure import REFERENCE_ROW, Row, calibrate_row, method_row
+from edgetruth.evaluate.board.quads import find_quads
+from edgetruth.evaluate.board.sides import near_sides, square_map
+from edgetruth.evaluate.board.summary import per_side_rows, row_summary
+
+KIND = "study board"
+#: A photo on which fewer than this share of the model's squares are found is left out (with a warning).
+MIN_FOUND_SHARE = 0.5
+#: Candidates refined: those within this distance of a detected quad's side (the rest cannot be assigned).
+CANDIDATE_MARGIN_PX = 5.0
+
+
+def settings_of(inp: BoardInputs, methods: list[str], options: dict, channel: str) -> dict:
+    return {"photos": [str(p.resolve()) for p in inp.photos], "set": inp.set_name, "model": inp.model.source,
+            "methods": methods, "options": _jsonable(options), "channel": channel}
+
+
+def _jsonable(options: dict) -> dict:
+    return {m: {k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v) for k, v in o.items()}
+            for m, o in options.items()}
+
+
+def check_output(out: Path, settings: dict) -> Path:
+    """Refuse a foreign directory (``check_run_dir``) or a board study of other settings, before any work."""
+    from edgetruth.evaluate.pipeline import RUN_MARKER, check_run_dir
+    from edgetruth.fileio import read_json
+
+    out = check_run_dir(out, KIND)
+    marker = out / RUN_MARKER
+    if marker.is_file():
+        old = read_json(marker).get("settings", {})
+        if {k: old.get(k) for k in settings} != settings:
+            diff = [k for k in settings if old.get(k) != settings[k]]
+            raise InputError(f"-o {out}: holds a board study of other {', '.join(diff)}; choose a new directory "
+                             "(or the same settings to re-make it)")
+    return out
+
+
+def locate_squares(inp: BoardInputs, images, progress: bool):
+    """Per photo: the Canny candidates near the detected squares' sides, the detected quads in the model's order,
+    their square map, and a line for the report; photos with too few squares are left out."""
+    cands, quads, smaps, table, keep = [], [], [], [], []
+    n_sq = len(inp.model)
+    for i, (name, img) in enumerate(console.track(list(zip(inp.names, images)), desc="squares + candidates",
+                                                   unit="photo", enabled=progress)):
+        c = match_squares(inp.model, find_quads(img))
+        found = 0 if c is None else int(c.found.sum())
+        line = {"photo": name, "squares_found": found, "squares_total": n_sq,
+                "missing": "all" if c is None else " ".join(map(str, c.missing)),
+                "quad_residual_px": c.residual_px if c is not None else float("nan"),
+                "candidates_near_sides": "", "used": "no"}
+        table.append(line)
+        if found < MIN_FOUND_SHARE * n_sq:
+            console.warn(f"{name}: found {found} of the model's {n_sq} squares; photo left out")
+            continue
+        cand = locate.candidates(img)
+        cand = cand.subset(near_sides(c.corners, cand.x, cand.y, CANDIDATE_MARGIN_PX))
+        line.update({"candidates_near_sides": len(cand), "used": "yes"})
+        cands.append(cand)
+        quads.append(c.corners)
+        smaps.append(square_map(c.corners, img.shape))
+        keep.append(i)
+    return cands, quads, smaps, table, keep
+
+
+def run_board_study(items: list[str], out, model: str | None = None, methods=None, channel: str = "luma",
+                    thresholds=None, progress: bool = True) -> Path:
+    """Run the board study (module docstring) into ``out``; returns the path of its report.md."""
+    from edgetruth.evaluate.pipeline import prepare_run_dir
+    from edgetruth.evaluate.board.report import header_lines, write_outputs
+    from edgetruth.evaluate.board.summary import INTRINSICS
+
+    t0 = time.perf_counter()
+    inp = resolve_inputs(list(items), model)
+    methods = mo.ordered(methods)
+    for m in methods:
+        locate.get_method(mo.resolve(m)[0])
+    options = mo.study_options(thresholds)
+    settings = settings_of(inp, methods, options, channel)
+    out = check_output(Path(out), settings)
+    images = load_photos(inp.photos, channel)
+    h, w = images[0].shape
+
+    cands, quads, smaps, photo_table, keep = locate_squares(inp, images, progress)
+    if len(keep) < MIN_PHOTOS:
+        raise InputError(f"board study: the model's squares were found on {len(keep)} photo(s) "
+                         f"({', '.join(inp.names[i] for i in keep) or 'none'}); need {MIN_PHOTOS}: check the model "
+                         "matches the board in the photos")
+    used_images = [images[i] for i in keep]
+    names = [inp.names[i] for i in keep]
+
+    rows: list[Row] = []
+    for label in console.track(methods, desc="methods", unit="method", enabled=progress):
+        method, kw = mo.resolve(label, options)
+        rows.append(method_row(label, method, kw, used_images, cands, quads, smaps))
+    if inp.reference_corners is not None:
+        rows.append(Row(REFERENCE_ROW, [inp.reference_corners[i] for i in keep]))
+    for r in console.track(rows, desc="calibration", unit="row", enabled=progress):
+        calibrate_row(r, inp.model, (w, h))
+
+    reference = None
+    if inp.reference_calibration is not None:
+        reference = {k: inp.reference_calibration[k] for k in INTRINSICS}
+        reference["source"] = inp.reference_calibration.get("source", "reference")
+    ref_corners = [inp.reference_corners[i] for i in keep] if inp.reference_corners is not None else None
+    summaries = [row_summary(r, inp.model, reference, ref_corners) for r in rows]
+    comparisons = compare_all(rows)
+    per_side = per_side_rows(rows, inp.model, names)
+    elapsed = time.perf_counter() - t0
+
+    header = header_lines(inp, names, (w, h), channel, methods, options, thresholds, reference,
+                          ref_corners is not None, elapsed)
+    out = prepare_run_dir(out, KIND, settings)
+    title = f"Board study — {inp.set_name or f'{len(inp.photos)} photos'}"
+    report = write_outputs(out, title=title, header_lines=header, photos_table=photo_table, rows=rows,
+                           summaries=summaries, comparisons=comparisons, reference=reference, model=inp.model,
+                           photo_names=names, per_side=per_side)
+    return report

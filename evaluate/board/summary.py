@@ -1,0 +1,153 @@
+"""Per-row figures of the board study (one dict per method, plus the reference row) and the per-side table.
+
+- straightness: pooled RMS = sqrt(sum of squared residuals / number of points) over every covered
+  side of every photo, with a percentile bootstrap CI resampling sides; also the median side RMS;
+- calibration RMS (OpenCV's) and the LOO RMS, each with a bootstrap CI resampling corners (the
+  calibration held fixed: the spread of the corners' residuals, not of a re-calibration);
+- intrinsics and their differences from the set's published calibration;
+- side lengths in the board plane: bias (mean error) and RMSE, in board units and in px;
+- coverage: sides with at least ``sides.MIN_POINTS`` points, and the share of the candidates the
+  method refined (``converged``; the candidates within ``study.CANDIDATE_MARGIN_PX`` of a detected
+  square's side, all photos);
+- per photo: straightness, calibration RMS and LOO RMS;
+- corners vs the set's own corners (mean distance, px) where the set has them.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from edgetruth.evaluate.board.measure import REFERENCE_LABEL, REFERENCE_ROW, Row
+from edgetruth.evaluate.board.model import BoardModel
+
+N_BOOT = 2000
+SEED = 0
+INTRINSICS = ("fx", "fy", "cx", "cy", "k1", "k2")
+
+
+@lru_cache(maxsize=4)
+def bootstrap_indices(n: int, n_boot: int = N_BOOT, seed: int = SEED) -> np.ndarray:
+    """The bootstrap's resamples of n units (cached: every row with n units gets the same resamples, so the
+    rows' intervals are paired like their values)."""
+    idx = np.random.Generator(np.random.PCG64(seed)).integers(0, n, size=(n_boot, n)).astype(np.int32)
+    idx.flags.writeable = False
+    return idx
+
+
+def pooled_rms(rms: np.ndarray, n: np.ndarray) -> float:
+    """sqrt(sum of squared residuals / points) of sides with per-side RMS ``rms`` over ``n`` points."""
+    ok = np.isfinite(rms) & (n > 0)
+    return float(np.sqrt(np.sum(rms[ok] ** 2 * n[ok]) / n[ok].sum())) if ok.any() else float("nan")
+
+
+def pooled_rms_ci(rms: np.ndarray, n: np.ndarray, alpha: float = 0.05) -> tuple[float, tuple[float, float]]:
+    """Pooled RMS of sides (per-side RMS ``rms`` over ``n`` points) and its bootstrap CI over sides."""
+    ok = np.isfinite(rms) & (n > 0)
+    ss, nn = (rms[ok] ** 2) * n[ok], n[ok].astype(float)
+    if nn.size == 0:
+        return float("nan"), (float("nan"), float("nan"))
+    value = float(np.sqrt(ss.sum() / nn.sum()))
+    if nn.size < 2:
+        return value, (float("nan"), float("nan"))
+    i = bootstrap_indices(nn.size)
+    boots = np.sqrt(ss[i].sum(axis=1) / nn[i].sum(axis=1))
+    lo, hi = np.percentile(boots, [100 * alpha / 2, 100 * (1 - alpha / 2)])
+    return value, (float(lo), float(hi))
+
+
+def rms_ci(residuals: np.ndarray, alpha: float = 0.05) -> tuple[float, tuple[float, float]]:
+    """RMS of residual lengths (the finite ones) and its bootstrap CI over them."""
+    r = np.asarray(residuals, float)
+    r = r[np.isfinite(r)]
+    if r.size < 2:
+        return (float(np.sqrt(np.mean(r * r))) if r.size else float("nan")), (float("nan"), float("nan"))
+    sq = r * r
+    boots = np.sqrt(sq[bootstrap_indices(r.size)].mean(axis=1))
+    lo, hi = np.percentile(boots, [100 * alpha / 2, 100 * (1 - alpha / 2)])
+    return float(np.sqrt(sq.mean())), (float(lo), float(hi))
+
+
+def _flat(arrs) -> np.ndarray:
+    return np.concatenate([np.asarray(a, float).ravel() for a in arrs]) if arrs else np.zeros(0)
+
+
+def row_summary(row: Row, model: BoardModel, reference: dict | None, reference_corners=None) -> dict:
+    """The figures of one row (module docstring); NaN where they do not apply."""
+    label = REFERENCE_LABEL if row.label == REFERENCE_ROW else _label(row.label)
+    out: dict = {"row": row.label, "label": label}
+    if row.is_method:
+        rms = _flat([f.rms_px for f in row.sides])
+        n = _flat([f.n_points for f in row.sides])
+        s, ci = pooled_rms_ci(rms, n)
+        covered = np.isfinite(rms)
+        out["per_photo_straightness_px"] = [pooled_rms(f.rms_px.ravel(), f.n_points.ravel()) for f in row.sides]
+        out.update(straightness_px=s, straightness_ci=ci, straightness_median_px=float(np.nanmedian(rms))
+                   if covered.any() else float("nan"), sides_covered=int(covered.sum()), sides_total=int(rms.size),
+                   side_coverage=float(covered.mean()) if rms.size else float("nan"),
+                   converged_fraction=row.converged / row.candidates if row.candidates else float("nan"),
+                   points_per_side=float(np.mean(n[covered])) if covered.any() else float("nan"),
+                   refine_s=row.refine_s)
+    else:
+        out.update(straightness_px=float("nan"), straightness_ci=(float("nan"),) * 2,
+                   straightness_median_px=float("nan"), sides_covered=0, sides_total=0, side_coverage=float("nan"),
+                   converged_fraction=float("nan"), points_per_side=float("nan"), refine_s=float("nan"))
+    corners = _flat([np.all(np.isfinite(c), axis=2) for c in row.corners])
+    out["corners_used"] = int(corners.sum())
+    out["corners_total"] = int(corners.size)
+    if reference_corners is not None:
+        d = _flat([np.linalg.norm(c - r, axis=2) for c, r in zip(row.corners, reference_corners)])
+        out["corner_vs_reference_px"] = float(np.nanmean(d)) if np.isfinite(d).any() else float("nan")
+    out["failure"] = row.failure
+    if row.cal is None:
+        return out
+    _, calib_ci = rms_ci(_flat(row.cal.residual_px))
+    loo, loo_ci = rms_ci(_flat(row.loo["residual_px"]))
+    out.update(calib_rms_px=row.cal.rms_px, calib_rms_ci=calib_ci,
+               loo_rms_px=loo, loo_rms_ci=loo_ci, loo_per_photo_px=list(row.loo["per_view_rms_px"]),
+               calib_per_photo_px=[float(np.sqrt(np.nanmean(r ** 2))) for r in row.cal.residual_px])
+    out.update(row.cal.intrinsics())
+    if reference:
+        for k in INTRINSICS:
+            out[f"d_{k}"] = out[k] - reference[k]
+    err = _flat(row.lengths["error"])
+    err_px = _flat(row.lengths["error_px"])
+    ok = np.isfinite(err)
+    out.update(length_bias_model=float(err[ok].mean()) if ok.any() else float("nan"),
+               length_rmse_model=float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else float("nan"),
+               length_bias_px=float(err_px[ok].mean()) if ok.any() else float("nan"),
+               length_rmse_px=float(np.sqrt(np.mean(err_px[ok] ** 2))) if ok.any() else float("nan"),
+               length_sides=int(ok.sum()))
+    return out
+
+
+def _label(method_label: str) -> str:
+    from edgetruth.evaluate import method_order as mo
+
+    return mo.label(method_label)
+
+
+def per_side_rows(rows: list[Row], model: BoardModel, photo_names: list[str]) -> list[dict]:
+    """per_side.csv: one line per (photo, square, side, row): n_points, rms_px (methods only), the side's
+    length in the board plane and its error (board units and px).  Squares/sides are numbered from 0."""
+    out = []
+    s_idx, k_idx = np.meshgrid(np.arange(len(model)), np.arange(4), indexing="ij")
+    model_len = model.side_lengths
+    for row in rows:
+        for i, name in enumerate(photo_names):
+            n = row.sides[i].n_points if row.is_method else np.full(model_len.shape, -1)
+            rms = row.sides[i].rms_px if row.is_method else np.full(model_len.shape, np.nan)
+            length = row.lengths["length"][i] if row.lengths else np.full(model_len.shape, np.nan)
+            err = row.lengths["error"][i] if row.lengths else np.full(model_len.shape, np.nan)
+            err_px = row.lengths["error_px"][i] if row.lengths else np.full(model_len.shape, np.nan)
+            for s, k in zip(s_idx.ravel(), k_idx.ravel()):
+                out.append({"image": name, "square": int(s), "side": int(k), "method": row.label,
+                            "n_points": int(n[s, k]) if row.is_method else "",
+                            "rms_px": _cell(rms[s, k]), "length_model": _cell(model_len[s, k]),
+                            "length_measured": _cell(length[s, k]), "length_err": _cell(err[s, k]),
+                            "length_err_px": _cell(err_px[s, k])})
+    return out
+
+
+def _cell(v) -> str:
+    return "" if not np.isfinite(v) else repr(float(v))

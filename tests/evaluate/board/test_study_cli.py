@@ -1,0 +1,181 @@
+"""`edgetruth study board`: Zhang's set end to end (the reference row reproduces OpenCV on his corners), the
+files it writes, re-runs, and bad inputs refused before anything is written."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from edgetruth.cli import main
+from edgetruth.resources import real_set
+
+METHODS = "canny_devernay,dynamic_erf_4p"
+
+
+def _rows(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.fixture(scope="module")
+def zhang_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("board") / "run"
+    rc = main(["study", "board", "zhang1998", "-o", str(out), "--methods", METHODS, "--no-progress"])
+    return rc, out
+
+
+def test_reference_row_reproduces_opencv_on_zhangs_corners(zhang_run):
+    """OpenCV calibrateCamera (k1, k2) on Zhang's own corners: RMS 0.337 px, fx 832.21 (measured outside the
+    project); his published fx is 832.50."""
+    rc, out = zhang_run
+    assert rc == 0
+    rows = {r["row"]: r for r in _rows(out / "summary.csv")}
+    ref = rows["zhang_corners"]
+    assert float(ref["calib_rms_px"]) == pytest.approx(0.337, abs=0.01)
+    assert float(ref["fx"]) == pytest.approx(832.2, abs=1.0)
+    assert float(ref["fy"]) == pytest.approx(832.2, abs=1.0)
+    assert float(ref["loo_rms_px"]) >= float(ref["calib_rms_px"])
+    assert float(ref["d_fx"]) == pytest.approx(float(ref["fx"]) - 832.5, abs=1e-9)
+    assert float(ref["corner_vs_reference_px"]) == 0.0
+
+
+def test_method_rows_are_finite_and_cover_every_side(zhang_run):
+    _, out = zhang_run
+    rows = {r["row"]: r for r in _rows(out / "summary.csv")}
+    assert list(rows) == ["canny_devernay", "dynamic_erf_4p", "zhang_corners"]
+    for m in ("canny_devernay", "dynamic_erf_4p"):
+        r = rows[m]
+        for k in ("straightness_px", "straightness_ci_lo", "straightness_ci_hi", "calib_rms_px", "loo_rms_px", "fx",
+                  "fy", "cx", "cy", "k1", "k2", "length_bias_model", "length_rmse_model", "length_rmse_px",
+                  "converged_fraction"):
+            assert np.isfinite(float(r[k])), (m, k)
+        assert int(r["sides_covered"]) == int(r["sides_total"]) == 1280
+        assert float(r["straightness_ci_lo"]) <= float(r["straightness_px"]) <= float(r["straightness_ci_hi"])
+        assert 0.3 < float(r["calib_rms_px"]) < 0.6 and abs(float(r["fx"]) - 832.5) < 3
+        # corners from the method's side lines agree with Zhang's (measured: 0.10 px Devernay, 0.14 dynamic 4P)
+        assert float(r["corner_vs_reference_px"]) < 0.3
+
+
+def test_files_figures_and_report(zhang_run):
+    _, out = zhang_run
+    for f in ("straightness.png", "calibration_rms.png", "side_length_error.png"):
+        assert (out / "figures" / f).read_bytes()[:4] == b"\x89PNG"
+    text = (out / "report.md").read_text()
+    for s in ("Table 1", "Table 2", "Table 3", "Table 4", "Paired tests", "Reading", "Zhang's corners",
+              "figures/straightness.png", "CalibIm5.png", "options"):
+        assert s in text
+    per_side = _rows(out / "per_side.csv")
+    assert len(per_side) == 5 * 64 * 4 * 3
+    assert set(per_side[0]) >= {"image", "square", "side", "method", "n_points", "rms_px", "length_model", "length_err"}
+    dev = [r for r in per_side if r["method"] == "canny_devernay"]
+    assert all(int(r["n_points"]) >= 5 and float(r["rms_px"]) >= 0 for r in dev)
+    assert float(dev[0]["length_model"]) == pytest.approx(0.5, abs=1e-5)
+    cal = json.loads((out / "calibration" / "zhang_corners.json").read_text())
+    assert cal["calibration"]["rms_px"] == pytest.approx(0.337, abs=0.01)
+    assert len(cal["leave_one_out"]["per_view_rms_px"]) == 5
+    tests = _rows(out / "paired_tests.csv")
+    assert {t["family"] for t in tests} == {"straightness", "reprojection", "loo", "side_length"}
+    assert all(0 <= float(t["p_holm"]) <= 1 for t in tests)
+    assert json.loads((out / "run.json").read_text())["kind"] == "study board"
+
+
+def test_rerun_remakes_and_other_settings_are_refused(zhang_run, capsys):
+    _, out = zhang_run
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    rc = main(["study", "board", "zhang1998", "-o", str(out), "--methods", "canny_devernay", "--no-progress"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "other methods" in err[0]
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    rc = main(["-q", "study", "board", "zhang1998", "-o", str(out), "--methods", METHODS, "--no-progress"])
+    assert rc == 0
+    # the same numbers (OpenCV's threaded solvers agree to ~1e-7 run to run), timing aside
+    again = _rows(out / "summary.csv")
+    first = list(csv.DictReader(before[out / "summary.csv"].decode().splitlines()))
+    for a, b in zip(first, again):
+        for k in a:
+            if k == "refine_s" or not a[k] or k in ("row", "label", "failure"):
+                continue
+            assert float(b[k]) == pytest.approx(float(a[k]), rel=1e-5, abs=1e-9), k
+
+
+def _bad(tmp_path, capsys, argv, match):
+    out = tmp_path / "out"
+    rc = main(["study", "board", *argv, "-o", str(out), "--no-progress"])
+    err = [line for line in capsys.readouterr().err.strip().splitlines() if not line.startswith("warning:")]
+    assert rc == 2, err
+    assert len(err) == 1 and match in err[0], err
+    assert not out.exists()
+
+
+def _photos(tmp_path, n):
+    import shutil
+
+    root = real_set("zhang1998")
+    paths = []
+    for i in range(1, n + 1):
+        shutil.copy(root / f"CalibIm{i}.png", tmp_path / f"CalibIm{i}.png")
+        paths.append(str(tmp_path / f"CalibIm{i}.png"))
+    return paths
+
+
+def test_missing_model(tmp_path, capsys):
+    _bad(tmp_path, capsys, _photos(tmp_path, 3), "--model")
+
+
+def test_model_file_not_found(tmp_path, capsys):
+    _bad(tmp_path, capsys, [*_photos(tmp_path, 3), "--model", str(tmp_path / "nope.txt")], "nope.txt")
+
+
+def test_malformed_model(tmp_path, capsys):
+    m = tmp_path / "Model.txt"
+    m.write_text("0 0 1 0 1 1\n")
+    _bad(tmp_path, capsys, [*_photos(tmp_path, 3), "--model", str(m)], "line 1 has 6 values")
+
+
+def test_photo_not_found(tmp_path, capsys):
+    root = real_set("zhang1998")
+    _bad(tmp_path, capsys, [*_photos(tmp_path, 3), str(tmp_path / "gone.png"), "--model", str(root / "Model.txt")],
+         "gone.png")
+
+
+def test_two_photos_only(tmp_path, capsys):
+    root = real_set("zhang1998")
+    _bad(tmp_path, capsys, [*_photos(tmp_path, 2), "--model", str(root / "Model.txt")], "at least 3 photos")
+
+
+def test_corrupt_photo(tmp_path, capsys):
+    root = real_set("zhang1998")
+    photos = _photos(tmp_path, 3)
+    bad = tmp_path / "broken.png"
+    bad.write_bytes(open(photos[0], "rb").read()[:200])
+    _bad(tmp_path, capsys, [*photos, str(bad), "--model", str(root / "Model.txt")], "broken.png")
+
+
+def test_shipped_set_with_a_model_or_more_photos(tmp_path, capsys):
+    root = real_set("zhang1998")
+    _bad(tmp_path, capsys, ["zhang1998", "--model", str(root / "Model.txt")], "drop --model")
+    _bad(tmp_path, capsys, ["zhang1998", *_photos(tmp_path, 1)], "on its own")
+    _bad(tmp_path, capsys, ["zhang1999"], "no such photo, folder or shipped set")
+
+
+def test_no_board_in_the_photos(tmp_path, capsys):
+    import cv2
+
+    paths = []
+    for i in range(3):
+        p = tmp_path / f"flat{i}.png"
+        cv2.imwrite(str(p), np.full((100, 120), 100 + i, np.uint8))
+        paths.append(str(p))
+    _bad(tmp_path, capsys, [*paths, "--model", str(real_set("zhang1998") / "Model.txt")], "found on 0 photo")
+
+
+def test_foreign_directory_and_synthetic_options(tmp_path, capsys):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep")
+    rc = main(["study", "board", "zhang1998", "-o", str(out), "--no-progress"])
+    assert rc == 2 and "not an edgetruth run directory" in capsys.readouterr().err
+    assert [p.name for p in out.iterdir()] == ["notes.txt"]
+    _bad(tmp_path, capsys, ["zhang1998", "--preset", "full"], "--preset")
+    rc = main(["study", "synthetic", "zhang1998", "-o", str(tmp_path / "s")])
+    assert rc == 2 and "PHOTOS" in capsys.readouterr().err
