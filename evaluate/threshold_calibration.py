@@ -3,7 +3,7 @@
 Data: the ``calibration`` split of the synthetic scenarios (seeds disjoint
 from every test split by construction, see ``edgetruth.render.synthetic``),
 or rendered target images of a camera (``calibrate_renders``: the per-point
-truth of ``edgetruth.evaluate.render_points`` on the raw images; the file
+truth of ``edgetruth.evaluate.points.scores`` on the raw images; the file
 records every image's seeds, and ``check_disjoint`` refuses to evaluate
 those thresholds on any image rendered from the same seeds).
 For every on-edge candidate we fit all four fixed windows once and record
@@ -29,7 +29,7 @@ from edgetruth import locate
 from edgetruth import __version__
 from edgetruth.errors import InputError
 from edgetruth.resources import source_commit
-from edgetruth.evaluate.matching import MATCH_RADIUS_PX, on_edge
+from edgetruth.evaluate.points.matching import MATCH_RADIUS_PX, on_edge
 from edgetruth.locate.methods.erf import WINDOWS
 from edgetruth.render.synthetic import SCENARIOS, DEFAULT_SHAPE, synthetic_image
 
@@ -73,8 +73,8 @@ def collect(split: str = "calibration", images_per_scenario: int = 100, shape=DE
 
 def collect_renders(dataset_dirs, progress=None, names=None) -> tuple[WindowErrors, list[dict]]:
     """Per-point window errors on the target images of rendered datasets (raw images, exact outline,
-    the scoring rule of ``edgetruth.evaluate.render_points``); also each image's seeds and spec."""
-    from edgetruth.evaluate.render_points import scored_candidates
+    the scoring rule of ``edgetruth.evaluate.points.scores``); also each image's seeds and spec."""
+    from edgetruth.evaluate.points.scores import scored_candidates
     from edgetruth.render.edge_truth import OutlineEdge
     from edgetruth.render.reader import open_dataset
 
@@ -223,7 +223,7 @@ def _fit(data: WindowErrors, step: float) -> dict:
 def calibrate_renders(dataset_dirs, step: float = 0.01, progress=None, names=None) -> dict:
     """Thresholds for the camera of rendered datasets, from their per-point truth (JSON-ready record);
     ``names``: only these images (default: every target image)."""
-    from edgetruth.evaluate.render_points import CORNER_EXCLUSION_PX
+    from edgetruth.evaluate.points.scores import CORNER_EXCLUSION_PX
     from edgetruth.render.reader import open_dataset
 
     data, used = collect_renders(dataset_dirs, progress, None if names is None else set(names))

@@ -78,7 +78,7 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
     """The report's header: version, time, inputs, method options, the procedure in one line."""
     from edgetruth import __version__
     from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.pipeline import utc_stamp
+    from edgetruth.evaluate.run_dir import utc_stamp
     from edgetruth.resources import source_commit
 
     tau = mo.thresholds_in_use(thresholds)

@@ -56,7 +56,7 @@ def _jsonable(options: dict) -> dict:
 
 def check_output(out: Path, settings: dict) -> Path:
     """Refuse a foreign directory (``check_run_dir``) or a board study of other settings, before any work."""
-    from edgetruth.evaluate.pipeline import RUN_MARKER, check_run_dir
+    from edgetruth.evaluate.run_dir import RUN_MARKER, check_run_dir
     from edgetruth.fileio import read_json
 
     out = check_run_dir(out, KIND)
@@ -100,7 +100,7 @@ def locate_squares(inp: BoardInputs, images, progress: bool):
 def run_board_study(items: list[str], out, model: str | None = None, methods=None, channel: str = "luma",
                     thresholds=None, progress: bool = True) -> Path:
     """Run the board study (module docstring) into ``out``; returns the path of its report.md."""
-    from edgetruth.evaluate.pipeline import prepare_run_dir
+    from edgetruth.evaluate.run_dir import prepare_run_dir
     from edgetruth.evaluate.board.report import header_lines, write_outputs
     from edgetruth.evaluate.board.summary import INTRINSICS
 

@@ -82,7 +82,7 @@ SCRIPT = '''
 import sys
 import numpy as np
 from edgetruth import locate
-from edgetruth.evaluate.synthetic_study import run_synthetic_study
+from edgetruth.evaluate.synthetic.study import run_synthetic_study
 
 if __name__ == "__main__":
     @locate.register("main_half_offset", label="MainHalfOffset")   # defined only in __main__

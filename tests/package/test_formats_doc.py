@@ -46,6 +46,6 @@ def test_every_ground_truth_and_manifest_key_is_documented(tiny_dataset):
 
 
 def test_every_ranging_row_field_is_documented():
-    from edgetruth.evaluate.ranging import ROW_FIELDS
+    from edgetruth.evaluate.ranging.images import ROW_FIELDS
 
     assert not sorted(set(ROW_FIELDS) - DOCUMENTED)

@@ -78,7 +78,7 @@ ALLOWED = {"ground": {"ground"}, "render": {"ground", "render"}, "locate": {"gro
 
 
 def test_every_source_folder_is_found(graph):
-    assert {"edgetruth.render.spec", "edgetruth.locate.registry", "edgetruth.evaluate.pipeline",
+    assert {"edgetruth.render.spec", "edgetruth.locate.registry", "edgetruth.evaluate.ranging.main_job",
             "edgetruth.cli.commands.run"} <= set(graph)
 
 

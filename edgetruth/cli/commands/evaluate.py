@@ -53,7 +53,8 @@ def run(args: argparse.Namespace) -> int:
     from edgetruth.errors import InputError
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.calibration import calibrate, load_calibration
-    from edgetruth.evaluate.pipeline import check_run_dir, evaluate_datasets, prepare_run_dir, utc_stamp
+    from edgetruth.evaluate.ranging.main_job import evaluate_datasets
+    from edgetruth.evaluate.run_dir import check_run_dir, prepare_run_dir, utc_stamp
     from edgetruth.fileio import write_json
     from edgetruth.render.reader import open_dataset
     from edgetruth.resources import default_runs_dir
@@ -113,8 +114,8 @@ def run_photos(args: argparse.Namespace, methods) -> int:
     from edgetruth.backends import default_workers
     from edgetruth.errors import InputError
     from edgetruth.evaluate.calibration import load_calibration
-    from edgetruth.evaluate.photo_ranging import check_photos, evaluate_photos, read_distances, unlisted_photos
-    from edgetruth.evaluate.pipeline import check_run_dir, prepare_run_dir, utc_stamp
+    from edgetruth.evaluate.ranging.photos import check_photos, evaluate_photos, read_distances, unlisted_photos
+    from edgetruth.evaluate.run_dir import check_run_dir, prepare_run_dir, utc_stamp
     from edgetruth.fileio import check_input_file, write_json
     from edgetruth.resources import default_runs_dir
 

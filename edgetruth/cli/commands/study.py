@@ -73,7 +73,7 @@ def run(args) -> int:
                                  channel=args.channel, thresholds=args.thresholds, progress=not args.no_progress)
         console.say(f"report: {report}")
         return 0
-    from edgetruth.evaluate.synthetic_study import run_synthetic_study
+    from edgetruth.evaluate.synthetic.study import run_synthetic_study
 
     _refuse(args, _BOARD_ONLY, "synthetic")
     report = run_synthetic_study(out, args.preset or "quick", method_list(args.methods), progress=not args.no_progress,

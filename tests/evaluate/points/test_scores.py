@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from edgetruth.evaluate import render_points as rp
-from edgetruth.evaluate import render_points_report as rpr
+from edgetruth.evaluate.points import scores as rp
+from edgetruth.evaluate.points import report as rpr
 from edgetruth.render.camera import load_camera
 from edgetruth.render.edge_truth import OutlineEdge
 from edgetruth.render.ground_truth import target_ground_truth

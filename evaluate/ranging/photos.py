@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.ranging import SHAPES, ImageResult, interval_label
+from edgetruth.evaluate.ranging.images import SHAPES, ImageResult, interval_label
 
 REQUIRED_COLUMNS = ("image", "distance_cm", "size_m", "shape", "group")
 OPTIONAL_COLUMNS = ("height_m", "polarity", "note")
@@ -210,8 +210,8 @@ def photo_base(r: PhotoRecord) -> dict:
 def range_photo(image: np.ndarray, record: PhotoRecord, cal, methods: list[str], keep_points: bool = False,
                 options: dict | None = None, undistorter=None) -> ImageResult:
     """Undistort one photo (a 2-D array) with ``cal``, find its target and range it with every method."""
-    from edgetruth.evaluate.ranging import range_undistorted
-    from edgetruth.evaluate.undistort import from_calibration
+    from edgetruth.evaluate.ranging.images import range_undistorted
+    from edgetruth.evaluate.ranging.undistort import from_calibration
 
     und = undistorter or from_calibration(cal)
     img = und(np.asarray(image, np.float64))
@@ -225,7 +225,7 @@ _undistorters: dict = {}
 
 def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options, channel):
     """One photo (a pure function of its arguments; runs in worker processes)."""
-    from edgetruth.evaluate.undistort import from_calibration
+    from edgetruth.evaluate.ranging.undistort import from_calibration
     from edgetruth.image_io import read_gray
 
     key = (cal.K.tobytes(), cal.dist.tobytes(), tuple(cal.image_size))
@@ -243,7 +243,7 @@ def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir
     Returns {"rows", "examples", "per_image", "methods"} (as ``ranging.run_ranging``)."""
     from edgetruth import console, locate
     from edgetruth.backends import make_backend
-    from edgetruth.evaluate.ranging import write_rows
+    from edgetruth.evaluate.ranging.images import write_rows
     from edgetruth.fileio import write_json
     from edgetruth.locate import plugins
 
@@ -319,7 +319,7 @@ def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_d
     (Tables 13-17, paired tests and verdicts against the reference distances)."""
     from edgetruth import locate
     from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.ranging_report import write_report
+    from edgetruth.evaluate.ranging.report import write_report
 
     options = mo.study_options(thresholds, camera_thresholds)
     tau = mo.thresholds_in_use(thresholds)

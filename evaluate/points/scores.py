@@ -2,12 +2,12 @@
 
 The ranging chain works on the undistorted (resampled) image, where the truth is only as good as
 the calibration.  Edge-level errors are measured on the *raw* image instead: the target's Canny
-boundary candidates there (``edgetruth.evaluate.target_finding``) are refined by every method and
+boundary candidates there (``edgetruth.evaluate.ranging.target``) are refined by every method and
 each point's error is its signed distance to the exact distorted outline of the ground truth
 (``edgetruth.render.edge_truth.OutlineEdge``: the JSON's dense polyline, chords within 1e-3 px of
 the curve; > 0 on the bright board, as the synthetic study's errors are > 0 on the bright side).
 
-Which candidates are scored (one rule for every method, as ``edgetruth.evaluate.matching``):
+Which candidates are scored (one rule for every method, as ``edgetruth.evaluate.points.matching``):
 
 - *on the edge*: the candidate pixel centre lies within ``MATCH_RADIUS_PX`` (1.5 px) of the outline;
 - *not at a corner*: squares only -- the candidate lies farther than ``CORNER_EXCLUSION_PX`` (4 px)
@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from edgetruth.evaluate.matching import MATCH_RADIUS_PX
+from edgetruth.evaluate.points.matching import MATCH_RADIUS_PX
 
 CORNER_EXCLUSION_PX = 4.0
 BOUND_WINDOW_PX = 11
@@ -65,7 +65,7 @@ def scored_candidates(image: np.ndarray, truth):
     """The target's Canny boundary candidates on the raw ``image`` and the subset the rule scores:
     (``TargetCandidates``, scored ``Candidates``, their signed truth distance).  One definition for
     the per-point tables and the threshold calibration on renders."""
-    from edgetruth.evaluate.target_finding import target_candidates
+    from edgetruth.evaluate.ranging.target import target_candidates
 
     tc = target_candidates(np.asarray(image, np.float64))
     keep, d = scored_subset(truth, tc.candidates, tc.offset)

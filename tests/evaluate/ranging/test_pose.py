@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from edgetruth.evaluate.pose_ranging import circle_conic, circle_pose_distance, sampson_distance, square_pose_distance
+from edgetruth.evaluate.ranging.pose import circle_conic, circle_pose_distance, sampson_distance, square_pose_distance
 from edgetruth.render.camera import Camera
 from edgetruth.render.pose import Pose
 

@@ -3,7 +3,7 @@
 Every method refines the same Canny candidates of the same test-split images
 (seeds disjoint from the threshold calibration split).  Errors are signed
 distances to the true edge along the true normal, for candidates whose
-pixel centre lies within 1.5 px of the edge (``edgetruth.evaluate.matching``); a
+pixel centre lies within 1.5 px of the edge (``edgetruth.evaluate.points.matching``); a
 method that fails on a candidate answers with the candidate pixel (and the
 failure share is reported), so every method is scored on the same points.
 
@@ -28,7 +28,7 @@ from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate import crb
 from edgetruth.evaluate import stats as st
-from edgetruth.evaluate.matching import MATCH_RADIUS_PX, on_edge
+from edgetruth.evaluate.points.matching import MATCH_RADIUS_PX, on_edge
 from edgetruth.evaluate.stats import summary, wilcoxon_paired
 from edgetruth.render.synthetic import DEFAULT_SHAPE, SCENARIOS, synthetic_image
 
@@ -450,7 +450,8 @@ def write_csv(path: Path, rows: list[dict]) -> None:
 # ---------------------------------------------------------------- report
 
 def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, elapsed_s: float) -> Path:
-    from edgetruth.evaluate import synthetic_claims, synthetic_figures as figs
+    from edgetruth.evaluate.synthetic import claims as synthetic_claims
+    from edgetruth.evaluate.synthetic import figures as figs
     from edgetruth import __version__
     from edgetruth.resources import source_commit
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.size_extraction import (circle_taubin, distance_from_size, fit_circle, fit_line_robust, fit_square)
+from edgetruth.evaluate.ranging.size import (circle_taubin, distance_from_size, fit_circle, fit_line_robust, fit_square)
 
 
 def square_points(cx, cy, side, roll_deg=0.0, step=0.5, trim=0.0):

@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from edgetruth.evaluate import synthetic_study as ss
+from edgetruth.evaluate.synthetic import study as ss
 
 METHODS = ["canny_pixel", "canny_devernay", "glm1984", "erf4p_fixed5", "erf4p_fixed7", "erf4p_fixed9",
            "erf4p_fixed11", "dynamic_erf_4p"]

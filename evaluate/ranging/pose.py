@@ -66,7 +66,7 @@ def circle_pose_distance(x, y, K, diameter_m: float) -> float:
     """Z (m) of the centre of a circle of ``diameter_m`` from edge points on its image (undistorted px)."""
     from scipy.optimize import least_squares
 
-    from edgetruth.evaluate.size_extraction import circle_taubin
+    from edgetruth.evaluate.ranging.size import circle_taubin
 
     x = np.asarray(x, np.float64)
     y = np.asarray(y, np.float64)

@@ -7,7 +7,7 @@ from edgetruth.cli import main
 
 
 def test_select_jobs_spreads_the_limit_over_each_group():
-    from edgetruth.evaluate.pipeline import select_jobs
+    from edgetruth.evaluate.ranging.main_job import select_jobs
     from edgetruth.render.spec import load_spec
 
     spec = load_spec("study")
@@ -26,7 +26,7 @@ def test_select_jobs_spreads_the_limit_over_each_group():
 
 def test_render_reuse_counts_one_render_per_pose_slot_and_radiance_unit():
     """study: 50 slots x 7 cells = 350 images; G2-G4 reuse G1's render, T2-T4 need their own: 200."""
-    from edgetruth.evaluate.pipeline import radiance_renders, render_reuse_line, select_jobs
+    from edgetruth.evaluate.ranging.main_job import radiance_renders, render_reuse_line, select_jobs
     from edgetruth.render.spec import load_spec
 
     spec = load_spec("study")
@@ -48,7 +48,7 @@ def test_bad_limit_is_a_one_line_input_error(capsys, tmp_path):
 def test_quick_run_end_to_end(tmp_path, fast_variant):
     """Render quick and thresholds_quick (1 image per cell + 15 boards), calibrate the camera and its
     thresholds, locate, score every point, report (~40 s, llvm)."""
-    from edgetruth.evaluate.pipeline import select_jobs
+    from edgetruth.evaluate.ranging.main_job import select_jobs
     from edgetruth.render.spec import load_spec
 
     out = tmp_path / "run"
@@ -69,7 +69,7 @@ def test_quick_run_end_to_end(tmp_path, fast_variant):
     assert thr["provenance"]["data"]["specs"] == ["thresholds_quick"]
     assert any(r["method"] == "dynamic_erf_4p_camera" and r["status"] == "ok" for r in rows)
     assert "Table E1" in text and "(camera τ)" in text and "render reuse" in text
-    from edgetruth.evaluate.render_points import read_points
+    from edgetruth.evaluate.points.scores import read_points
 
     pts = read_points(out / "render_points.npz")
     assert len(pts.images) == len(ok) and "dynamic_erf_4p_camera" in pts.windows

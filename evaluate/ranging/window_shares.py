@@ -4,7 +4,7 @@ The same chain as the ranging study up to the refinement (target finding on the 
 boundary candidates, ``dynamic_erf_4p`` with the shipped thresholds), without calibration or
 undistortion: the window depends on the edge's blur, which the lens model sets.
 
-    python -m edgetruth.evaluate.window_shares runs/study [more datasets...] [--group G1_T1]
+    python -m edgetruth.evaluate.ranging.window_shares runs/study [more datasets...] [--group G1_T1]
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ WINDOWS = (5, 7, 9, 11)
 
 def image_window_counts(image: np.ndarray, method: str = "dynamic_erf_4p") -> dict[int, int]:
     from edgetruth import locate
-    from edgetruth.evaluate.target_finding import target_candidates
+    from edgetruth.evaluate.ranging.target import target_candidates
 
     tc = target_candidates(np.asarray(image, np.float64))
     pts = locate.refine(tc.crop, tc.candidates, method)
@@ -27,7 +27,7 @@ def image_window_counts(image: np.ndarray, method: str = "dynamic_erf_4p") -> di
 
 def window_shares(dataset_dirs, method: str = "dynamic_erf_4p", groups=None) -> dict:
     """{"total": {5: share, ...}, "by_interval": {"50-100": {...}, ...}, "n_points": N, "n_images": M}."""
-    from edgetruth.evaluate.ranging import interval_label
+    from edgetruth.evaluate.ranging.images import interval_label
     from edgetruth.render.reader import open_dataset
 
     total = dict.fromkeys(WINDOWS, 0)

@@ -2,12 +2,12 @@
 
 Per target image:
 
-1. undistort with the *calibrated* model (``edgetruth.evaluate.undistort``);
-2. find the target and its boundary candidates from the image (``edgetruth.evaluate.target_finding``);
+1. undistort with the *calibrated* model (``edgetruth.evaluate.ranging.undistort``);
+2. find the target and its boundary candidates from the image (``edgetruth.evaluate.ranging.target``);
 3. refine the *same* candidates with every method (``edgetruth.locate.refine``);
 4. size: square -> robust side lines, l = left/right distance (the seed's l, with fx);
-   circle -> robust circle fit, l = diameter (``edgetruth.evaluate.size_extraction``);
-   rectangle (real photos, ``edgetruth.evaluate.photo_ranging``) -> as a square, l = its width;
+   circle -> robust circle fit, l = diameter (``edgetruth.evaluate.ranging.size``);
+   rectangle (real photos, ``edgetruth.evaluate.ranging.photos``) -> as a square, l = its width;
 5. Z = fx * S / l with the calibrated fx and S = the target's physical size (13 cm).
 
 What the experimenter knows and the pipeline uses: the target's shape and physical size
@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.size_extraction import distance_from_size, fit_circle, fit_square
+from edgetruth.evaluate.ranging.size import distance_from_size, fit_circle, fit_square
 
 INTERVALS_CM = ((50, 100), (100, 150), (150, 200), (200, 250), (250, 300))
 REFERENCE_METHOD = "dynamic_erf_4p"
@@ -59,7 +59,7 @@ class ImageResult:
     points: dict = field(default_factory=dict)  # method -> (x, y) in image coords (for figures)
     crop: tuple = ()
     error: str = ""
-    scores: object = None  # edgetruth.evaluate.render_points.PointScores of the raw image (None: not scored)
+    scores: object = None  # edgetruth.evaluate.points.scores.PointScores of the raw image (None: not scored)
     record: dict = field(default_factory=dict)  # the image's design fields (for the per-point tables)
 
 
@@ -86,13 +86,13 @@ def rectangle_pose_distance(corners_px, K, width_m: float, height_m: float) -> f
 def size_of(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float, K=None, size_m: float | None = None,
             height_m: float | None = None) -> dict:
     """Image size l (pixels, in fx units) of the target from refined points; with ``K`` and ``size_m``
-    also the pose-based distance ``z_pose_m`` (``edgetruth.evaluate.pose_ranging``).
+    also the pose-based distance ``z_pose_m`` (``edgetruth.evaluate.ranging.pose``).
 
     A rectangle is fitted like a square; l is its width (the left/right side-line distance), so
     ``size_m`` is its horizontal side.  With ``height_m`` its pose is PnP on the four corners, and a
     rectangle whose measured width/height is closer to height_m/size_m than to size_m/height_m
     (turned by 90 degrees) is refused; without it there is no pose distance."""
-    from edgetruth.evaluate.pose_ranging import pose_distance
+    from edgetruth.evaluate.ranging.pose import pose_distance
 
     if shape in ("square", "rectangle"):
         fit = fit_square(x, y, nx, ny)
@@ -129,7 +129,7 @@ def size_of(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float, K=None, s
 
 def true_pose_distance(gt: dict) -> float:
     """The pose-based estimate on the TRUE undistorted outline with the true K (its model floor)."""
-    from edgetruth.evaluate.pose_ranging import pose_distance
+    from edgetruth.evaluate.ranging.pose import pose_distance
 
     pts = np.asarray(gt["outline"]["undistorted_px"], float)
     K = np.asarray(gt["camera"]["K"], float)
@@ -144,7 +144,7 @@ def true_size_px(gt: dict) -> float:
     pts = np.asarray(gt["outline"]["undistorted_px"])
     if gt["target"]["shape"] == "square":
         tl, tr, br, bl = pts
-        from edgetruth.evaluate.size_extraction import Line, _line_gap
+        from edgetruth.evaluate.ranging.size import Line, _line_gap
 
         def through(a, b):
             t = (b - a) / np.linalg.norm(b - a)
@@ -152,7 +152,7 @@ def true_size_px(gt: dict) -> float:
             return Line(n, float(n @ a), np.ones(2, bool), 0.0)
 
         return _line_gap(through(tl, bl), np.array([tl, bl]), through(tr, br), np.array([tr, br]))
-    from edgetruth.evaluate.size_extraction import circle_taubin
+    from edgetruth.evaluate.ranging.size import circle_taubin
     return 2.0 * circle_taubin(pts[:, 0], pts[:, 1])[2]
 
 
@@ -194,7 +194,7 @@ def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m
     ``base``: the fields every row of this image starts from."""
     from edgetruth import locate
     from edgetruth.evaluate.method_order import resolve
-    from edgetruth.evaluate.target_finding import target_candidates
+    from edgetruth.evaluate.ranging.target import target_candidates
 
     fx, fy, cy = cal.fx, cal.fy, cal.cy
     try:
@@ -270,7 +270,7 @@ _undistorters: dict = {}
 
 
 def _undistorter(cal):
-    from edgetruth.evaluate.undistort import from_calibration
+    from edgetruth.evaluate.ranging.undistort import from_calibration
 
     key = (cal.K.tobytes(), cal.dist.tobytes(), tuple(cal.image_size))
     if key not in _undistorters:
@@ -282,8 +282,8 @@ def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: b
                 score_points: bool = True):
     """One task (a pure function of its arguments): range target image ``name`` of ``dataset`` with
     every method and score every method's points on the raw image against the exact outline
-    (``edgetruth.evaluate.render_points``); None for a checkerboard.  Runs in worker processes."""
-    from edgetruth.evaluate.render_points import score_image
+    (``edgetruth.evaluate.points.scores``); None for a checkerboard.  Runs in worker processes."""
+    from edgetruth.evaluate.points.scores import score_image
     from edgetruth.render.reader import open_dataset
 
     s = open_dataset(dataset)[name]
@@ -375,7 +375,7 @@ def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | N
     (out_dir / "ranging_images.json").write_text(json.dumps(per_image, indent=1))
     points = None
     if score_points:
-        from edgetruth.evaluate import render_points as rp
+        from edgetruth.evaluate.points import scores as rp
 
         points = rp.table_from_scores(point_images, point_scores, methods)
         rp.write_points(out_dir / rp.POINTS_FILE, points)

@@ -1,4 +1,4 @@
-"""Tables and figures of the per-point truth on renders (``edgetruth.evaluate.render_points``).
+"""Tables and figures of the per-point truth on renders (``edgetruth.evaluate.points.scores``).
 
 Points of one image share its pose, light and noise field, so they are not independent: every
 interval and test here resamples or pairs *images* (cluster bootstrap of the RMSE over images;
@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from edgetruth.evaluate.design_cells import group_rows, main_rows
-from edgetruth.evaluate.ranging import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS
+from edgetruth.evaluate.ranging.design_cells import group_rows, main_rows
+from edgetruth.evaluate.ranging.images import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, table as _table
 from edgetruth.evaluate.stats import holm, rank_biserial, wilcoxon_paired
 
@@ -230,7 +230,7 @@ def figures(table, methods, fig_dir: Path) -> dict:
 
 def report_section(table, methods, out_dir: Path) -> list[str]:
     """The report's per-point section (markdown lines); writes ``render_points_summary.csv`` and figures."""
-    from edgetruth.evaluate.render_points import CORNER_EXCLUSION_PX, MATCH_RADIUS_PX
+    from edgetruth.evaluate.points.scores import CORNER_EXCLUSION_PX, MATCH_RADIUS_PX
 
     bound, interval = image_columns(table)
     write_summary(out_dir / "render_points_summary.csv", summary_rows(table, methods))
@@ -247,7 +247,7 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
          "over images (a cluster bootstrap: an image's points share its pose and noise).  robust SD = 1.4826·MAD.  "
          "coverage = share of points the method refined (the rest answer with the candidate pixel and count).  "
          "bound: an *approximate* per-point CRB (an axis-aligned 11-pixel row, Gaussian-equivalent PSF ⊗ defocus, "
-         "noise at the edge's mid level; edgetruth/evaluate/render_points.py), a reference rather than a strict "
+         "noise at the edge's mid level; edgetruth/evaluate/points/scores.py), a reference rather than a strict "
          "floor for oblique sides and 2-D methods.", "",
          _table(["method", "points", "bias", "RMSE", "RMSE 95 % CI", "robust SD", "coverage", "RMSE ÷ bound"],
                 [[_label(m), st[m]["n"], _f(st[m]["bias"], 4), _f(st[m]["rmse"], 4), _ci(st[m]["rmse_ci"], 4),

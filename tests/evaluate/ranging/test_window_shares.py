@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from edgetruth.evaluate.window_shares import WINDOWS, image_window_counts
+from edgetruth.evaluate.ranging.window_shares import WINDOWS, image_window_counts
 
 
 def _square(blur_px: float, size=(160, 200), ss=8):

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from edgetruth.evaluate.design_cells import group_rows, main_rows
-from edgetruth.evaluate.ranging import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13
+from edgetruth.evaluate.ranging.design_cells import group_rows, main_rows
+from edgetruth.evaluate.ranging.images import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, table as _table
 from edgetruth.evaluate.stats import (holm, rank_biserial, rmse, rmse_ci, rmse_difference_ci, summary,
                                       wilcoxon_paired)
@@ -476,7 +476,7 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
                   _table(["method", "pairs", "median Δabs(e) (cm)", "r", "ΔRMSE (cm)", "ΔRMSE 95 % CI", "p", "p (Holm)",
                           "significant"], body)]
     if points is not None and len(points.image):
-        from edgetruth.evaluate.render_points_report import report_section
+        from edgetruth.evaluate.points.report import report_section
 
         L += report_section(points, [m for m in methods if m in points.errors], out_dir)
     L += ["", "## Figures", ""]

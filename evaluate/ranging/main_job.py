@@ -6,56 +6,22 @@ from the report.  ``evaluate_datasets``: the same evaluation of datasets a user 
 with their own specs, with a calibration from a ``calibration.json`` or from checkerboard
 renders.
 
-A run directory holds ``run.json`` (what made it); a directory that exists, is not empty
-and has no ``run.json`` is refused, so a run never writes report files into a dataset or
-any other folder of the user's.
+Run directories (``run.json``): ``edgetruth.evaluate.run_dir``.
 """
 from __future__ import annotations
 
 import time
-from datetime import datetime, timezone
 from pathlib import Path
 
-from edgetruth import __version__, console
+from edgetruth import console
 from edgetruth.errors import InputError
-from edgetruth.fileio import check_output_dir, read_json, write_json
+from edgetruth.fileio import read_json, write_json
+from edgetruth.evaluate.run_dir import prepare_run_dir, utc_stamp
 
-RUN_MARKER = "run.json"
 STUDIES = {
     "quick": {"calibration": "quick", "targets": ["quick"], "thresholds": "thresholds_quick"},
     "full": {"calibration": "calibration", "targets": ["study"], "thresholds": "thresholds"},
 }
-
-
-def utc_stamp() -> str:
-    return datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-
-
-def check_run_dir(out: str | Path, kind: str, option: str = "-o") -> Path:
-    """Refuse (without creating anything) a file, or a non-empty directory that is not a ``kind`` run."""
-    out = check_output_dir(out, option)
-    marker = out / RUN_MARKER
-    if out.is_dir() and any(out.iterdir()):
-        if not marker.is_file():
-            raise InputError(f"{option} {out}: exists, is not empty and is not an edgetruth run directory (no "
-                             f"{RUN_MARKER}); choose a new directory, or an earlier run's to resume it")
-        try:
-            old = read_json(marker)
-        except InputError:
-            raise InputError(f"{marker}: unreadable; choose a new run directory") from None
-        if old.get("kind") != kind:
-            raise InputError(f"{option} {out}: holds an `edgetruth {old.get('kind')}` run, not `{kind}`; "
-                             "choose a new directory")
-    return out
-
-
-def prepare_run_dir(out: str | Path, kind: str, settings: dict, option: str = "-o") -> Path:
-    """Create (or re-open, to resume) a run directory; refuse a file or a foreign non-empty directory."""
-    out = check_run_dir(out, kind, option)
-    marker = out / RUN_MARKER
-    out.mkdir(parents=True, exist_ok=True)
-    write_json(marker, {"kind": kind, "edgetruth": __version__, "settings": settings, "updated_utc": utc_stamp()})
-    return out
 
 
 def select_jobs(spec, limit: int | None, kind: str) -> list[int]:
@@ -111,8 +77,8 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
     then also run with them (labels ``*_camera``)."""
     from edgetruth import locate
     from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.ranging import run_ranging
-    from edgetruth.evaluate.ranging_report import write_report
+    from edgetruth.evaluate.ranging.images import run_ranging
+    from edgetruth.evaluate.ranging.report import write_report
     from edgetruth.evaluate.threshold_calibration import check_disjoint
     from edgetruth.render.reader import open_dataset
 
@@ -231,7 +197,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     # 3. synthetic study (quick preset), linked from the report
     synthetic_report, synthetic_failed = None, False
     if not skip_synthetic:
-        from edgetruth.evaluate.synthetic_study import run_synthetic_study
+        from edgetruth.evaluate.synthetic.study import run_synthetic_study
 
         t = time.perf_counter()
         try:
@@ -252,7 +218,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
              for s, only in target_sets if s.name in plan["targets"]}
     header = {"study": study, "UTC": utc_stamp(), "specs": ", ".join(s.name for s, _ in target_sets),
               "Mitsuba": "; ".join(variants) or "renders reused (already complete)",
-              "interpolation for undistortion": "bilinear (see edgetruth/evaluate/undistort.py)"}
+              "interpolation for undistortion": "bilinear (see edgetruth/evaluate/ranging/undistort.py)"}
     if reuse_line:
         header["render reuse"] = reuse_line
     header["timings so far (s)"] = ", ".join(f"{k} {v:.1f}" for k, v in timing.items())

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from edgetruth.evaluate.undistort import Undistorter
+from edgetruth.evaluate.ranging.undistort import Undistorter
 
 
 def test_identity_model_leaves_the_image_unchanged():

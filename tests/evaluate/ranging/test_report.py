@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from edgetruth.evaluate import ranging_report as rr
+from edgetruth.evaluate.ranging import report as rr
 
 
 def _rows(paired: bool = True, n_slots: int = 30, seed: int = 0):

@@ -61,7 +61,7 @@ def render_clean(target: str, distance_m: float, spp: int = 64, roll_deg: float 
 @pytest.mark.parametrize("target", ["T1", "T2"])
 def test_dynamic_erf_4p_ranges_clean_renders_within_0p1_percent(target):
     from edgetruth.evaluate.calibration import Calibration
-    from edgetruth.evaluate.ranging import process_image
+    from edgetruth.evaluate.ranging.images import process_image
 
     errs, pose_errs = [], []
     for d in DISTANCES_M:

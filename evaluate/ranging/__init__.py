@@ -1,0 +1,1 @@
+"""Monocular ranging on renders and real photos: ``main_job.py`` (render -> calibrate -> range -> report), ``target.py`` finds the target, ``size.py`` and ``pose.py`` measure it, ``images.py`` ranges one image, ``photos.py`` real photos with reference distances, ``report.py`` Tables 13-17 and verdicts."""
