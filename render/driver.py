@@ -101,6 +101,15 @@ def compact_if_idle(out_dir: str | Path) -> bool:
         lock.release()
 
 
+def check_variant_name(variant: str | None) -> None:
+    """A ``--variant`` that this Mitsuba build lacks is refused (before anything is written)."""
+    if variant:
+        import mitsuba as mi
+
+        if variant not in mi.variants():
+            raise InputError(f"--variant {variant}: not in this Mitsuba build (have: {', '.join(mi.variants())})")
+
+
 def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | None = None, progress: bool = True,
                 only: list[int] | None = None, timings: dict | None = None, announce=print,
                 backend: str = "local", workers: int | None = 1, address: str | None = None,
@@ -128,11 +137,7 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
         raise InputError(f"files={files!r}: choose one of {', '.join(FILE_WRITERS)}")
     if window is not None and (not isinstance(window, int) or window < 1):
         raise InputError(f"window={window!r}: must be a positive integer")
-    if variant:
-        import mitsuba as mi
-
-        if variant not in mi.variants():
-            raise InputError(f"--variant {variant}: not in this Mitsuba build (have: {', '.join(mi.variants())})")
+    check_variant_name(variant)
     if not isinstance(spec, Spec):
         spec = load_spec(spec)
     out_dir = Path(out_dir)

@@ -114,7 +114,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     from edgetruth.backends import default_workers
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.calibration import calibrate_dataset
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.driver import check_variant_name, render_spec
     from edgetruth.render.spec import load_spec
     from edgetruth.resources import default_runs_dir
 
@@ -127,6 +127,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     mo.thresholds_in_use(thresholds)  # a bad --thresholds file fails now, not after the renders
     if camera_thresholds is not None:
         mo.thresholds_in_use(camera_thresholds)
+    check_variant_name(variant)
     plan = STUDIES[study]
     cal_spec = load_spec(plan["calibration"])
     target_specs = [load_spec(n) for n in plan["targets"]]

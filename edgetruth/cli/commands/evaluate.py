@@ -82,6 +82,11 @@ def run(args: argparse.Namespace) -> int:
         p = Path(args.calibration)
         if not p.is_dir():
             check_input_file(p, "calibration JSON")
+    from edgetruth.evaluate.threshold_calibration import check_disjoint
+
+    samples = [(f"{d}/{s.name}", s.truth) for d, ds in zip(args.datasets, sets) for s in ds.targets()]
+    for f in (args.thresholds, args.camera_thresholds):
+        check_disjoint(f, samples)  # calibration and test seeds: refused before anything is written
     out = check_run_dir(args.output or default_runs_dir() / f"{utc_stamp()}-evaluate", "evaluate")
     if args.calibration is not None:
         cal = load_calibration(args.calibration, progress=not args.no_progress)
