@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from edgetruth.render.camera import Camera
+from edgetruth.render.optical_edge import optical_edge_ground_truth
 from edgetruth.render.outline import OutlineCurve, camera_points_at
 from edgetruth.render.targets import (BOARD_HALF_SIZE_M, BOARD_REFLECTANCE, TARGET_STANDOFF_M, TARGETS, Checkerboard,
                                       SquareBoard)
@@ -83,7 +84,8 @@ def target_ground_truth(camera: Camera, pose: Pose, target: str, size_m: float, 
                                         "top-left corner, parameter t in [0, 1): side floor(4t); circle: angle "
                                         "2*pi*t); chords stay within polyline_chord_error_px of the curve, which "
                                         "edgetruth.render.outline.OutlineCurve evaluates exactly",
-                    "polyline_chord_error_px": curve.chord_error_px()},
+                    "polyline_chord_error_px": curve.chord_error_px(),
+                    "optical_edge": optical_edge_ground_truth(curve, t)},
         "defocus_radius_px": float(camera.defocus_radius_px(centre_cam[0, 2])),
         **extra,
     }

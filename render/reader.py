@@ -84,6 +84,19 @@ class Sample:
         return OutlineEdge.from_ground_truth(self.truth) if self.kind == "target" else None
 
     @property
+    def optical_outline(self):
+        """The target's *optical* edge (``edgetruth.render.optical_edge.OpticalOutline``): the outline
+        moved along its normal by the displacement the camera model predicts (the JSON's
+        ``outline.optical_edge``); ``signed_distance(x, y, level="centroid" | "median")`` in px, > 0
+        on the bright board; ``geometric_signed_distance`` as ``outline``.  None for a checkerboard or a
+        JSON without the block."""
+        from edgetruth.render.optical_edge import OpticalOutline
+
+        if self.kind != "target" or "optical_edge" not in self.truth.get("outline", {}):
+            return None
+        return OpticalOutline.from_ground_truth(self.truth)
+
+    @property
     def image(self) -> np.ndarray:
         """The sensor image, uint16 (H, W), raw DN."""
         from edgetruth.render.files import read_png16

@@ -5,6 +5,14 @@ interval and test here resamples or pairs *images* (cluster bootstrap of the RMS
 Wilcoxon signed-rank on per-image RMSE, pairs = the same spec and image, Holm over the methods).
 The cells are those of the ranging tables: the design's base cell (the standard experiment), the
 SNR levels G1–G4 and the targets T1–T4 on the same pose slots.
+
+Fair figures (as the synthetic study, ``edgetruth.evaluate.stats``): per method its *coverage* (share
+of the candidates it refines), bias and RMSE on its *refined* points, RMSE on the *common subset*
+(the candidates every compared method refines, in the same cell), and RMSE on *all* candidates with
+a decline scored at the pixel centre.  Rankings, paired tests and the cell tables use the common
+subset; each table says which it uses.  Bias against the *optical edge* (the geometric outline
+moved by the displacement the camera model predicts, ``edgetruth.render.optical_edge``) is given
+beside the bias against the outline, with the optics' own displacement apart.
 """
 from __future__ import annotations
 
@@ -60,35 +68,83 @@ def cluster_rmse_ci(sse: np.ndarray, n: np.ndarray, n_boot: int = N_BOOT, seed: 
     return float(lo), float(hi)
 
 
-def point_stats(table, m: str, bound_of_image: np.ndarray) -> dict:
-    """Bias, RMSE (image-bootstrap CI), robust spread, coverage, RMSE ÷ bound of method ``m``."""
+def common_mask(table, methods) -> np.ndarray:
+    """Points every method in ``methods`` refines (``edgetruth.evaluate.stats.common_subset``) with a
+    finite error for each."""
+    from edgetruth.evaluate.stats import common_subset
+
+    methods = [m for m in methods if m in table.errors]
+    if not methods:
+        return np.ones(len(table.image), bool)
+    out = common_subset(table.converged, methods)
+    for m in methods:
+        out &= np.isfinite(table.errors[m])
+    return out
+
+
+def _rms(v: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(v ** 2))) if v.size else float("nan")
+
+
+def point_stats(table, m: str, bound_of_image: np.ndarray, common: np.ndarray | None = None) -> dict:
+    """Method ``m``'s figures: on all candidates (declines at the pixel centre: ``bias``, ``rmse`` with
+    an image-bootstrap CI, robust spread, RMSE ÷ bound), ``coverage``, on its refined points
+    (``bias_refined``, ``rmse_refined``, ``bias_optical``: against the optical edge), and on the
+    ``common`` subset (``rmse_common`` with CI, ``bias_common``, ``bias_common_optical``)."""
     e = table.errors[m]
     ok = np.isfinite(e)
-    out = {"n": int(ok.sum()), "n_images": int(np.unique(table.image[ok]).size)}
+    conv = np.asarray(table.converged[m], bool)
+    common = ok.copy() if common is None else np.asarray(common, bool) & ok
+    opt = table.optical("centroid")
+    out = {"n": int(ok.sum()), "n_images": int(np.unique(table.image[ok]).size),
+           "n_refined": int((ok & conv).sum()), "n_common": int(common.sum())}
+    nan2 = (np.nan, np.nan)
     if not ok.any():
-        return {**out, "bias": np.nan, "rmse": np.nan, "rmse_ci": (np.nan, np.nan), "robust_sd": np.nan,
-                "coverage": np.nan, "rmse_over_bound": np.nan, "bound_rms": np.nan}
+        return {**out, "bias": np.nan, "rmse": np.nan, "rmse_ci": nan2, "robust_sd": np.nan, "coverage": np.nan,
+                "rmse_over_bound": np.nan, "bound_rms": np.nan, "bias_refined": np.nan, "rmse_refined": np.nan,
+                "rmse_refined_ci": nan2, "bias_optical": np.nan, "rmse_common": np.nan, "rmse_common_ci": nan2,
+                "bias_common": np.nan, "bias_common_optical": np.nan, "optical_offset": np.nan}
     ee = e[ok]
-    sse, n = per_image_sums(table.image, e, len(table.images))
+    n_img = len(table.images)
+    sse, n = per_image_sums(table.image, e, n_img)
     b = bound_of_image[table.image[ok]]
     b_rms = float(np.sqrt(np.nanmean(b ** 2))) if np.isfinite(b).any() else float("nan")
-    rm = float(np.sqrt(np.mean(ee ** 2)))
+    rm = _rms(ee)
+    ref = ok & conv
+    er, ec = e[ref], e[common]
+    sse_r, n_r = per_image_sums(table.image[ref], er, n_img)
+    sse_c, n_c = per_image_sums(table.image[common], ec, n_img)
+    opt_r, opt_c = opt[ref], opt[common]
+    has_opt = np.isfinite(opt_r).any()
     return {**out, "bias": float(np.mean(ee)), "rmse": rm, "rmse_ci": cluster_rmse_ci(sse, n),
             "robust_sd": float(MAD_TO_SD * np.median(np.abs(ee - np.median(ee)))),
-            "coverage": float(np.mean(table.converged[m][ok])), "bound_rms": b_rms,
-            "rmse_over_bound": rm / b_rms if b_rms > 0 else float("nan")}
+            "coverage": float(np.mean(conv[ok])), "bound_rms": b_rms,
+            "rmse_over_bound": rm / b_rms if b_rms > 0 else float("nan"),
+            "bias_refined": float(np.mean(er)) if er.size else np.nan, "rmse_refined": _rms(er),
+            "rmse_refined_ci": cluster_rmse_ci(sse_r, n_r),
+            "bias_optical": float(np.nanmean(er - opt_r)) if has_opt else np.nan,
+            "rmse_common": _rms(ec), "rmse_common_ci": cluster_rmse_ci(sse_c, n_c),
+            "bias_common": float(np.mean(ec)) if ec.size else np.nan,
+            "bias_common_optical": float(np.nanmean(ec - opt_c)) if np.isfinite(opt_c).any() else np.nan,
+            "optical_offset": float(np.nanmean(opt[ok])) if np.isfinite(opt[ok]).any() else np.nan}
 
 
-def image_comparisons(table, methods, reference: str = REFERENCE_METHOD) -> list[dict]:
-    """The reference against every method on the same images: Wilcoxon signed-rank on per-image
-    RMSE (Holm over the methods), rank-biserial r, pooled ΔRMSE with an image-bootstrap 95 % CI."""
+def image_comparisons(table, methods, reference: str = REFERENCE_METHOD, mask: np.ndarray | None = None) -> list[dict]:
+    """The reference against every method on the same images and points (``mask``: e.g. the common
+    subset; default all): Wilcoxon signed-rank on per-image RMSE (Holm over the methods),
+    rank-biserial r, pooled ΔRMSE with an image-bootstrap 95 % CI."""
     n_img = len(table.images)
-    sse_r, n_r = per_image_sums(table.image, table.errors[reference], n_img)
+    mask = np.ones(len(table.image), bool) if mask is None else np.asarray(mask, bool)
+
+    def sums(m):
+        e = np.where(mask, table.errors[m], np.nan)
+        return per_image_sums(table.image, e, n_img)
+    sse_r, n_r = sums(reference)
     rows = []
     for m in methods:
         if m == reference:
             continue
-        sse_m, n_m = per_image_sums(table.image, table.errors[m], n_img)
+        sse_m, n_m = sums(m)
         use = (n_r > 0) & (n_m == n_r)
         a, b = np.sqrt(sse_r[use] / n_r[use]), np.sqrt(sse_m[use] / n_m[use])
         w = wilcoxon_paired(a, b)
@@ -157,20 +213,28 @@ def summary_rows(table, methods) -> list[dict]:
             if not sel.any():
                 continue
             sub = table.select(sel)
+            common = common_mask(sub, methods)
             for m in methods:
-                s = point_stats(sub, m, bound)
+                s = point_stats(sub, m, bound, common)
                 out.append({"cell": "base" if factor == "base" else {"G": "snr", "T": "target"}[factor],
                             "level": level, "interval": iv, "method": m, "n_points": s["n"],
                             "n_images": s["n_images"], "bias_px": s["bias"], "rmse_px": s["rmse"],
                             "rmse_ci_lo_px": s["rmse_ci"][0], "rmse_ci_hi_px": s["rmse_ci"][1],
                             "robust_sd_px": s["robust_sd"], "coverage": s["coverage"], "bound_rms_px": s["bound_rms"],
-                            "rmse_over_bound": s["rmse_over_bound"],
+                            "rmse_over_bound": s["rmse_over_bound"], "n_refined": s["n_refined"],
+                            "bias_refined_px": s["bias_refined"], "rmse_refined_px": s["rmse_refined"],
+                            "n_common": s["n_common"], "rmse_common_px": s["rmse_common"],
+                            "bias_common_px": s["bias_common"], "bias_optical_px": s["bias_optical"],
+                            "bias_common_optical_px": s["bias_common_optical"],
+                            "optical_offset_px": s["optical_offset"],
                             **{f"window{w}_share": v for w, v in window_shares(sub, m).items()}})
     return out
 
 
 SUMMARY_FIELDS = ("cell", "level", "interval", "method", "n_points", "n_images", "bias_px", "rmse_px", "rmse_ci_lo_px",
-                  "rmse_ci_hi_px", "robust_sd_px", "coverage", "bound_rms_px", "rmse_over_bound", "window5_share",
+                  "rmse_ci_hi_px", "robust_sd_px", "coverage", "bound_rms_px", "rmse_over_bound", "n_refined",
+                  "bias_refined_px", "rmse_refined_px", "n_common", "rmse_common_px", "bias_common_px",
+                  "bias_optical_px", "bias_common_optical_px", "optical_offset_px", "window5_share",
                   "window7_share", "window9_share", "window11_share")
 
 
@@ -206,18 +270,20 @@ def figures(table, methods, fig_dir: Path) -> dict:
         if len(ticks) < 2:
             continue
         fig, ax = plt.subplots(figsize=(7, 4))
+        subs = [table.select(mk) for mk in masks]
+        commons = [common_mask(sb, methods) for sb in subs]
         for m in rep:
-            st = [point_stats(table.select(mk), m, bound) for mk in masks]
-            y = np.array([s["rmse"] for s in st])
-            lo = np.array([s["rmse_ci"][0] for s in st])
-            hi = np.array([s["rmse_ci"][1] for s in st])
+            st = [point_stats(sb, m, bound, cm) for sb, cm in zip(subs, commons)]
+            y = np.array([s["rmse_common"] for s in st])
+            lo = np.array([s["rmse_common_ci"][0] for s in st])
+            hi = np.array([s["rmse_common_ci"][1] for s in st])
             ax.errorbar(range(len(ticks)), y, yerr=[np.nan_to_num(y - lo), np.nan_to_num(hi - y)], marker="o",
                         capsize=3, label=_label(m))
         b = [float(np.sqrt(np.nanmean(bound[mk] ** 2))) if mk.any() else np.nan for mk in masks]
         ax.plot(range(len(ticks)), b, "k--", lw=1, label="per-point bound (approx.)")
         ax.set_xticks(range(len(ticks)), ticks)
         ax.set_xlabel(xlabel)
-        ax.set_ylabel("per-point RMSE (px), 95 % CI over images")
+        ax.set_ylabel("per-point RMSE on the common subset (px), 95 % CI")
         ax.set_yscale("log")
         ax.legend(fontsize=7)
         fig.tight_layout()
@@ -236,27 +302,42 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
     write_summary(out_dir / "render_points_summary.csv", summary_rows(table, methods))
     c = cells(table)
     base = table.select(c["base"])
-    st = {m: point_stats(base, m, bound) for m in methods}
-    order = sorted(methods, key=lambda m: st[m]["rmse"] if np.isfinite(st[m]["rmse"]) else np.inf)
+    common = common_mask(base, methods)
+    st = {m: point_stats(base, m, bound, common) for m in methods}
+    order = sorted(methods, key=lambda m: st[m]["rmse_common"] if np.isfinite(st[m]["rmse_common"]) else np.inf)
     n_img = int(c["base"].sum())
+    has_opt = np.isfinite(base.optical("centroid")).any()
     L = ["", "## Table E1 — per-point edge error on the renders (px), base cell, all methods", "",
          f"Every method refines the *same* Canny boundary candidates of the raw (distorted) image; each point's error "
          f"is its signed distance to the exact distorted outline of the ground truth (> 0 on the bright board). "
          f"Scored: candidates within {MATCH_RADIUS_PX} px of the outline, squares' candidates farther than "
-         f"{CORNER_EXCLUSION_PX:g} px from a corner.  {n_img} images, {len(base.image)} points.  CI: 95 % bootstrap "
-         "over images (a cluster bootstrap: an image's points share its pose and noise).  robust SD = 1.4826·MAD.  "
-         "coverage = share of points the method refined (the rest answer with the candidate pixel and count).  "
-         "bound: an *approximate* per-point CRB (an axis-aligned 11-pixel row, Gaussian-equivalent PSF ⊗ defocus, "
+         f"{CORNER_EXCLUSION_PX:g} px from a corner.  {n_img} images, {len(base.image)} candidates, "
+         f"{int(common.sum())} in the common subset.  Four figures per method, as in the synthetic study: "
+         "*coverage* (share of the candidates it refines; a decline answers with the candidate pixel); bias and RMSE "
+         "on its *refined* points; RMSE on the *common subset* (the candidates every method here refines: the "
+         "like-with-like comparison, and the order of the rows); RMSE on *all* candidates with the declines scored "
+         "at the pixel centre (what a user keeping every point gets).  CI: 95 % bootstrap over images (a cluster "
+         "bootstrap: an image's points share its pose and noise).  robust SD = 1.4826·MAD (all candidates).  "
+         + ("bias vs optical edge: the refined points' mean error against the outline moved by the displacement "
+            "the camera model predicts (edgetruth/render/optical_edge.py; its centroid), the optics' own share "
+            "apart in Table E3.  " if has_opt else "")
+         + "bound: an *approximate* per-point CRB (an axis-aligned 11-pixel row, Gaussian-equivalent PSF ⊗ defocus, "
          "noise at the edge's mid level; edgetruth/evaluate/points/scores.py), a reference rather than a strict "
-         "floor for oblique sides and 2-D methods.", "",
-         _table(["method", "points", "bias", "RMSE", "RMSE 95 % CI", "robust SD", "coverage", "RMSE ÷ bound"],
-                [[_label(m), st[m]["n"], _f(st[m]["bias"], 4), _f(st[m]["rmse"], 4), _ci(st[m]["rmse_ci"], 4),
-                  _f(st[m]["robust_sd"], 4), _f(100 * st[m]["coverage"], 1) + " %", _f(st[m]["rmse_over_bound"], 2)]
+         "floor for oblique sides and 2-D methods; RMSE ÷ bound uses the common subset.", "",
+         _table(["method", "coverage", "bias (refined)"] + (["bias vs optical edge"] if has_opt else [])
+                + ["RMSE (refined)", "RMSE (common subset)", "common 95 % CI", "RMSE (all, declines at pixel)",
+                   "robust SD", "RMSE ÷ bound"],
+                [[_label(m), _f(100 * st[m]["coverage"], 1) + " %", _f(st[m]["bias_refined"], 4)]
+                 + ([_f(st[m]["bias_optical"], 4)] if has_opt else [])
+                 + [_f(st[m]["rmse_refined"], 4), _f(st[m]["rmse_common"], 4), _ci(st[m]["rmse_common_ci"], 4),
+                    _f(st[m]["rmse"], 4), _f(st[m]["robust_sd"], 4),
+                    _f(st[m]["rmse_common"] / st[m]["bound_rms"] if st[m]["bound_rms"] > 0 else np.nan, 2)]
                  for m in order])]
     if REFERENCE_METHOD in methods:
-        comp = image_comparisons(base, order)
-        L += ["", "## Table E2 — per-point: ProposedDynamicERF_4P vs each method on the same images and points", "",
-              "Wilcoxon signed-rank on per-image RMSE (pairs: the same spec and image; the same points), Holm over the "
+        comp = image_comparisons(base, order, mask=common)
+        L += ["", "## Table E2 — per-point: ProposedDynamicERF_4P vs each method on the common subset", "",
+              "On the common subset only (the candidates every method refines: the same points for both sides of "
+              "each pair).  Wilcoxon signed-rank on per-image RMSE (pairs: the same spec and image), Holm over the "
               "methods; r = matched-pairs rank-biserial (< 0: Dynamic 4P has the smaller per-image RMSE); "
               "ΔRMSE = pooled RMSE(Dynamic 4P) − RMSE(method), image-bootstrap 95 % CI.", "",
               _table(["method", "images", "ΔRMSE (px)", "ΔRMSE 95 % CI", "r", "p", "p (Holm)", "significant"],
@@ -265,20 +346,42 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
                        "yes" if r["significant"] else "no"] for r in comp])]
     present = [f"{a}-{b}" for a, b in INTERVALS_CM if (c["base"] & (interval == f"{a}-{b}")).any()]
     if present:
-        L += ["", "## Table E3 — per-point RMSE (px) per distance interval, base cell", "",
-              _table(["method"] + [f"{lb} cm" for lb in present],
-                     [[_label(m)] + [(lambda s: f"{_f(s['rmse'], 4)} (bias {_f(s['bias'], 4)})")(
-                         point_stats(table.select(c["base"] & (interval == lb)), m, bound)) for lb in present]
-                      for m in order])]
+        subs = {lb: table.select(c["base"] & (interval == lb)) for lb in present}
+        comm = {lb: common_mask(sb, methods) for lb, sb in subs.items()}
+        sti = {(m, lb): point_stats(subs[lb], m, bound, comm[lb]) for m in order for lb in present}
+
+        def cell(s):
+            txt = f"{_f(s['rmse_common'], 4)} (bias {_f(s['bias_common'], 4)}"
+            return txt + (f"; vs optical {_f(s['bias_common_optical'], 4)})" if has_opt else ")")
+        rows = [[_label(m)] + [cell(sti[(m, lb)]) for lb in present] for m in order]
+        if has_opt:
+            rows.append(["*optics: predicted displacement of the edge*"]
+                        + [_f(float(np.nanmean(subs[lb].optical("centroid")[comm[lb]])), 4)
+                           + f" (50 %: {_f(float(np.nanmean(subs[lb].optical('median')[comm[lb]])), 4)})"
+                           for lb in present])
+        L += ["", "## Table E3 — per-point RMSE (px) per distance interval, base cell, common subset", "",
+              "RMSE and bias on each interval's common subset; bias against the geometric outline and, where the "
+              "truth carries it, against the optical edge (the outline moved by the displacement the camera model "
+              "predicts: a defocused edge off axis moves because the thin lens's vignetting weight tilts the defocus "
+              "disk; docs/optics.md).  The last row is that displacement itself (centroid; 50 % level), the optics' "
+              "share of the bias, > 0 towards the bright board." if has_opt else
+              "RMSE and bias on each interval's common subset, against the geometric outline.", "",
+              _table(["method"] + [f"{lb} cm" for lb in present], rows)]
     for key, title in (("G", "SNR levels G1–G4"), ("T", "targets T1–T4")):
         levels = list(c[key])
         if len(levels) < 2:
             continue
         body = []
+        lsubs = {lv: table.select(c[key][lv]) for lv in levels}
+        lcomm = {lv: common_mask(sb, methods) for lv, sb in lsubs.items()}
         for m in order:
-            body.append([_label(m)] + [(lambda s: f"{_f(s['rmse'], 4)} {_ci(s['rmse_ci'], 4)}")(
-                point_stats(table.select(c[key][lv]), m, bound)) for lv in levels])
-        L += ["", f"## Table E4{key} — per-point RMSE (px) [95 % CI] across the {title} (same pose slots)", "",
+            body.append([_label(m)] + [(lambda s: f"{_f(s['rmse_common'], 4)} {_ci(s['rmse_common_ci'], 4)} "
+                                                  f"({_f(100 * s['coverage'], 1)} %; refined {_f(s['rmse_refined'], 4)}; "
+                                                  f"all {_f(s['rmse'], 4)})")(
+                point_stats(lsubs[lv], m, bound, lcomm[lv])) for lv in levels])
+        L += ["", f"## Table E4{key} — per-point RMSE (px) across the {title} (same pose slots)", "",
+              "Each cell: RMSE on the level's common subset [95 % CI] (coverage; RMSE on the refined points; on all "
+              "candidates, declines at the pixel centre).", "",
               _table(["method"] + levels, body)]
         if key == "G" and all(str(r.get("slot", "")) != "" for r in table.images):
             tr = {m: level_trend(table, m, c["G"]) for m in order if m != "canny_pixel"}

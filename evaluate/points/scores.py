@@ -14,8 +14,17 @@ Which candidates are scored (one rule for every method, as ``edgetruth.evaluate.
   from every true (distorted) corner, where the profile across one side also crosses the other
   and no edge model of the study applies.
 
-A method that declines or fails a candidate answers with the candidate pixel (``converged`` False):
-it still counts in the all-points statistics; coverage says how often it happened.
+A method that declines or fails a candidate answers with the candidate pixel (``converged`` False).
+The tables keep the figures apart (``edgetruth.evaluate.stats``): coverage, accuracy on the points
+the method refines, on the common subset every compared method refines, and on all candidates with
+the declines scored at the pixel centre.
+
+The optical edge: where the ground truth JSON carries ``outline.optical_edge``
+(``edgetruth.render.optical_edge``: the displacement of the image edge from the geometric outline
+that the camera model predicts, per polyline point), each scored candidate also records the offset
+at its place (``optical_offset``: the centroid; ``optical_offset_50``: the 50 % level), so that the
+tables give a method's bias against the optical edge, e = d_geometric − offset, and the optics'
+own displacement apart.  Older JSONs: NaN.
 
 The per-point bound (``point_bound_px``) is an *approximation*, stated as such in the report: the
 Cramér–Rao bound of an axis-aligned 11-pixel row across a pixel-integrated Gaussian edge
@@ -49,6 +58,21 @@ class PointScores:
     errors: dict = field(default_factory=dict)  # label -> (N,) signed error, px
     converged: dict = field(default_factory=dict)  # label -> (N,) bool
     windows: dict = field(default_factory=dict)  # dynamic labels -> (N,) window size (samples)
+    optical_offset: np.ndarray | None = None  # (N,) optical edge's centroid offset at the candidate (px)
+    optical_offset_50: np.ndarray | None = None  # (N,) its 50 % level
+
+
+def candidate_optical_offsets(gt: dict, truth, x, y) -> tuple[np.ndarray, np.ndarray]:
+    """(centroid, 50 % level) offsets of the optical edge at image points, from the JSON's
+    ``outline.optical_edge`` (NaN where the JSON has none)."""
+    from edgetruth.render.optical_edge import nearest_offsets
+
+    oe = gt.get("outline", {}).get("optical_edge")
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if not oe:
+        return np.full(x.shape, np.nan), np.full(x.shape, np.nan)
+    return (nearest_offsets(truth.polyline_px, oe["offset_px"], x, y),
+            nearest_offsets(truth.polyline_px, oe.get("offset_50_px", oe["offset_px"]), x, y))
 
 
 def scored_subset(truth, cand, offset) -> tuple[np.ndarray, np.ndarray]:
@@ -124,6 +148,8 @@ def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict |
     bound = point_bound_px(gt, radiance, truth) if radiance is not None else float("nan")
     out = PointScores(len(tc.candidates), bound, d.astype(np.float32))
     x0, y0 = tc.offset
+    oc, o50 = candidate_optical_offsets(gt, truth, sub.x + x0, sub.y + y0)
+    out.optical_offset, out.optical_offset_50 = oc.astype(np.float32), o50.astype(np.float32)
     for label in methods:
         mid, kw = resolve(label, options)
         if len(sub):
@@ -152,6 +178,13 @@ class PointTable:
     errors: dict  # label -> (N,)
     converged: dict
     windows: dict
+    optical_offset: np.ndarray | None = None  # (N,) per point, px (NaN: the JSON had no optical edge)
+    optical_offset_50: np.ndarray | None = None
+
+    def optical(self, which: str = "centroid") -> np.ndarray:
+        """Per point: the optical edge's offset from the outline (px), NaN where unknown."""
+        v = self.optical_offset if which == "centroid" else self.optical_offset_50
+        return np.full(len(self.image), np.nan) if v is None else np.asarray(v, float)
 
     @property
     def methods(self) -> list[str]:
@@ -161,7 +194,9 @@ class PointTable:
         """The points of the images where ``image_mask`` (over ``images``) is True."""
         keep = np.asarray(image_mask, bool)[self.image] if len(self.image) else np.zeros(0, bool)
         return PointTable(self.images, self.image[keep], {m: v[keep] for m, v in self.errors.items()},
-                          {m: v[keep] for m, v in self.converged.items()}, {m: v[keep] for m, v in self.windows.items()})
+                          {m: v[keep] for m, v in self.converged.items()}, {m: v[keep] for m, v in self.windows.items()},
+                          None if self.optical_offset is None else self.optical_offset[keep],
+                          None if self.optical_offset_50 is None else self.optical_offset_50[keep])
 
 
 def read_points(path) -> PointTable:
@@ -175,14 +210,17 @@ def read_points(path) -> PointTable:
         names = [k.split("/", 1)[1] for k in z.files if k.startswith("error/")]
         return PointTable(images, z["image"], {m: z[f"error/{m}"].astype(float) for m in names},
                           {m: z[f"converged/{m}"] for m in names},
-                          {m: z[f"window/{m}"] for m in names if f"window/{m}" in z.files})
+                          {m: z[f"window/{m}"] for m in names if f"window/{m}" in z.files},
+                          z["optical_offset"].astype(float) if "optical_offset" in z.files else None,
+                          z["optical_offset_50"].astype(float) if "optical_offset_50" in z.files else None)
     except (OSError, ValueError, KeyError) as exc:
         raise InputError(f"{path}: not a readable {POINTS_FILE} ({exc}); re-run the evaluation") from None
 
 
 def write_points(path, table: "PointTable") -> None:
     """``render_points.npz``: ``image`` (per point: index into ``images_json``), ``error/<label>``
-    (float32 px), ``converged/<label>``, ``window/<label>`` (dynamic methods), and ``images_json``
+    (float32 px), ``converged/<label>``, ``window/<label>`` (dynamic methods), ``optical_offset`` and
+    ``optical_offset_50`` (per point, the optical edge's offset, px; NaN without one), and ``images_json``
     (one record per image: dataset, image, spec, group, slot, levels, off_base, target, interval,
     true_distance_m, bound_px, n_candidates, n_scored)."""
     import io
@@ -196,6 +234,10 @@ def write_points(path, table: "PointTable") -> None:
         arrays[f"converged/{m}"] = table.converged[m].astype(bool)
         if m in table.windows:
             arrays[f"window/{m}"] = table.windows[m].astype(np.int8)
+    for key in ("optical_offset", "optical_offset_50"):
+        v = getattr(table, key)
+        if v is not None:
+            arrays[key] = np.asarray(v, np.float32)
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)
     atomic_write_bytes(path, buf.getvalue())
@@ -214,4 +256,8 @@ def table_from_scores(images: list[dict], scores: list[PointScores], methods: li
     return PointTable(recs, image, {m: cat(lambda s: s.errors[m], float) for m in methods},
                       {m: cat(lambda s: s.converged[m], bool) for m in methods},
                       {m: cat(lambda s: s.windows[m], np.int8) for m in methods
-                       if scores and all(m in s.windows for s in scores)})
+                       if scores and all(m in s.windows for s in scores)},
+                      cat(lambda s: (s.optical_offset if s.optical_offset is not None
+                                     else np.full(len(s.candidate_distance), np.nan)), float),
+                      cat(lambda s: (s.optical_offset_50 if s.optical_offset_50 is not None
+                                     else np.full(len(s.candidate_distance), np.nan)), float))
