@@ -105,3 +105,29 @@ def candidate_decision(cand, **options) -> np.ndarray:
     r = min(RADIUS, 2 + gaussian_radius_px(cand.sigma_px))
     return block_masks(len(cand), r, r)
 
+
+
+def patch_masks(cand, half_normal: float, half_tangent: float) -> np.ndarray:
+    """Pixels whose centre lies in the rectangle |t| <= half_normal, |u| <= half_tangent around each
+    candidate, t along its normal and u along the edge (``locate.methods.patch_psf_fit``)."""
+    n = len(cand)
+    m = _empty(n)
+    if not n:
+        return m
+    d = np.arange(-RADIUS, RADIUS + 1, dtype=np.float64)
+    dx = d[None, None, :]
+    dy = d[None, :, None]
+    nx = np.asarray(cand.nx, np.float64)[:, None, None]
+    ny = np.asarray(cand.ny, np.float64)[:, None, None]
+    t = dx * nx + dy * ny
+    u = dy * nx - dx * ny
+    return (np.abs(t) <= half_normal) & (np.abs(u) <= half_tangent)
+
+
+def patch(half_normal: float, half_tangent: float):
+    """A rectangle along the edge, options ``half_normal`` / ``half_tangent`` override the defaults."""
+    def fp(cand, **options):
+        return patch_masks(cand, float(options.get("half_normal", half_normal)),
+                           float(options.get("half_tangent", half_tangent)))
+    fp.__doc__ = f"patch |t| <= {half_normal}, |u| <= {half_tangent} around the candidate"
+    return fp

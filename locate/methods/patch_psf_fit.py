@@ -1,0 +1,409 @@
+"""patch_psf_fit: a 2-D maximum-likelihood fit of the pixel-integrated, blurred edge over a patch.
+
+For each candidate p (normal n from Canny) the method fits every pixel whose centre lies in the
+rectangle |t| <= ``half_normal`` (along n), |u| <= ``half_tangent`` (along the edge) -- for the
+defaults 5 x 2, 55 pixels on an axis-aligned edge, ~41 on a diagonal one -- with the exact model
+of the image an edge makes:
+
+    m(x) = A + B * M(d(x), psi(x); s)
+
+- d(x): the signed distance of pixel centre x to the edge (bright side > 0); the edge is the line
+  through p - rho n(phi) with normal n(phi), or, when the edge is curved, the arc of curvature
+  kappa tangent to it there (kappa is taken from the candidates' gradient field: the divergence of
+  its unit normal, kappa = -div n, exact for circles under any radially symmetric blur);
+- M: the exact area mean over the pixel of Phi(d/s) (the second divided difference of its second
+  antiderivative, as ``render.analytic``), psi the direction of the local normal (the pixel box's
+  projection on it); an arc's bend inside the pixel is taken to first order (1/(24 r));
+- s: the PSF's Gaussian-equivalent scale in px (the pixel box is in M): estimated jointly, or known
+  from the camera (option ``psf_sigma_px``).
+
+Unknowns (rho, phi, A, B, s) -- (rho, phi, A, B) when the PSF is known -- by Levenberg-Marquardt
+with the analytic Jacobian (derivatives of the divided differences: d/dd, d/ds by the heat
+equation dF2/ds = s Phi, d/dpsi through the pixel box's half-widths |cos psi|/2, |sin psi|/2),
+started from a 7-sample 4P ERF fit of the normal profile (its pixels lie inside the patch).
+
+Output: the foot point p - rho n on the edge, the fitted normal n(phi), and per point
+``se`` = sigma * sqrt((J^T J)^-1_rho,rho): sigma^2 the image's pooled residual variance, the
+position's standard error sigma(mu) in px (Gaussian noise; unweighted least squares).
+Extras: A, B, s, kappa, offset (-rho: along the candidate's normal), rss, iterations, status,
+npix, se.  Failure (converged=False): no contrast, no convergence, |rho| > 2 px, s outside
+(0.05, 10) px, B <= 0.
+
+Docs: docs/bound.md (the bound this estimator attains).  Kernels below in numba (parallel over
+points, no allocation inside the fit's inner loop).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from edgetruth.errors import InputError
+from edgetruth.locate import erf_kernels as K
+from edgetruth.locate import footprints as FP
+from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
+from edgetruth.locate.jit import njit, prange
+from edgetruth.locate.profiles import bilinear
+from edgetruth.locate.registry import register
+from edgetruth.locate.result import Refinement
+
+HALF_NORMAL = 5.0
+HALF_TANGENT = 2.0
+MAXIT = 40
+TOL_PX = 1e-7
+S_MIN = 0.05
+S_MAX = 10.0
+RHO_MAX = 2.0
+KAPPA_MAX = 0.25  # |curvature| (1/px) above which the arc is not trusted: radius < 4 px
+MAXPIX = FP.SIZE * FP.SIZE
+_INIT_WINDOW = 7  # its bilinear samples (|t| <= 3) read pixels with |t| <= 4.42, |u| <= 1.42: inside the patch
+
+
+@njit(cache=True, inline="always")
+def _pm(d0, psi_c, psi_s, s):
+    """Area mean M of Phi(d/s) over a pixel whose centre is at signed distance d0 from a straight
+    edge with normal direction (psi_c, psi_s), and dM/dd0, dM/ds, dM/dpsi."""
+    flip = d0 > 0.0
+    D = -d0 if flip else d0
+    ac = 0.5 * abs(psi_c)
+    bs = 0.5 * abs(psi_s)
+    swap = bs > ac
+    a = bs if swap else ac
+    b = ac if swap else bs
+    inv_s = 1.0 / s
+    if b < 1e-5:
+        x1 = D + a
+        x2 = D - a
+        P1, p1 = K.cdf_pdf(x1 * inv_s)
+        P2, p2 = K.cdf_pdf(x2 * inv_s)
+        u1 = x1 * inv_s
+        u2 = x2 * inv_s
+        F1a = s * (u1 * P1 + p1)
+        F1b = s * (u2 * P2 + p2)
+        ia = 0.5 / a
+        M = (F1a - F1b) * ia
+        dD = (P1 - P2) * ia
+        ds = (p1 - p2) * ia
+        da = (P1 + P2) * ia - M / a
+        db = 0.0
+    else:
+        x1 = D + a + b
+        x2 = D + a - b
+        x3 = D - a + b
+        x4 = D - a - b
+        u1 = x1 * inv_s
+        u2 = x2 * inv_s
+        u3 = x3 * inv_s
+        u4 = x4 * inv_s
+        P1, p1 = K.cdf_pdf(u1)
+        P2, p2 = K.cdf_pdf(u2)
+        P3, p3 = K.cdf_pdf(u3)
+        P4, p4 = K.cdf_pdf(u4)
+        G1a = u1 * P1 + p1
+        G1b = u2 * P2 + p2
+        G1c = u3 * P3 + p3
+        G1d = u4 * P4 + p4
+        s2 = s * s
+        F2 = 0.5 * s2 * (((u1 * u1 + 1.0) * P1 + u1 * p1) - ((u2 * u2 + 1.0) * P2 + u2 * p2)
+                         - ((u3 * u3 + 1.0) * P3 + u3 * p3) + ((u4 * u4 + 1.0) * P4 + u4 * p4))
+        i4 = 0.25 / (a * b)
+        M = F2 * i4
+        dD = s * (G1a - G1b - G1c + G1d) * i4
+        ds = s * (P1 - P2 - P3 + P4) * i4
+        da = s * (G1a - G1b + G1c - G1d) * i4 - M / a
+        db = s * (G1a + G1b - G1c - G1d) * i4 - M / b
+    # back to the half-widths of (|cos|, |sin|) and to psi
+    dac = db if swap else da
+    dbs = da if swap else db
+    sc = 1.0 if psi_c >= 0.0 else -1.0
+    ss = 1.0 if psi_s >= 0.0 else -1.0
+    dpsi = dac * (-0.5 * sc * psi_s) + dbs * (0.5 * ss * psi_c)
+    if flip:  # M(d0) = 1 - M(-d0) for a symmetric profile
+        return 1.0 - M, dD, -ds, -dpsi
+    return M, dD, ds, dpsi
+
+
+@njit(cache=True, inline="always")
+def _geometry(dx, dy, rho, c, s, kappa):
+    """(d, psi_c, psi_s, dd/drho, dd/dphi, dpsi/drho, dpsi/dphi) of pixel offset (dx, dy) for the
+    line (kappa = 0) or the arc of curvature kappa through p - rho n(phi) with normal n(phi)."""
+    if abs(kappa) < 1e-7:
+        return dx * c + dy * s + rho, c, s, 1.0, dy * c - dx * s, 0.0, 1.0
+    sgn = 1.0 if kappa > 0.0 else -1.0
+    R = 1.0 / abs(kappa)
+    k = sgn * R - rho
+    vx = dx - k * c
+    vy = dy - k * s
+    r = math.sqrt(vx * vx + vy * vy)
+    ir = 1.0 / r
+    d = sgn * (R - r - ir / 24.0)
+    f = -sgn * (1.0 - ir * ir / 24.0) * ir
+    vn = vx * c + vy * s
+    vt = vx * s - vy * c
+    return (d, vx * ir, vy * ir, f * vn, f * k * vt, vt * ir * ir, -k * vn * ir * ir)
+
+
+@njit(cache=True)
+def _chol_solve(H, g, n, x):
+    """Solve H x = g (n x n, symmetric positive definite) by Cholesky in place in H; False if not SPD."""
+    for j in range(n):
+        v = H[j, j]
+        for k in range(j):
+            v -= H[j, k] * H[j, k]
+        if not v > 0.0:
+            return False
+        v = math.sqrt(v)
+        H[j, j] = v
+        for i in range(j + 1, n):
+            w = H[i, j]
+            for k in range(j):
+                w -= H[i, k] * H[j, k]
+            H[i, j] = w / v
+    for i in range(n):
+        w = g[i]
+        for k in range(i):
+            w -= H[i, k] * x[k]
+        x[i] = w / H[i, i]
+    for i in range(n - 1, -1, -1):
+        w = x[i]
+        for k in range(i + 1, n):
+            w -= H[k, i] * x[k]
+        x[i] = w / H[i, i]
+    return True
+
+
+@njit(cache=True, inline="always")
+def _normal_equations(vals, ox, oy, npix, rho, phi, A, B, s, kappa, npar, H, g, jac):
+    """Cost, J^T J (in H) and -J^T r (in g) of the patch model at (rho, phi, A, B, s)."""
+    c = math.cos(phi)
+    sn = math.sin(phi)
+    for i in range(npar):
+        g[i] = 0.0
+        for j in range(npar):
+            H[i, j] = 0.0
+    cost = 0.0
+    for k in range(npix):
+        d, pc, ps, d_rho, d_phi, p_rho, p_phi = _geometry(ox[k], oy[k], rho, c, sn, kappa)
+        M, dD, dS, dP = _pm(d, pc, ps, s)
+        r = A + B * M - vals[k]
+        cost += r * r
+        jac[0] = B * (dD * d_rho + dP * p_rho)
+        jac[1] = B * (dD * d_phi + dP * p_phi)
+        jac[2] = 1.0
+        jac[3] = M
+        jac[4] = B * dS
+        for i in range(npar):
+            g[i] -= jac[i] * r
+            for j in range(i + 1):
+                H[i, j] += jac[i] * jac[j]
+    for i in range(npar):
+        for j in range(i):
+            H[j, i] = H[i, j]
+    return cost
+
+
+@njit(cache=True)
+def fit_patch(img, px, py, nx, ny, kappa, half_normal, half_tangent, psf_sigma, maxit, tol, out):
+    """Fit one candidate.  out <- [rho, phi, A, B, s, rss, c_rhorho, iterations, status, npix]."""
+    h, w = img.shape
+    ix = int(px)
+    iy = int(py)
+    ox = np.empty(MAXPIX)
+    oy = np.empty(MAXPIX)
+    vals = np.empty(MAXPIX)
+    npix = 0
+    rr = FP.RADIUS
+    for ddy in range(-rr, rr + 1):
+        for ddx in range(-rr, rr + 1):
+            fx = float(ddx)
+            fy = float(ddy)
+            t = fx * nx + fy * ny
+            u = fy * nx - fx * ny
+            if abs(t) <= half_normal and abs(u) <= half_tangent:
+                yy = iy + ddy
+                xx = ix + ddx
+                if 0 <= yy < h and 0 <= xx < w:
+                    ox[npix] = fx
+                    oy[npix] = fy
+                    vals[npix] = img[yy, xx]
+                    npix += 1
+    out[9] = npix
+    # start: a 7-sample 4P ERF fit of the normal profile
+    prof = np.zeros(K.PROFILE_LEN)
+    hw = (_INIT_WINDOW - 1) // 2
+    for k in range(-hw, hw + 1):
+        prof[K.PROFILE_HALF + k] = bilinear(img, px + k * nx, py + k * ny)
+    init = np.empty(8)
+    K.fit_one(prof, _INIT_WINDOW, True, 50, 1e-4, init)
+    fixed_s = psf_sigma > 0.0
+    npar = 4 if fixed_s else 5
+    if init[7] == NO_CONTRAST or npix <= npar:
+        for k in range(9):
+            out[k] = np.nan
+        out[7] = 0
+        out[8] = NO_CONTRAST
+        return
+    A = init[0]
+    B = init[1]
+    rho = -init[2]
+    if not (abs(rho) <= hw and B > 0.0 and np.isfinite(rho)):  # a poor start: the candidate itself
+        rho = 0.0
+        A = prof[K.PROFILE_HALF - hw]
+        B = prof[K.PROFILE_HALF + hw] - A
+        if not B > 0.0:
+            B = 1e-3 + abs(B)
+    if fixed_s:
+        s = psf_sigma
+    else:
+        v = init[3] * init[3] - 1.0 / 12.0
+        s = math.sqrt(v) if v > 0.04 else 0.2
+        if s > 5.0:
+            s = 5.0
+    phi = math.atan2(ny, nx)
+    H = np.empty((5, 5))
+    Hs = np.empty((5, 5))
+    g = np.empty(5)
+    gs = np.empty(5)
+    step = np.empty(5)
+    jac = np.empty(5)
+    cost = _normal_equations(vals, ox, oy, npix, rho, phi, A, B, s, kappa, npar, H, g, jac)
+    lam = 1e-3
+    status = NOT_CONVERGED
+    it = 0
+    while it < maxit:
+        it += 1
+        for i in range(npar):
+            for j in range(npar):
+                Hs[i, j] = H[i, j]
+            Hs[i, i] = H[i, i] * (1.0 + lam) + 1e-30
+        if not _chol_solve(Hs, g, npar, step):
+            lam *= 10.0
+            if lam > 1e10:
+                break
+            continue
+        nrho = rho + step[0]
+        nphi = phi + step[1]
+        nA = A + step[2]
+        nB = B + step[3]
+        ns = s + step[4] if npar == 5 else s
+        if ns < S_MIN:
+            ns = S_MIN
+        small = abs(step[0]) < tol and abs(step[1]) < tol and abs(ns - s) < tol
+        ncost = _normal_equations(vals, ox, oy, npix, nrho, nphi, nA, nB, ns, kappa, npar, Hs, gs, jac)
+        if ncost <= cost:
+            rho = nrho
+            phi = nphi
+            A = nA
+            B = nB
+            s = ns
+            cost = ncost
+            for i in range(npar):
+                g[i] = gs[i]
+                for j in range(npar):
+                    H[i, j] = Hs[i, j]
+            lam = max(lam * 0.1, 1e-12)
+            if small:
+                status = OK
+                break
+        else:
+            if small:
+                status = OK
+                break
+            lam *= 10.0
+            if lam > 1e10:
+                break
+    # (J^T J)^-1 rho,rho at the solution
+    for i in range(npar):
+        gs[i] = 0.0
+        for j in range(npar):
+            Hs[i, j] = H[i, j]
+    gs[0] = 1.0
+    c_rr = step[0] if _chol_solve(Hs, gs, npar, step) else np.inf
+    if status == OK and not (abs(rho) <= RHO_MAX and B > 0.0 and S_MIN < s < S_MAX):
+        status = OUT_OF_WINDOW
+    out[0] = rho
+    out[1] = phi
+    out[2] = A
+    out[3] = B
+    out[4] = s
+    out[5] = cost
+    out[6] = c_rr
+    out[7] = it
+    out[8] = status
+
+
+@njit(cache=True, parallel=True)
+def fit_patches(img, xs, ys, nxs, nys, kappas, half_normal, half_tangent, psf_sigma, maxit, tol, out):
+    for i in prange(xs.shape[0]):
+        fit_patch(img, xs[i], ys[i], nxs[i], nys[i], kappas[i], half_normal, half_tangent, psf_sigma,
+                  maxit, tol, out[i])
+
+
+def curvature_at(cand) -> np.ndarray:
+    """kappa = -div(n) at each candidate, n = grad / |grad| of the candidates' smoothed gradient field
+    (central differences of the unit field at the neighbouring pixel centres); > 0 where the edge bends
+    round its bright side (a bright disk), 0 where the field is too weak to say."""
+    gx, gy = cand.grad_x, cand.grad_y
+    h, w = gx.shape
+    x = cand.x.astype(np.intp)
+    y = cand.y.astype(np.intp)
+    xm, xp = np.clip(x - 1, 0, w - 1), np.clip(x + 1, 0, w - 1)
+    ym, yp = np.clip(y - 1, 0, h - 1), np.clip(y + 1, 0, h - 1)
+
+    def unit(yy, xx):
+        m = np.hypot(gx[yy, xx], gy[yy, xx])
+        m = np.where(m > 0, m, np.inf)
+        return gx[yy, xx] / m, gy[yy, xx] / m
+
+    ux_p, _ = unit(y, xp)
+    ux_m, _ = unit(y, xm)
+    _, uy_p = unit(yp, x)
+    _, uy_m = unit(ym, x)
+    div = (ux_p - ux_m) / np.maximum(xp - xm, 1) + (uy_p - uy_m) / np.maximum(yp - ym, 1)
+    kappa = -div
+    return np.where(np.isfinite(kappa) & (np.abs(kappa) <= KAPPA_MAX), kappa, 0.0)
+
+
+def patch_refine(image, cand, psf_sigma_px=None, half_normal: float = HALF_NORMAL, half_tangent: float = HALF_TANGENT,
+                 curved: bool = True, maxit: int = MAXIT, tol_px: float = TOL_PX):
+    if psf_sigma_px is not None:
+        psf_sigma_px = float(psf_sigma_px)
+        if not (np.isfinite(psf_sigma_px) and S_MIN <= psf_sigma_px < S_MAX):
+            raise InputError(f"psf_sigma_px={psf_sigma_px}: the PSF's Gaussian-equivalent sigma in px, "
+                             f"in [{S_MIN}, {S_MAX})")
+    half_normal = float(half_normal)
+    half_tangent = float(half_tangent)
+    if not (1.0 <= half_normal <= FP.RADIUS and 0.0 <= half_tangent <= FP.RADIUS):
+        raise InputError(f"half_normal={half_normal}, half_tangent={half_tangent}: need 1 <= half_normal <= "
+                         f"{FP.RADIUS} and 0 <= half_tangent <= {FP.RADIUS} px")
+    n = len(cand)
+    kappa = curvature_at(cand) if curved else np.zeros(n)
+    out = np.empty((n, 10))
+    img = np.ascontiguousarray(image, np.float64)
+    fit_patches(img, cand.x, cand.y, cand.nx, cand.ny, np.ascontiguousarray(kappa), half_normal, half_tangent,
+                -1.0 if psf_sigma_px is None else psf_sigma_px, int(maxit), float(tol_px), out)
+    rho, phi = out[:, 0], out[:, 1]
+    status = out[:, 8].astype(np.int64)
+    conv = status == OK
+    npix = out[:, 9].astype(np.int64)
+    npar = 4 if psf_sigma_px is not None else 5
+    dof = npix - npar
+    use = conv & (dof > 0) & np.isfinite(out[:, 5])
+    sigma2 = out[use, 5].sum() / dof[use].sum() if use.any() else np.nan
+    c_rr = out[:, 6]
+    se = np.sqrt(sigma2 * np.where(c_rr > 0, c_rr, np.nan))
+    rho0 = np.where(conv, rho, 0.0)
+    nx = np.where(conv, np.cos(phi), cand.nx)
+    ny = np.where(conv, np.sin(phi), cand.ny)
+    return Refinement(cand.x - rho0 * nx, cand.y - rho0 * ny, conv, nx, ny,
+                      extras={"A": out[:, 2], "B": out[:, 3], "s": out[:, 4], "kappa": kappa, "offset": -rho0,
+                              "rss": out[:, 5], "iterations": out[:, 7].astype(np.int64), "status": status,
+                              "npix": npix, "se": np.where(conv, se, np.nan)})
+
+
+@register("patch_psf_fit", "PatchPSFFit", family="edgetruth", footprint=FP.patch(HALF_NORMAL, HALF_TANGENT))
+def patch_psf_fit(image, cand, psf_sigma_px=None, half_normal: float = HALF_NORMAL,
+                  half_tangent: float = HALF_TANGENT, curved: bool = True, maxit: int = MAXIT,
+                  tol_px: float = TOL_PX):
+    """PatchPSFFit: 2-D ML fit of the pixel-integrated blurred edge (line or arc) over a patch along the edge."""
+    return patch_refine(image, cand, psf_sigma_px, half_normal, half_tangent, curved, maxit, tol_px)
