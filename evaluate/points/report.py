@@ -4,7 +4,8 @@ Points of one image share its pose, light and noise field, so they are not indep
 interval and test here resamples or pairs *images* (cluster bootstrap of the RMSE over images;
 Wilcoxon signed-rank on per-image RMSE, pairs = the same spec and image, Holm over the methods).
 The cells are those of the ranging tables: the design's base cell (the standard experiment), the
-SNR levels G1–G4 and the targets T1–T4 on the same pose slots.
+levels of each factor on the same pose slots (SNR levels G1–G4 and targets T1–T4: Tables E4G/E4T;
+any other factor: a table named after it), and the groups outside the design.
 
 Fair figures (as the synthetic study, ``edgetruth.evaluate.stats``): per method its *coverage* (share
 of the candidates it refines), bias and RMSE on its *refined* points, RMSE on the *common subset*
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from edgetruth.evaluate.ranging.design_cells import group_rows, main_rows
+from edgetruth.evaluate.ranging.design_cells import factor_tables, main_rows, plain_groups
 from edgetruth.evaluate.ranging.images import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, table as _table
 from edgetruth.evaluate.stats import holm, rank_biserial, wilcoxon_paired
@@ -160,7 +161,9 @@ def image_comparisons(table, methods, reference: str = REFERENCE_METHOD, mask: n
 
 
 def cells(table) -> dict:
-    """{"base": image mask, "G": {level: mask}, "T": {level: mask}} as in the ranging tables."""
+    """The image masks of the ranging tables' cells: {"base": mask, "factors": [(FactorTable, {level:
+    mask}), ...] (Table 16's factor, Table 17's, then every other factor of the design), "groups":
+    (FactorTable, {group: mask}) or None (the groups outside the design), "G": {level: mask}, "T": ...}."""
     recs = [dict(r, _k=k) for k, r in enumerate(table.images)]
     n = len(recs)
 
@@ -168,30 +171,64 @@ def cells(table) -> dict:
         m = np.zeros(n, bool)
         m[[r["_k"] for r in sel]] = True
         return m
-    out = {"base": mask(main_rows(recs)), "G": {}, "T": {}}
-    for prefix in ("G", "T"):
-        sel = group_rows(recs, prefix)
-        for lv in sorted({r["group"] for r in sel}):
-            out[prefix][lv] = mask([r for r in sel if r["group"] == lv])
+
+    def by_level(ft):
+        return {lv: mask([r for r in ft.rows if r["group"] == lv]) for lv in ft.levels}
+    out = {"base": mask(main_rows(recs)), "G": {}, "T": {}, "factors": [], "groups": None}
+    for ft in factor_tables(recs):
+        masks = by_level(ft)
+        out["factors"].append((ft, masks))
+        if ft.key in ("G", "T"):
+            out[ft.key] = masks
+    plain = plain_groups(recs)
+    if plain is not None:
+        out["groups"] = (plain, by_level(plain))
     return out
 
 
-def level_trend(table, m: str, level_masks: dict) -> dict:
-    """Per-image RMSE of method ``m`` on each level's images, paired on the pose slot (blocks = slots):
-    Friedman's test across the levels, Kendall's W, and whether the pooled RMSE never falls."""
-    from edgetruth.evaluate.stats import friedman
+def level_tests(table, m: str, level_masks: dict) -> dict:
+    """Per-image RMSE of method ``m`` on each level's images, paired on the pose slot (blocks = the
+    same spec and slot): Friedman's test across the levels (three or more), Kendall's W, Wilcoxon
+    signed-rank between consecutive levels with Holm's correction and the rank-biserial r
+    (``steps``), and whether the pooled RMSE never falls."""
+    from edgetruth.evaluate.stats import friedman, paired_comparisons
 
     n_img = len(table.images)
     sse, n = per_image_sums(table.image, table.errors[m], n_img)
-    slots = sorted({str(table.images[k].get("slot", "")) for mk in level_masks.values() for k in np.flatnonzero(mk)})
+
+    def slot(k):
+        return str(table.images[k].get("spec", "")), str(table.images[k].get("slot", ""))
+    slots = sorted({slot(k) for mk in level_masks.values() for k in np.flatnonzero(mk)})
+    row = {s: i for i, s in enumerate(slots)}
     blocks = np.full((len(slots), len(level_masks)), np.nan)
     pooled = []
     for j, mk in enumerate(level_masks.values()):
         for k in np.flatnonzero(mk & (n > 0)):
-            blocks[slots.index(str(table.images[k].get("slot", ""))), j] = np.sqrt(sse[k] / n[k])
+            blocks[row[slot(k)], j] = np.sqrt(sse[k] / n[k])
         pooled.append(float(np.sqrt(sse[mk].sum() / n[mk].sum())) if n[mk].sum() else np.nan)
     fr = friedman(blocks)
-    return {**fr, "pooled": pooled, "non_decreasing": bool(np.all(np.diff(pooled) >= 0))}
+    full = blocks[np.all(np.isfinite(blocks), axis=1)]
+    steps = paired_comparisons(full, list(level_masks)) if len(level_masks) >= 2 else []
+    return {**fr, "n_blocks": int(full.shape[0]), "k": len(level_masks), "pooled": pooled,
+            "non_decreasing": bool(np.all(np.diff(pooled) >= 0)), "steps": steps}
+
+
+#: the SNR levels' trend (its first name)
+level_trend = level_tests
+
+
+def describe_level_tests(t: dict) -> str:
+    """One line: the paired tests of ``level_tests`` (n slots, Friedman, each step's r and p)."""
+    if t["k"] == 2 and t["steps"]:
+        s = t["steps"][0]
+        return (f"paired on n = {s['n_pairs']} pose slots: Wilcoxon signed-rank {s['from']}→{s['to']} on per-image "
+                f"RMSE, median Δ {_f(s['median_difference'], 4)} px, r = {_f(s['rank_biserial'], 2)}, "
+                f"p = {s['p_value']:.3g} (two levels: no Friedman test)")
+    steps = "; ".join(f"{s['from']}→{s['to']} median Δ {_f(s['median_difference'], 4)} px, r = "
+                      f"{_f(s['rank_biserial'], 2)}, p(Holm) = {s['p_holm']:.3g}" for s in t["steps"])
+    p = f"{t['p_value']:.3g}" if np.isfinite(t["p_value"]) else "—"
+    return (f"paired on n = {t['n_blocks']} pose slots: Friedman χ² = {_f(t['statistic'], 2)}, p = {p}, "
+            f"Kendall's W = {_f(t['kendall_w'], 2)}" + (f"; {steps}" if steps else ""))
 
 
 def window_shares(table, m: str) -> dict:
@@ -201,13 +238,27 @@ def window_shares(table, m: str) -> dict:
     return {int(k): float(np.mean(w == k)) for k in (5, 7, 9, 11)}
 
 
+def cell_name(ft) -> str:
+    """A factor table's ``cell`` in ``render_points_summary.csv``: snr (Table E4G), target (E4T), the
+    factor's own name, or ``group`` for the groups outside the design."""
+    return {"G": "snr", "T": "target"}.get(ft.key, ft.factor)
+
+
+def named_cells(c: dict) -> list[tuple[str, str, np.ndarray]]:
+    """(cell, level, image mask) of every cell in ``cells``: the base cell, each factor's levels, the
+    groups outside the design."""
+    out = [("base", "", c["base"])]
+    for ft, masks in c["factors"] + ([c["groups"]] if c["groups"] else []):
+        out += [(cell_name(ft), lv, mk) for lv, mk in masks.items()]
+    return out
+
+
 def summary_rows(table, methods) -> list[dict]:
     """``render_points_summary.csv``: method × cell × distance interval (and "all")."""
     bound, interval = image_columns(table)
     c = cells(table)
     out = []
-    named = [("base", "", c["base"])] + [(f, lv, mk) for f in ("G", "T") for lv, mk in c[f].items()]
-    for factor, level, mk in named:
+    for factor, level, mk in named_cells(c):
         for iv in ["all"] + [f"{a}-{b}" for a, b in INTERVALS_CM]:
             sel = mk if iv == "all" else mk & (interval == iv)
             if not sel.any():
@@ -216,8 +267,7 @@ def summary_rows(table, methods) -> list[dict]:
             common = common_mask(sub, methods)
             for m in methods:
                 s = point_stats(sub, m, bound, common)
-                out.append({"cell": "base" if factor == "base" else {"G": "snr", "T": "target"}[factor],
-                            "level": level, "interval": iv, "method": m, "n_points": s["n"],
+                out.append({"cell": factor, "level": level, "interval": iv, "method": m, "n_points": s["n"],
                             "n_images": s["n_images"], "bias_px": s["bias"], "rmse_px": s["rmse"],
                             "rmse_ci_lo_px": s["rmse_ci"][0], "rmse_ci_hi_px": s["rmse_ci"][1],
                             "robust_sd_px": s["robust_sd"], "coverage": s["coverage"], "bound_rms_px": s["bound_rms"],
@@ -258,14 +308,21 @@ def figures(table, methods, fig_dir: Path) -> dict:
     bound, interval = image_columns(table)
     c = cells(table)
     rep = [m for m in list(SEED_ROBUSTNESS) + [m + "_camera" for m in ("dynamic_erf_4p",)] + ["canny_devernay", "pae2013"]
-           if m in methods and m != "canny_pixel"]
+           if m in methods and m != "canny_pixel"] or [m for m in methods if m != "canny_pixel"] or list(methods)
     out = {}
     labels = [f"{a}-{b}" for a, b in INTERVALS_CM]
     present = [lb for lb in labels if (c["base"] & (interval == lb)).any()]
     panels = [("fig_points_distance", "reference distance (cm)", present,
-               [c["base"] & (interval == lb) for lb in present]),
-              ("fig_points_snr", "SNR level (light halves, gain doubles)", list(c["G"]), list(c["G"].values())),
-              ("fig_points_target", "target", list(c["T"]), list(c["T"].values()))]
+               [c["base"] & (interval == lb) for lb in present])]
+    seed = {"G": ("fig_points_snr", "SNR level (light halves, gain doubles)"), "T": ("fig_points_target", "target")}
+    for ft, lm in c["factors"] + ([c["groups"]] if c["groups"] else []):
+        if ft.key in seed:
+            key, xlabel = seed[ft.key]
+        elif ft.key == "group":
+            key, xlabel = "fig_points_group", "group (outside the design)"
+        else:
+            key, xlabel = f"fig_points_factor_{ft.factor}", f"factor {ft.factor}"
+        panels.append((key, xlabel, list(lm), list(lm.values())))
     for key, xlabel, ticks, masks in panels:
         if len(ticks) < 2:
             continue
@@ -367,24 +424,36 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
               "share of the bias, > 0 towards the bright board." if has_opt else
               "RMSE and bias on each interval's common subset, against the geometric outline.", "",
               _table(["method"] + [f"{lb} cm" for lb in present], rows)]
-    for key, title in (("G", "SNR levels G1–G4"), ("T", "targets T1–T4")):
-        levels = list(c[key])
-        if len(levels) < 2:
+    seed_titles = {"G": "SNR levels G1–G4", "T": "targets T1–T4"}
+    for ft, lm in c["factors"] + ([c["groups"]] if c["groups"] else []):
+        levels = list(lm)
+        if len(levels) < 2 and ft.key != "group":
             continue
         body = []
-        lsubs = {lv: table.select(c[key][lv]) for lv in levels}
+        lsubs = {lv: table.select(lm[lv]) for lv in levels}
         lcomm = {lv: common_mask(sb, methods) for lv, sb in lsubs.items()}
         for m in order:
             body.append([_label(m)] + [(lambda s: f"{_f(s['rmse_common'], 4)} {_ci(s['rmse_common_ci'], 4)} "
                                                   f"({_f(100 * s['coverage'], 1)} %; refined {_f(s['rmse_refined'], 4)}; "
                                                   f"all {_f(s['rmse'], 4)})")(
                 point_stats(lsubs[lv], m, bound, lcomm[lv])) for lv in levels])
-        L += ["", f"## Table E4{key} — per-point RMSE (px) across the {title} (same pose slots)", "",
+        if ft.key in seed_titles:
+            head = f"Table E4{ft.key} — per-point RMSE (px) across the {seed_titles[ft.key]} (same pose slots)"
+        elif ft.key == "group":
+            head = ("Groups outside the design — per-point RMSE (px) per group (each group drew its own poses: "
+                    "not paired)")
+        else:
+            head = f"{ft.title} — per-point RMSE (px) across the levels (same pose slots)"
+        L += ["", f"## {head}", "",
               "Each cell: RMSE on the level's common subset [95 % CI] (coverage; RMSE on the refined points; on all "
               "candidates, declines at the pixel centre).", "",
               _table(["method"] + levels, body)]
-        if key == "G" and all(str(r.get("slot", "")) != "" for r in table.images):
-            tr = {m: level_trend(table, m, c["G"]) for m in order if m != "canny_pixel"}
+        paired = ft.key != "group" and all(str(table.images[k].get("slot", "")) != ""
+                                           for mk in lm.values() for k in np.flatnonzero(mk))
+        if not paired:
+            continue
+        tr = {m: level_tests(table, m, lm) for m in order if m != "canny_pixel"}
+        if ft.key == "G":
             up = [m for m, t in tr.items() if t["non_decreasing"]]
             ps = [t["p_value"] for t in tr.values() if np.isfinite(t["p_value"])]
             L += ["", f"Per point, the error grows with the noise: the pooled RMSE never falls from {levels[0]} to "
@@ -396,9 +465,15 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
                   "The ranging errors of Table 16 need not follow: there the edge part is a small share of the "
                   "ranging error (the model floor and the calibration dominate; Table 13's size RMSE in px against "
                   "its cm)." if ps else ""]
+        L += ["", "Paired tests across the levels, per method (per-image RMSE on all candidates, declines at the "
+                  "pixel centre, on the pose slots every level rendered; Friedman across the levels, then Wilcoxon signed-rank between consecutive levels, "
+                  "Holm-adjusted; r = matched-pairs rank-biserial, > 0: the later level has the larger error): "]
+        L += [f"- {_label(m)}: " + describe_level_tests(t) for m, t in tr.items()]
     dyn = [m for m in methods if m in table.windows]
     if dyn:
-        groups = [("base", c["base"])] + [(lv, mk) for f in ("G", "T") for lv, mk in c[f].items()]
+        groups = [("base", c["base"])] + [(ft.cell_label(lv), mk) for ft, lm in c["factors"] for lv, mk in lm.items()]
+        if c["groups"]:
+            groups += [(f"group {g}", mk) for g, mk in c["groups"][1].items()]
         body = []
         for m in dyn:
             for name, mk in groups:
@@ -407,14 +482,17 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
                     body.append([_label(m), name] + [f"{100 * sh[w]:.1f} %" for w in (5, 7, 9, 11)])
         L += ["", "## Window shares of the dynamic methods on the renders (scored points)", "",
               "Shipped thresholds (calibrated on synthetic edges) and, where present, thresholds calibrated "
-              "for this camera on disjoint renders (`(camera τ)`).", "",
+              "for this camera on disjoint renders (`(camera τ)`).  cell: the base cell, a factor's level "
+              "(G2, T3, factor=level), or a group outside the design.", "",
               _table(["method", "cell", "5", "7", "9", "11"], body)]
     figs = figures(table, methods, out_dir / "figures")
     names = {"fig_points_distance": "per-point RMSE vs distance (base cell)",
-             "fig_points_snr": "per-point RMSE vs SNR level", "fig_points_target": "per-point RMSE vs target"}
+             "fig_points_snr": "per-point RMSE vs SNR level", "fig_points_target": "per-point RMSE vs target",
+             "fig_points_group": "per-point RMSE per group outside the design"}
     if figs:
         L += [""]
     for k, p in figs.items():
         rel = Path(p).relative_to(out_dir)
-        L += [f"**Figure — {names[k]}**", "", f"![{names[k]}]({rel})", ""]
+        name = names.get(k) or f"per-point RMSE vs factor {k.removeprefix('fig_points_factor_')}"
+        L += [f"**Figure — {name}**", "", f"![{name}]({rel})", ""]
     return L

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
-from edgetruth.evaluate.ranging.design_cells import group_rows, main_rows
+from edgetruth.evaluate.ranging.design_cells import factor_tables, group_rows, main_rows, plain_groups
 from edgetruth.evaluate.ranging.images import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, table as _table
-from edgetruth.evaluate.stats import (holm, rank_biserial, rmse, rmse_ci, rmse_difference_ci, summary,
-                                      wilcoxon_paired)
+from edgetruth.evaluate.stats import (bootstrap_ci, holm, rank_biserial, rmse, rmse_ci, rmse_difference_ci,
+                                      summary, wilcoxon_paired)
 
 #: Fewer valid images than this: claims are reported as inconclusive.
 MIN_IMAGES_FOR_VERDICT = 20
@@ -114,6 +114,8 @@ def level_analysis(rows, groups: list[str]) -> dict:
         f = friedman(m)
         return {"paired": True, "n": len(keys), "rmse": rmses, "friedman": f,
                 "steps": paired_comparisons(m, groups)}
+    if rows and all(r.get("slot") not in (None, "") for r in rows):  # a paired design, but no slot valid everywhere
+        return {"paired": True, "n": 0, "rmse": rmses, "friedman": friedman(np.zeros((0, len(groups)))), "steps": []}
     vals = [np.array(list(by[g].values())) for g in groups]
     n = min((v.size for v in vals), default=0)
     kw = st.kruskal(*vals) if n >= 2 and len(vals) >= 2 else None
@@ -128,6 +130,13 @@ def level_analysis(rows, groups: list[str]) -> dict:
 def describe_levels(a: dict) -> str:
     if a["paired"]:
         f = a["friedman"]
+        if a["n"] < 2:
+            return (f"paired design, but {a['n']} pose slot(s) have a valid error at every level: not tested")
+        if len(a["rmse"]) == 2:  # Friedman needs three levels: the one Wilcoxon test is the whole family
+            s = a["steps"][0]
+            return (f"paired on {a['n']} pose slots: Wilcoxon signed-rank {s['from']}→{s['to']}, n = {s['n_pairs']}, "
+                    f"median Δ|e| {s['median_difference']:+.3f} cm, r = {s['rank_biserial']:+.2f}, "
+                    f"p = {s['p_value']:.3g} (two levels: no Friedman test)")
         steps = "; ".join(f"{s['from']}→{s['to']} median Δ|e| {s['median_difference']:+.3f} cm, r = "
                           f"{s['rank_biserial']:+.2f}, p(Holm) = {s['p_holm']:.3g}" for s in a["steps"])
         return (f"paired on {a['n']} pose slots: Friedman χ² = {f['statistic']:.2f}, p = {f['p_value']:.3g}, "
@@ -236,8 +245,55 @@ def verdicts(rows, methods) -> list[dict]:
     return out
 
 
+def shown_methods(ft, methods) -> list[str]:
+    """The methods of a factor's table: the seed's representative ones in Tables 16/17; every method
+    in the tables of other factors and of the groups outside a design."""
+    rep = [m for m in SEED_ROBUSTNESS if m in methods]
+    return rep if ft.key in ("G", "T") and rep else list(methods)
+
+
+def figure_name(key: str) -> str:
+    """A figure's caption from its key (``figures``)."""
+    names = {"fig8": "Figure 8 — edge fragments and refined points", "fig9": "Figure 9 — box plots of |e|",
+             "fig10": "Figure 10 — RMSE ± SD vs distance", "fig11": "Figure 11 — RMSE per SNR group",
+             "fig12": "Figure 12 — RMSE per target", "factor_group": "Figure — RMSE per group outside the design"}
+    return names.get(key) or f"Figure — RMSE per level of factor {key.removeprefix('factor_')}"
+
+
+def level_table(ft, methods) -> list[str]:
+    """A factor's table across its levels (Tables 16/17, or "Factor <name>: <levels>"): per level and
+    method n, MAE and RMSE with 95 % bootstrap CIs, SD, median, IQR, max, size and pose RMSE; then per
+    method the test across the levels (paired on the pose slots: Friedman, Wilcoxon steps with Holm)."""
+    gper = by_method(ft.rows, methods)
+    rep = shown_methods(ft, methods)
+    body = []
+    for g in ft.levels:
+        for m in rep:
+            sel = [r for r in gper[m] if r["group"] == g]
+            s = method_stats(sel)
+            a = np.abs([r["error_cm"] for r in _ok(sel)])
+            mae_ci = bootstrap_ci(np.mean, a) if a.size >= 5 else (np.nan, np.nan)
+            body.append([g, _label(m), s["n"], _f(s["mae"]), _ci(mae_ci), _f(s["rmse"]), _ci(s["rmse_ci"]),
+                         _f(s["sd"]), _f(s["median"]), _f(s["iqr"]), _f(s["max"]), _f(s["size_rmse_px"], 4),
+                         _f(s["pose"]["rmse"])])
+    seed_set = ft.key in ("G", "T") and any(m in methods for m in SEED_ROBUSTNESS)
+    which = "representative methods as in the seed" if seed_set else "every method"
+    L = ["", f"## {ft.title} (cm; {which})", "",
+         "size RMSE: l_hat − l_true (px), the part of the error the edge localisation makes; pose RMSE: "
+         "the pose model's ranging RMSE (cm), without the size model's tilt floor.  95 % CIs: bootstrap over "
+         "the level's images.", "",
+         _table(["group" if ft.key in ("G", "T") else ft.factor, "method", "n", "MAE", "MAE 95 % CI", "RMSE",
+                 "RMSE 95 % CI", "SD", "median", "IQR", "max", "size RMSE (px)", "pose RMSE"], body)]
+    if len(ft.levels) >= 2:
+        L += ["", "Across the levels, per method: "]
+        L += [f"- {_label(m)}: " + describe_levels(level_analysis(gper[m], ft.levels)) for m in rep]
+    return L
+
+
 # --- figures ---------------------------------------------------------------------------
-def figures(rows, methods, examples, fig_dir: Path) -> dict:
+def figures(rows, methods, examples, fig_dir: Path, groups: bool = True) -> dict:
+    """Figures 8-12, one per other design factor, and (``groups``) one over the groups outside the
+    design; returns {key: path} (``figure_name`` captions a key)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -307,14 +363,16 @@ def figures(rows, methods, examples, fig_dir: Path) -> dict:
     fig.savefig(p, dpi=110)
     plt.close(fig)
     out["fig10"] = p
-    # Fig 11/12: per-group bars
-    for key, prefix, name in (("fig11", "G", "fig11_snr_groups.png"), ("fig12", "T", "fig12_targets.png")):
-        g_rows = group_rows(all_rows, prefix)
-        groups = sorted({r["group"] for r in g_rows})
-        if not groups:
+    # Fig 11/12 and one per other factor (and the groups outside a design): per-level bars
+    seed_figs = {"G": ("fig11", "fig11_snr_groups.png"), "T": ("fig12", "fig12_targets.png")}
+    plain = plain_groups(all_rows) if groups else None
+    for ft in factor_tables(all_rows) + ([plain] if plain is not None else []):
+        key, name = seed_figs.get(ft.key) or (f"factor_{ft.factor}", f"fig_factor_{ft.factor}.png")
+        groups = ft.levels
+        if ft.key == "group" and len(groups) < 2:
             continue
-        per = by_method(g_rows, methods)
-        rep = [m for m in SEED_ROBUSTNESS if m in methods]
+        per = by_method(ft.rows, methods)
+        rep = shown_methods(ft, methods)
         fig, ax = plt.subplots(figsize=(7, 4))
         w = 0.8 / max(len(rep), 1)
         for k, m in enumerate(rep):
@@ -322,6 +380,9 @@ def figures(rows, methods, examples, fig_dir: Path) -> dict:
             ax.bar(np.arange(len(groups)) + k * w, vals, w, label=_label(m))
         ax.set_xticks(np.arange(len(groups)) + 0.4 - w / 2, groups)
         ax.set_ylabel("RMSE (cm)")
+        if ft.key not in seed_figs:
+            ax.set_xlabel(ft.factor if ft.key != "group" else "group (outside the design)")
+            ax.set_title(ft.title if ft.key != "group" else "Groups outside the design", fontsize=9)
         ax.legend(fontsize=7)
         fig.tight_layout()
         p = fig_dir / name
@@ -350,7 +411,7 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     rows = main_rows(all_rows)
     per = by_method(rows, methods)
     st = {m: method_stats(per[m]) for m in methods}
-    figs = figures(all_rows, methods, list(examples), out_dir / "figures")
+    figs = figures(all_rows, methods, list(examples), out_dir / "figures", groups=reference is None)
     L = [f"# edgetruth {title}", ""]
     for k, v in (header or {}).items():
         L.append(f"- **{k}**: {v}")
@@ -442,27 +503,14 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     rep = [m for m in SEED_ROBUSTNESS if m in methods]
     if reference is not None:
         L += group_table(all_rows, methods, rep or list(methods))
-    for title, prefix in (() if reference is not None else
-                          (("Table 16 — SNR groups G1–G4", "G"), ("Table 17 — targets T1–T4", "T"))):
-        g_rows = group_rows(all_rows, prefix)
-        groups = sorted({r["group"] for r in g_rows})
-        if not groups:
-            continue
-        gper = by_method(g_rows, methods)
-        body = []
-        for g in groups:
-            for m in rep:
-                s = method_stats([r for r in gper[m] if r["group"] == g])
-                body.append([g, _label(m), s["n"], _f(s["mae"]), _f(s["rmse"]), _f(s["sd"]), _f(s["median"]),
-                             _f(s["iqr"]), _f(s["max"]), _f(s["size_rmse_px"], 4), _f(s["pose"]["rmse"])])
-        L += ["", f"## {title} (cm; representative methods as in the seed)", "",
-              "size RMSE: l_hat − l_true (px), the part of the error the edge localisation makes; pose RMSE: "
-              "the pose model's ranging RMSE (cm), without the size model's tilt floor.", "",
-              _table(["group", "method", "n", "MAE", "RMSE", "SD", "median", "IQR", "max", "size RMSE (px)",
-                      "pose RMSE"], body)]
-        if len(groups) >= 2:
-            L += ["", "Across the levels, per method: "]
-            L += [f"- {_label(m)}: " + describe_levels(level_analysis(gper[m], groups)) for m in rep]
+    else:  # Tables 16/17, then a table per other factor of the design, then the groups outside it
+        for ft in factor_tables(all_rows):
+            L += level_table(ft, methods)
+        plain = plain_groups(all_rows)
+        if plain is not None:
+            L += group_table(plain.rows, methods, list(methods), title=(
+                "Groups outside the design — per group (cm; every method; each group drew its own poses)"),
+                unit="images")
     if REFERENCE_METHOD in methods:
         for title, key in (("size model Z = fx·S/l", "error_cm"), ("pose model", "error_pose_cm")):
             body = [[_label(c["method"]), c["n_pairs"], _f(c["median_difference"]), _f(c["rank_biserial"], 2),
@@ -480,12 +528,9 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
 
         L += report_section(points, [m for m in methods if m in points.errors], out_dir)
     L += ["", "## Figures", ""]
-    names = {"fig8": "Figure 8 — edge fragments and refined points", "fig9": "Figure 9 — box plots of |e|",
-             "fig10": "Figure 10 — RMSE ± SD vs distance", "fig11": "Figure 11 — RMSE per SNR group",
-             "fig12": "Figure 12 — RMSE per target"}
     for k, p in figs.items():
         rel = Path(p).relative_to(out_dir)
-        L += [f"**{names[k]}**", "", f"![{names[k]}]({rel})", ""]
+        L += [f"**{figure_name(k)}**", "", f"![{figure_name(k)}]({rel})", ""]
     L += ["## Files", "", "- `ranging_rows.csv`: one row per (image, method)", "- `ranging_summary.json`",
           "- `render_points.npz`: every scored point's signed error per method (docs/formats.md)"
           if points is not None else "",
@@ -499,9 +544,12 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     return path
 
 
-def group_table(rows, methods, shown) -> list[str]:
-    """Tables 16-17 for rows whose ``group`` is free text (a photo CSV's): the ``shown`` methods per
-    group, the lowest-RMSE method of all per group, and a Kruskal–Wallis test across the groups."""
+def group_table(rows, methods, shown, title: str = ("Tables 16–17 — per group (cm; the rows' own `group`, "
+                                                    "representative methods as in the seed)"),
+                unit: str = "photos") -> list[str]:
+    """Tables 16-17 for rows whose ``group`` is free text (a photo CSV's, or the groups outside a
+    design): the ``shown`` methods per group, the lowest-RMSE method of all per group, and a
+    Kruskal–Wallis test across the groups (``unit``: what a group holds, in the text)."""
     from scipy.stats import kruskal
 
     groups = sorted({str(r["group"]) for r in rows})
@@ -517,13 +565,13 @@ def group_table(rows, methods, shown) -> list[str]:
         if ok:
             m = min(ok, key=lambda m: st[m]["rmse"])
             best.append(f"{g}: {_label(m)} {_f(st[m]['rmse'])} cm (n = {st[m]['n']})")
-    L = ["", "## Tables 16–17 — per group (cm; the rows' own `group`, representative methods as in the seed)", "",
+    L = ["", f"## {title}", "",
          "pose RMSE: the pose model's ranging RMSE (cm).", "",
          _table(["group", "method", "n", "MAE", "RMSE", "SD", "median", "IQR", "max", "mean rel. err (%)",
                  "pose RMSE"], body),
          "", "Lowest RMSE of all methods per group: " + ("; ".join(best) or "—") + "."]
     if len(groups) >= 2:
-        L += ["", "Across the groups (unpaired: each group holds its own photos), Kruskal–Wallis on |e|: "]
+        L += ["", f"Across the groups (unpaired: each group holds its own {unit}), Kruskal–Wallis on |e|: "]
         for m in shown:
             vals = [np.abs([r["error_cm"] for r in _ok(per[m]) if str(r["group"]) == g]) for g in groups]
             n = min(v.size for v in vals)
@@ -532,5 +580,5 @@ def group_table(rows, methods, shown) -> list[str]:
             except ValueError:  # every |e| identical
                 p = float("nan")
             L.append(f"- {_label(m)}: p = {_f(p, 3)} (n ≥ {n} per group)" if n >= 2 else
-                     f"- {_label(m)}: not tested (a group has {n} valid photos)")
+                     f"- {_label(m)}: not tested (a group has {n} valid {unit})")
     return L
