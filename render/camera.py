@@ -6,7 +6,11 @@ Intrinsics: by default fx = fy = f / pitch and the principal point at the image 
 ``cx_px``, ``cy_px``: e.g. a calibrated camera's K); the focal length in millimetres then follows
 from fx (f = fx · pitch) unless given, when the two must agree.  fy ≠ fx means non-square
 pixels (``pitch_um`` is the pitch along x; the vertical pitch is pitch · fx / fy); the lens PSF
-stays isotropic in pixels (its size in µm is divided by the x pitch).  Skew is not modelled.
+is defined in pixels (its size in µm is divided by the x pitch).  Skew is not modelled.
+
+The Gaussian aberration may be anisotropic: ``aberration_sigma_y_um`` (default: none, i.e. equal to
+``aberration_sigma_um``) is its σ along the image's y axis, ``aberration_sigma_um`` then the σ along
+x (``edgetruth.render.psf``).
 
 All image coordinates are OpenCV's (see ``edgetruth.conventions``); points in
 camera space are in the OpenCV camera frame (x right, y down, z forward), metres.
@@ -66,6 +70,9 @@ class Camera:
     focal_y_px: float | None = None
     principal_x_px: float | None = None
     principal_y_px: float | None = None
+    #: An anisotropic Gaussian aberration: its sigma along the image y axis (``aberration_sigma_um`` is then
+    #: the sigma along x); None: isotropic.  Left out of ``to_dict`` when None (unchanged spec hashes).
+    aberration_sigma_y_um: float | None = None
     name: str = field(default="custom", compare=False)
 
     def __post_init__(self) -> None:
@@ -76,6 +83,8 @@ class Camera:
         require(len(self.distortion) == 5, f"camera {self.name}: distortion needs 5 coefficients (k1, k2, p1, p2, k3)")
         require(self.diffraction_wavelength_nm >= 0 and self.aberration_sigma_um >= 0 and self.olpf_split_um >= 0,
                 f"camera {self.name}: PSF parameters must be >= 0")
+        require(self.aberration_sigma_y_um is None or self.aberration_sigma_y_um >= 0,
+                f"camera {self.name}: aberration_sigma_y_um must be >= 0")
         require(self.aberration_sigma_growth >= -1.0, f"camera {self.name}: aberration_sigma_growth must be >= -1 "
                 "(sigma may not turn negative at the corner)")
         require(len(self.velocity_m_s) == 3 and len(self.angular_velocity_deg_s) == 3,
@@ -174,7 +183,7 @@ class Camera:
         """The same geometry with a perfect lens: no PSF, no falloff or shading, no motion (thin-lens
         defocus and distortion stay)."""
         return replace(self, diffraction_wavelength_nm=0.0, aberration_sigma_um=0.0, aberration_sigma_growth=0.0,
-                       olpf_split_um=0.0, natural_vignetting=False, shading_a2=0.0, shading_a4=0.0,
+                       aberration_sigma_y_um=None, olpf_split_um=0.0, natural_vignetting=False, shading_a2=0.0, shading_a4=0.0,
                        velocity_m_s=(0.0, 0.0, 0.0), angular_velocity_deg_s=(0.0, 0.0, 0.0))
 
     def defocus_radius_px(self, distance_m: np.ndarray | float) -> np.ndarray | float:
@@ -216,8 +225,8 @@ class Camera:
 
     def to_dict(self) -> dict:
         d = asdict(self)
-        for k in ("focal_x_px", "focal_y_px", "principal_x_px", "principal_y_px"):
-            if d[k] is None:  # derived: not part of a default camera's identity (unchanged spec hashes)
+        for k in ("focal_x_px", "focal_y_px", "principal_x_px", "principal_y_px", "aberration_sigma_y_um"):
+            if d[k] is None:  # derived / off: not part of a default camera's identity (unchanged spec hashes)
                 del d[k]
         d["distortion"] = {k: float(v) for k, v in zip(("k1", "k2", "p1", "p2", "k3"), self.distortion)}
         d["velocity_m_s"] = list(self.velocity_m_s)
@@ -243,8 +252,27 @@ class Camera:
             "cx_px": cx,
             "cy_px": cy,
             "dist_coeffs_opencv": self.dist_coeffs.tolist(),
-            "optics": optics_ground_truth(self),
+            "optics": self._optics_truth(),
         }
+
+    def _optics_truth(self) -> dict:
+        """``optics_ground_truth``, plus the y axis of an anisotropic aberration (only then: the JSON of an
+        isotropic camera is unchanged)."""
+        out = optics_ground_truth(self)
+        if self.aberration_sigma_y_um is not None:
+            from edgetruth.render import mtf
+            from edgetruth.render.psf import psf_params
+
+            p = psf_params(self)
+            out["psf"]["aberration_sigma_y_um"] = self.aberration_sigma_y_um
+            out["psf"]["aberration_sigma_y_px_centre"] = p.sigma_y_at(0.0)
+            out["psf"]["aberration_sigma_y_px_corner"] = p.sigma_y_at(1.0)
+            out["psf"]["model"] += ("; the Gaussian is elliptical: sigma along x = aberration_sigma_um, along y = "
+                                    "aberration_sigma_y_um (both times 1 + g h^2)")
+            out["mtf50_centre_y_cy_px"] = mtf.mtf50(lambda nu: p.otf(0.0 * nu, nu, 0.0))
+            out["mtf50_corner_y_cy_px"] = mtf.mtf50(lambda nu: p.otf(0.0 * nu, nu, 1.0))
+            out["mtf50_meaning"] += "; mtf50_*_y_cy_px: along the image y axis"
+        return out
 
 
 _D = Camera()
@@ -273,6 +301,9 @@ CAMERA_KEYS = [
         "diffraction PSF at the f-number (cutoff p/(lambda N)); 0 = no diffraction", 0.0, 20000.0, per_group=True),
     Key("aberration_sigma_um", "float", _D.aberration_sigma_um, "um", "Gaussian aberration blur sigma on the "
         "sensor at the image centre", 0.0, 1000.0, per_group=True),
+    Key("aberration_sigma_y_um", "float", None, "um", "anisotropic aberration: the Gaussian's sigma along the "
+        "image y axis (aberration_sigma_um is then its sigma along x); default: isotropic (= aberration_sigma_um)",
+        0.0, 1000.0, per_group=True),
     Key("aberration_sigma_growth", "float", _D.aberration_sigma_growth, "", "growth g of the aberration with "
         "field height h (0 centre, 1 corner): sigma(h) = sigma * (1 + g h^2)", -1.0, 100.0, per_group=True),
     Key("olpf_split_um", "float", _D.olpf_split_um, "um", "4-dot birefringent low-pass filter: dots at "
@@ -309,6 +340,12 @@ def _tuples(v: dict) -> dict:
 
 def check_optics(cam: Camera, where: str) -> None:
     """The lens PSF must be one the renderer can sample (an OLPF alone is not band-limited)."""
+    sy = cam.aberration_sigma_y_um
+    if sy is not None and min(sy, cam.aberration_sigma_um) == 0 and max(sy, cam.aberration_sigma_um) > 0 and (
+            cam.diffraction_wavelength_nm == 0 or cam.f_number == 0):
+        raise InputError(f"{where}: aberration_sigma_um = {cam.aberration_sigma_um} and aberration_sigma_y_um = {sy}: "
+                         "a Gaussian blurred along one axis only needs diffraction (diffraction_wavelength_nm > 0 and "
+                         "f_number > 0) to limit the other; give both sigmas > 0 or add diffraction")
     if cam.olpf_split_um > 0 and cam.aberration_sigma_um == 0 and (cam.diffraction_wavelength_nm == 0
                                                                     or cam.f_number == 0):
         raise InputError(f"{where}: olpf_split_um = {cam.olpf_split_um} needs diffraction "
@@ -359,9 +396,15 @@ def camera_overrides(d: dict, where: str) -> dict:
 def resolve_camera_path(ref: str, base_dir: Path | None = None) -> Path:
     """A camera reference: a shipped name (``default``) or a TOML path (relative to ``base_dir``,
     the folder of the spec that names it)."""
-    from edgetruth.resources import shipped_camera
+    from edgetruth.resources import shipped_camera, shipped_camera_names
 
     if not ref.endswith(".toml") and "/" not in ref and "\\" not in ref:
+        local = Path(ref).expanduser() if base_dir is None else base_dir / Path(ref).expanduser()
+        if ref not in shipped_camera_names() and (local.exists() or local.is_symlink()):
+            what = ("a folder, not a camera file" if local.is_dir()
+                    else f"a file, but a camera file's name ends in .toml (rename it {Path(ref).stem}.toml)")
+            raise InputError(f"camera {ref!r}: {local} is {what}; name a camera TOML file, or a shipped camera: "
+                             f"{', '.join(shipped_camera_names())}")
         return shipped_camera(ref)
     p = Path(ref).expanduser()
     if not p.is_absolute() and base_dir is not None:

@@ -62,7 +62,7 @@ def capture(radiance: np.ndarray, camera, sensor, rng: np.random.Generator, name
     if frac_lit > SATURATION_WARN_FRACTION:
         console.warn(f"{name}: {100 * frac_lit:.2f} % of the lit pixels saturate (limit "
                      f"{100 * SATURATION_WARN_FRACTION:.1f} %); lower irradiance_w_m2, exposure_s or gain_db")
-    image = pipeline.develop(raw, sensor)
+    image = pipeline.develop(raw, sensor, rng)  # rng: only output_noise_dn draws from it, after the exposure
     truth = {
         "image": pipeline.describe(sensor),
         "saturation": {"fraction_lit": frac_lit, "fraction_all": float(saturated.mean()),

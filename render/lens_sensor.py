@@ -88,7 +88,9 @@ def register() -> str:
             params = PsfParams(cutoff_cy_px=float(props.get("psf_cutoff_cy_px", math.inf)),
                                sigma_px=float(props.get("psf_sigma_px", 0.0)),
                                sigma_growth=float(props.get("psf_sigma_growth", 0.0)),
-                               olpf_px=float(props.get("psf_olpf_px", 0.0)))
+                               olpf_px=float(props.get("psf_olpf_px", 0.0)),
+                               sigma_y_px=float(props["psf_sigma_y_px"]) if "psf_sigma_y_px" in props
+                               else None)
             self.table = psf_table(params)
             if self.table is not None:
                 import numpy as np
@@ -218,6 +220,8 @@ def sensor_dict(camera, sampler: dict, crop: tuple[int, int, int, int] | None = 
         "film": film,
         "sampler": sampler,
     }
+    if p.sigma_y_px is not None:  # an anisotropic aberration (absent otherwise: the same scene dict as before)
+        out["psf_sigma_y_px"] = p.sigma_y_px
     if camera.moving:
         if exposure_s <= 0:
             raise ValueError("a moving camera needs the exposure time")

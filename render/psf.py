@@ -26,6 +26,12 @@ renormalised.
 A field-dependent Gaussian σ(h) = σ0 (1 + g h²) (h: field height / half-diagonal) is
 tabulated at ``FIELD_LEVELS`` values of h² (σ is linear in h², so the warp's linear mixing of
 neighbouring levels follows σ closely).
+
+The Gaussian may be anisotropic (``sigma_y_px``: σ along the image y axis, σ0 along x; both grow
+with the field alike): G(νx, νy) = exp(−2π²(σx² νx² + σy² νy²)), an elliptical Gaussian with its
+axes on the pixel axes (e.g. a video camera whose lines blur more than its columns).  The table is
+built from the same 2-D OTF, so the warp samples it exactly as the isotropic one.  Without
+``sigma_y_px`` (None) the isotropic code path runs unchanged (the same table to the last bit).
 """
 from __future__ import annotations
 
@@ -48,22 +54,57 @@ class PsfParams:
     """The PSF of a camera in pixels: diffraction cutoff, Gaussian σ(h), OLPF split."""
 
     cutoff_cy_px: float  # inf: no diffraction
-    sigma_px: float  # at the image centre
+    sigma_px: float  # at the image centre (along x when ``sigma_y_px`` is given)
     sigma_growth: float  # σ(h) = σ0 (1 + g h²)
     olpf_px: float
+    sigma_y_px: float | None = None  # an anisotropic Gaussian: σ along y at the centre; None: isotropic
 
     def sigma_at(self, field_height: float) -> float:
+        """σ along x (the isotropic σ) at ``field_height``."""
         return self.sigma_px * (1.0 + self.sigma_growth * float(field_height) ** 2)
+
+    def sigma_y_at(self, field_height: float) -> float:
+        """σ along y at ``field_height`` (σ along x when isotropic)."""
+        s = self.sigma_px if self.sigma_y_px is None else self.sigma_y_px
+        return s * (1.0 + self.sigma_growth * float(field_height) ** 2)
+
+    @property
+    def anisotropic(self) -> bool:
+        return self.sigma_y_px is not None and self.sigma_y_px != self.sigma_px
+
+    @property
+    def sigma_max_px(self) -> float:
+        return max(self.sigma_px, self.sigma_px if self.sigma_y_px is None else self.sigma_y_px)
+
+    @property
+    def sigma_min_px(self) -> float:
+        return min(self.sigma_px, self.sigma_px if self.sigma_y_px is None else self.sigma_y_px)
+
+    def sigma_along(self, angle_rad: float, field_height: float = 0.0) -> float:
+        """σ of the Gaussian's profile along the direction ``angle_rad`` from the x axis (the 1-D
+        section of an elliptical Gaussian's OTF: σ² = σx² cos² + σy² sin²)."""
+        sx, sy = self.sigma_at(field_height), self.sigma_y_at(field_height)
+        return math.sqrt((sx * math.cos(angle_rad)) ** 2 + (sy * math.sin(angle_rad)) ** 2)
 
     @property
     def field_dependent(self) -> bool:
-        return self.sigma_px > 0 and self.sigma_growth != 0
+        return self.sigma_max_px > 0 and self.sigma_growth != 0
+
+    def gaussian_otf(self, nu_x, nu_y, field_height: float = 0.0):
+        """The Gaussian factor alone: isotropic exp(−2π²σ²ν²), or the elliptical one."""
+        if not self.anisotropic:
+            return mtf.gaussian_mtf(np.hypot(nu_x, nu_y), self.sigma_at(field_height))
+        sx, sy = self.sigma_at(field_height), self.sigma_y_at(field_height)
+        return np.exp(-2.0 * np.pi ** 2 * ((sx * nu_x) ** 2 + (sy * nu_y) ** 2))
 
     def otf(self, nu_x, nu_y, field_height: float = 0.0, pixel: bool = True):
         """2-D OTF of box ⊗ PSF (``pixel``) or of the PSF alone."""
         nu_x, nu_y = np.asarray(nu_x, float), np.asarray(nu_y, float)
         nu = np.hypot(nu_x, nu_y)
-        out = mtf.diffraction_mtf(nu, self.cutoff_cy_px) * mtf.gaussian_mtf(nu, self.sigma_at(field_height))
+        if self.anisotropic:
+            out = mtf.diffraction_mtf(nu, self.cutoff_cy_px) * self.gaussian_otf(nu_x, nu_y, field_height)
+        else:
+            out = mtf.diffraction_mtf(nu, self.cutoff_cy_px) * mtf.gaussian_mtf(nu, self.sigma_at(field_height))
         if self.olpf_px:
             out = out * mtf.olpf_otf(nu_x, nu_y, self.olpf_px)
         if pixel:
@@ -84,9 +125,10 @@ class PsfParams:
 def psf_params(camera) -> PsfParams:
     """The PSF of ``camera`` (``edgetruth.render.camera.Camera``) in its pixel units."""
     p = camera.pitch_um
+    sy = getattr(camera, "aberration_sigma_y_um", None)
     return PsfParams(cutoff_cy_px=mtf.diffraction_cutoff_cy_px(p, camera.diffraction_wavelength_nm, camera.f_number),
                      sigma_px=camera.aberration_sigma_um / p, sigma_growth=camera.aberration_sigma_growth,
-                     olpf_px=camera.olpf_split_um / p)
+                     olpf_px=camera.olpf_split_um / p, sigma_y_px=None if sy is None else sy / p)
 
 
 @dataclass(frozen=True)
@@ -111,18 +153,20 @@ class PsfTable:
 def _band_limit_cy_px(p: PsfParams) -> float:
     """The frequency above which the PSF's OTF stays below 1e-6 in every direction (the table's
     grid must resolve it; inf when nothing limits the band)."""
-    if not math.isfinite(p.cutoff_cy_px) and p.sigma_px == 0:
+    s_min = p.sigma_min_px
+    if not math.isfinite(p.cutoff_cy_px) and s_min == 0:
         return math.inf
-    top = p.cutoff_cy_px if math.isfinite(p.cutoff_cy_px) else 1.1 / p.sigma_px
+    top = p.cutoff_cy_px if math.isfinite(p.cutoff_cy_px) else 1.1 / s_min
     nu = np.linspace(0.0, top, 2049)
-    env = mtf.diffraction_mtf(nu, p.cutoff_cy_px) * mtf.gaussian_mtf(nu, min(p.sigma_at(0.0), p.sigma_at(1.0)))
+    g = 1.0 + p.sigma_growth  # σ(1) / σ(0)
+    env = mtf.diffraction_mtf(nu, p.cutoff_cy_px) * mtf.gaussian_mtf(nu, min(s_min, s_min * g))
     above = np.nonzero(env >= 1e-6)[0]
     return float(nu[min(above[-1] + 1, len(nu) - 1)])
 
 
 def kernel_radius_px(p: PsfParams) -> float:
     """How far from the pixel centre the tabulated kernel reaches (before rounding to the grid)."""
-    sigma_max = max(p.sigma_at(0.0), p.sigma_at(1.0))
+    sigma_max = max(p.sigma_at(0.0), p.sigma_at(1.0), p.sigma_y_at(0.0), p.sigma_y_at(1.0))
     airy_r = 0.0
     if math.isfinite(p.cutoff_cy_px):
         lam_n_px = 1.0 / p.cutoff_cy_px  # λN in pixels
@@ -162,7 +206,7 @@ def _kernel_level(p: PsfParams, field_height: float, h: float, n: int) -> np.nda
 
 def psf_table(p: PsfParams) -> PsfTable | None:
     """The sampling table for ``p``; None when the PSF is absent or negligible."""
-    if not math.isfinite(p.cutoff_cy_px) and p.sigma_px == 0 and p.olpf_px == 0:
+    if not math.isfinite(p.cutoff_cy_px) and p.sigma_max_px == 0 and p.olpf_px == 0:
         return None
     if p.negligible():
         return None
@@ -174,8 +218,17 @@ def psf_table(p: PsfParams) -> PsfTable | None:
 
 def table_otf_x(table: PsfTable, level: int, nu) -> np.ndarray:
     """OTF along x of the *interpolated* table (what the renderer samples), normalised at 0."""
+    return _table_otf(table, level, nu, axis=0)
+
+
+def table_otf_y(table: PsfTable, level: int, nu) -> np.ndarray:
+    """OTF along y of the *interpolated* table, normalised at 0."""
+    return _table_otf(table, level, nu, axis=1)
+
+
+def _table_otf(table: PsfTable, level: int, nu, axis: int) -> np.ndarray:
     d = table.density[level].astype(np.float64)
-    marg = d.sum(axis=0)  # x marginal (vertex weights)
+    marg = d.sum(axis=axis)  # axis 0: the x marginal (vertex weights); axis 1: the y marginal
     n = len(marg)
     x = (np.arange(n) - (n - 1) / 2) * table.step_px
     nu = np.asarray(nu, float)

@@ -9,7 +9,13 @@
 so that Var(y) = K²(σd² + μe) + 1/12 below saturation.  The offset (black level) keeps the
 dark noise above 0: nothing clips there.  With a Bayer colour filter array (``cfa``) each
 pixel has its channel's QE (``qe_r``, ``qe_g``, ``qe_b``) instead of ``qe``; demosaicing and
-the output encoding (``output``: raw DN, 8-bit sRGB, JPEG) are ``edgetruth.render.pipeline``.
+the output encoding (``output``: raw DN, 8-bit sRGB, JPEG) are ``edgetruth.render.pipeline``,
+as is an optional reduction of the 8-bit output to a few levels (``output_levels``: N gray
+levels; ``output_levels_rgb``: an RGB palette of Nr x Ng x Nb levels, the gray read back as luma),
+with or without Floyd-Steinberg error diffusion (``output_dither``), and a video camera's
+processing of the encoded values (``output_gain``, ``output_offset_dn``; ``sharpen_amount``: an unsharp mask along x, y
+or both; ``output_noise_dn``: noise added after them).  All off by default; only
+``output_noise_dn`` draws random numbers (from the image's generator, after the exposure's).
 All randomness comes from a seeded ``numpy.random.Generator`` passed in by the caller
 (never the global RNG).
 
@@ -47,6 +53,12 @@ from edgetruth.render.schema import Key, parse_table
 
 CFA_PATTERNS = ("none", "RGGB", "BGGR", "GRBG", "GBRG")
 OUTPUTS = ("raw", "srgb8", "jpeg")
+DITHERS = ("none", "floyd_steinberg")
+SHARPEN_AXES = ("x", "y", "xy")
+#: the output-quantisation keys (left out of a spec's identity while no quantisation is on)
+QUANTISE_KEYS = ("output_levels", "output_levels_rgb", "output_rgb_gains", "output_dither")
+#: the video-processing keys (left out of a spec's identity while all are off)
+VIDEO_KEYS = ("output_gain", "output_offset_dn", "sharpen_amount", "sharpen_sigma_px", "sharpen_axis", "output_noise_dn")
 PLANCK_J_S = 6.62607015e-34
 SPEED_OF_LIGHT_M_S = 299792458.0
 #: streams of the camera's fixed-pattern generators, [fpn_seed, stream] (the per-image streams are 1, 2)
@@ -85,6 +97,16 @@ class SensorModel:
     hot_pixel_current_e_s: float = 5.0e4
     dead_pixel_fraction: float = 0.0
     fpn_seed: int = 0
+    output_levels: int = 0
+    output_levels_rgb: tuple = (0, 0, 0)
+    output_rgb_gains: tuple = (1.0, 1.0, 1.0)
+    output_dither: str = "none"
+    output_gain: float = 1.0
+    output_offset_dn: float = 0.0
+    sharpen_amount: float = 0.0
+    sharpen_sigma_px: float = 1.0
+    sharpen_axis: str = "x"
+    output_noise_dn: float = 0.0
 
     def __post_init__(self) -> None:
         require(0 < self.qe <= 1, f"sensor: qe must be in (0, 1], got {self.qe}")
@@ -103,6 +125,31 @@ class SensorModel:
                 f"[0, {DEFECT_MAX_FRACTION:g}]")
         require(self.hot_pixel_current_e_s >= 0, "sensor: hot_pixel_current_e_s must be >= 0")
         require(0 <= int(self.fpn_seed) <= FPN_SEED_MAX, f"sensor: fpn_seed must be in [0, {FPN_SEED_MAX}]")
+        require(self.output_levels == 0 or 2 <= int(self.output_levels) <= 256,
+                f"sensor: output_levels must be 0 (off) or 2..256, got {self.output_levels}")
+        rgb = tuple(self.output_levels_rgb)
+        require(len(rgb) == 3 and (all(v == 0 for v in rgb) or all(v == int(v) and 2 <= v <= 256 for v in rgb)),
+                f"sensor: output_levels_rgb must be [0, 0, 0] (off) or three integers in 2..256, got {list(rgb)}")
+        require(self.output_dither in DITHERS, f"sensor: output_dither must be one of {', '.join(DITHERS)}")
+        require(not (self.output_levels and any(rgb)),
+                "sensor: output_levels and output_levels_rgb both set; give one (gray levels or an RGB palette)")
+        require(self.output_dither == "none" or self.quantised,
+                "sensor: output_dither needs output_levels or output_levels_rgb (the levels to dither between)")
+        require(not self.quantised or self.output != "raw",
+                "sensor: output_levels / output_levels_rgb reduce the 8-bit output; use output = srgb8 or jpeg")
+        require(self.sharpen_amount >= 0 and self.sharpen_sigma_px > 0,
+                "sensor: sharpen_amount must be >= 0 and sharpen_sigma_px > 0")
+        require(self.sharpen_axis in SHARPEN_AXES, f"sensor: sharpen_axis must be one of {', '.join(SHARPEN_AXES)}")
+        require(not self.video_processed or self.output != "raw",
+                "sensor: output_gain, output_offset_dn, sharpen_amount and output_noise_dn act on the encoded output; "
+                "use output = "
+                "srgb8 or jpeg")
+        require(self.output_gain > 0 and self.output_noise_dn >= 0,
+                "sensor: output_gain must be > 0 and output_noise_dn >= 0")
+        require(len(tuple(self.output_rgb_gains)) == 3 and all(g > 0 for g in self.output_rgb_gains),
+                "sensor: output_rgb_gains must be three positive numbers")
+        require(tuple(self.output_rgb_gains) == (1.0, 1.0, 1.0) or any(self.output_levels_rgb),
+                "sensor: output_rgb_gains applies to output_levels_rgb (the RGB palette); add it or drop the gains")
 
     def identity(self) -> dict:
         """The values that determine the images, for a spec's identity hash: the fixed-pattern keys
@@ -111,7 +158,24 @@ class SensorModel:
         if not self.has_fixed_pattern:
             for k in FPN_KEYS:
                 d.pop(k)
+        if not self.quantised:
+            for k in QUANTISE_KEYS:
+                d.pop(k)
+        if not self.video_processed:
+            for k in VIDEO_KEYS:
+                d.pop(k)
         return d
+
+    @property
+    def video_processed(self) -> bool:
+        """Any of output_gain, sharpening and output_noise_dn on (``edgetruth.render.pipeline``)."""
+        return (self.output_gain != 1.0 or bool(self.output_offset_dn) or bool(self.sharpen_amount)
+                or bool(self.output_noise_dn))
+
+    @property
+    def quantised(self) -> bool:
+        """The 8-bit output reduced to fewer levels (``output_levels`` or ``output_levels_rgb``)."""
+        return bool(self.output_levels) or any(self.output_levels_rgb)
 
     @property
     def gain_dn_per_e(self) -> float:
@@ -217,6 +281,15 @@ class SensorModel:
         d = asdict(self)
         d["gain_dn_per_e"] = self.gain_dn_per_e
         d["max_dn"] = self.max_dn
+        if self.quantised:
+            d["output_levels_rgb"] = [int(v) for v in self.output_levels_rgb]
+            d["output_rgb_gains"] = [float(v) for v in self.output_rgb_gains]
+        else:  # off: the JSON of a sensor without output quantisation is unchanged
+            for k in QUANTISE_KEYS:
+                d.pop(k)
+        if not self.video_processed:
+            for k in VIDEO_KEYS:
+                d.pop(k)
         d["model"] = "EMVA 1288 linear: Var(y) = K^2 (sigma_d^2 + mu_e) + 1/12"
         return d
 
@@ -255,6 +328,37 @@ SENSOR_KEYS = [
         "level, no noise); positions fixed per fpn_seed, listed in the ground truth", 0.0, DEFECT_MAX_FRACTION),
     Key("fpn_seed", "int", _D.fpn_seed, "", "camera seed of the fixed-pattern noise (DSNU, PRNU, hot and dead "
         "pixels): the same pattern in every image of the camera, whatever the image seed", 0, FPN_SEED_MAX),
+    Key("output_levels", "int", _D.output_levels, "levels", "reduce the 8-bit output to N gray levels evenly "
+        "spaced over 0..255 (level k = round(255 k / (N - 1))), each pixel to the nearest; 0 = off (all 256)",
+        0, 256, check=lambda v: None if v == 0 or v >= 2 else "use 0 (off) or 2..256"),
+    Key("output_levels_rgb", "vec3", list(_D.output_levels_rgb), "levels", "reduce the 8-bit output through an "
+        "RGB palette of [Nr, Ng, Nb] levels per channel (e.g. [8, 8, 4]: the 256-colour 3-3-2 palette), each "
+        "channel = the gray value, to its nearest level; the pixel is then the rounded BT.601 luma 0.299 R + "
+        "0.587 G + 0.114 B; [0, 0, 0] = off", 0, 256,
+        check=lambda v: None if all(x == 0 for x in v) or all(x == int(x) and 2 <= x <= 256 for x in v)
+        else "give [0, 0, 0] (off) or three integers in 2..256"),
+    Key("output_rgb_gains", "vec3", list(_D.output_rgb_gains), "", "with output_levels_rgb: each channel starts "
+        "at the gray value times its gain [gR, gG, gB] (a colour cast), clipped to 0..255", 0.01, 10.0),
+    Key("output_dither", "str", _D.output_dither, "", "how output_levels / output_levels_rgb quantise: none = "
+        "each pixel to its nearest level; floyd_steinberg = error diffusion (raster order, weights 7/16 right, "
+        "3/16 down-left, 5/16 down, 1/16 down-right; each RGB channel on its own), which keeps the local mean",
+        choices=DITHERS),
+    Key("output_gain", "float", _D.output_gain, "", "video level: the encoded values e (sRGB, 0..1, before the "
+        "8-bit rounding) times this, before sharpening, output noise and the clip to [0, 1] (> 1: the white may "
+        "clip at 255); 1 = off", 0.01, 100.0),
+    Key("output_offset_dn", "float", _D.output_offset_dn, "DN (8-bit)", "video black level: added to the encoded "
+        "values (in 8-bit steps) after output_gain: e -> output_gain e + output_offset_dn / 255; 0 = off",
+        -255.0, 255.0),
+    Key("sharpen_amount", "float", _D.sharpen_amount, "", "a video camera's sharpening (aperture correction): "
+        "the encoded values e become e + amount (e - G * e), G a Gaussian of sharpen_sigma_px along sharpen_axis "
+        "(after output_gain, before output_noise_dn); its ESF overshoots; 0 = off", 0.0, 100.0),
+    Key("sharpen_sigma_px", "float", _D.sharpen_sigma_px, "px", "sigma of the sharpening's Gaussian", 0.05, 50.0),
+    Key("sharpen_axis", "str", _D.sharpen_axis, "", "the image axis the sharpening acts along (x: along the rows, "
+        "as an analog video camera's horizontal aperture correction; xy: both)", choices=SHARPEN_AXES),
+    Key("output_noise_dn", "float", _D.output_noise_dn, "DN (8-bit)", "SD of Gaussian noise added to the encoded "
+        "values (in 8-bit steps) after output_gain and sharpening, before the 8-bit rounding and clip: an analog "
+        "video chain's noise after the camera's gamma (independent per pixel); drawn from the image's sensor "
+        "generator after the exposure's numbers; 0 = off", 0.0, 255.0),
 ]
 assert [k.name for k in SENSOR_KEYS] == [f.name for f in fields(SensorModel)]
 

@@ -13,8 +13,8 @@ from edgetruth.render.targets import CHECKERBOARD_KEYS, SQUARES_KEYS, TARGETS
 INTRO = """# Render specs and cameras
 
 A **spec** (TOML) declares a dataset: `edgetruth render SPEC -o DIR` renders every image
-of it, each a pure function of (spec, index).  `SPEC` is a shipped name (`quick`,
-`study`, `calibration`, `zhang1998_twin`, ...) or a path.  A spec has a `[spec]` table, an
+of it, each a pure function of (spec, index).  `SPEC` is a shipped name
+({SHIPPED}) or a path.  A spec has a `[spec]` table, an
 optional `[sensor]` table, `[[group]]` tables (each draws its own poses) and/or a
 `[design]` (paired cells on shared pose slots); a **camera** is a TOML file
 with a `[camera]` table, named by `[spec] camera` (a shipped name, or a path relative to
@@ -85,7 +85,10 @@ def table(keys: list[Key], per_group_column: bool = False) -> str:
 def spec_markdown() -> str:
     targets = "\n".join(f"| `{t}` | {d['shape']} | {d['material'].replace('_', ' ')} | {d['reflectance']} |"
                         for t, d in TARGETS.items())
-    parts = [INTRO,
+    from edgetruth.resources import shipped_spec_names
+
+    shipped = ", ".join(f"`{n}`" for n in shipped_spec_names())
+    parts = [INTRO.replace("{SHIPPED}", shipped),
              "## `[spec]`", "", table(SPEC_KEYS), "",
              "### `[spec] checkerboard = {...}`", "", table(CHECKERBOARD_KEYS), "",
              "### `[spec] squares = {...}` (or a `[spec.squares]` table)", "",
@@ -145,13 +148,24 @@ def spec_markdown() -> str:
              "truth records it under `fixed_pattern`: `dsnu_e` and `prnu_pct` over that image's pixels, "
              "`fpn_seed`, `origin_xy` (the image's top-left in the frame), `hot_pixels` and `dead_pixels` "
              "(`count`, and `xy`: [column, row] of each), `model` (docs/optics.md).", "",
+             "Fewer output levels (off by default; 8-bit outputs only, applied last to the 8-bit image; no random "
+             "numbers): `output_levels = N` maps each pixel to the nearest of N gray levels round(255 k / (N - 1)); "
+             "`output_levels_rgb = [Nr, Ng, Nb]` writes the gray image through an RGB palette of that many levels "
+             "per channel and reads it back as the rounded BT.601 luma (a gray photo saved as a 256-colour 3-3-2 "
+             "palette image is `[8, 8, 4]`).  `output_dither = \"floyd_steinberg\"` diffuses each pixel's error "
+             "(7/16 right, 3/16 down-left, 5/16 down, 1/16 down-right, raster order, each channel on its own) "
+             "instead of rounding to the nearest level: the local mean is kept, the error becomes high-frequency "
+             "noise.  The ground truth's `image.quantisation` states the levels and the dither.  To reduce only "
+             "some images, put the keys in their groups' `sensor = {...}`.", "",
              table(SENSOR_KEYS), "",
              "## Camera TOML: `[camera]`", "",
              "Keys marked *per group* may be overridden by a group's `camera = {...}`; the others fix the "
              "intrinsics of the whole spec (one calibration).  By default fx = fy = f / pitch and the "
              "principal point is the image centre; `fx_px`, `fy_px`, `cx_px`, `cy_px` state a calibrated K "
              "instead (skew is not modelled; `assets/cameras/zhang1998.toml` states Zhang's).  The renderer "
-             "and `Camera.project` use the same K and distortion (OpenCV's model).", "",
+             "and `Camera.project` use the same K and distortion (OpenCV's model).  `aberration_sigma_y_um` makes "
+             "the Gaussian aberration elliptical (sigma along y; `aberration_sigma_um` along x), sampled as "
+             "exactly as the isotropic one (docs/optics.md).", "",
              table(CAMERA_KEYS, per_group_column=True), "",
              "### `[camera.distortion]`", "", table(DISTORTION_KEYS), ""]
     return "\n".join(parts)

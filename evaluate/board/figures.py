@@ -27,7 +27,9 @@ def _errbar(ax, y, value, ci, **kw):
     lo, hi = ci
     err = None
     if np.isfinite(lo) and np.isfinite(hi):
-        err = np.array([[value - lo], [hi - value]])
+        # clipped at 0: a value a hair outside its interval (OpenCV's RMS of exact corners, ~1e-6 px, against
+        # the bootstrap of the residuals) draws no bar on that side
+        err = np.maximum(np.array([[value - lo], [hi - value]]), 0.0)
     ax.errorbar([value], [y], xerr=err, fmt="o", capsize=3, **kw)
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+import numpy as np
+
 from edgetruth import locate
 from edgetruth.evaluate.board import calibrate as cb
 from edgetruth.evaluate.board.model import BoardModel
@@ -30,16 +32,20 @@ class Row:
     loo: dict | None = None
     lengths: dict | None = None
     failure: str | None = None
+    #: per photo, when kept (``method_row(keep_points=True)``): the refined points' x, y and side labels
+    points: list | None = None
 
     @property
     def is_method(self) -> bool:
         return self.sides is not None
 
 
-def method_row(label: str, method: str, options: dict, images, cands, quads, smaps) -> Row:
+def method_row(label: str, method: str, options: dict, images, cands, quads, smaps, keep_points: bool = False) -> Row:
     """Refine each photo's candidates with ``method`` and fit the squares' sides (``quads``: per photo (S, 4, 2)
-    detected corners in the model's order, NaN rows for squares not found; ``smaps``: their ``square_map``)."""
+    detected corners in the model's order, NaN rows for squares not found; ``smaps``: their ``square_map``).
+    ``keep_points``: keep each photo's refined points and their side labels (``Row.points``)."""
     fits, corners, conv, n, spent = [], [], 0, 0, 0.0
+    kept = [] if keep_points else None
     for img, cand, q, smap in zip(images, cands, quads, smaps):
         t0 = time.perf_counter()
         pts = locate.refine(img, cand, method, **options)
@@ -49,7 +55,9 @@ def method_row(label: str, method: str, options: dict, images, cands, quads, sma
         corners.append(f.corners)
         conv += int(pts.converged.sum())
         n += len(pts)
-    return Row(label, corners, fits, conv, n, spent)
+        if kept is not None:
+            kept.append({"x": np.asarray(pts.x, float), "y": np.asarray(pts.y, float), "label": f.labels})
+    return Row(label, corners, fits, conv, n, spent, points=kept)
 
 
 def calibrate_row(row: Row, model: BoardModel, image_size: tuple[int, int]) -> Row:

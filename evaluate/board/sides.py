@@ -40,13 +40,15 @@ class SideFits:
     """Per side of every square (arrays of shape (S, 4)) and the corners (S, 4, 2) they give.
 
     n_points: points used; normal (S, 4, 2) and offset d: the line n.p = d (NaN when n_points < MIN_POINTS);
-    rms_px: RMS distance of the side's points to its line; corners: intersections of neighbouring lines."""
+    rms_px: RMS distance of the side's points to its line; corners: intersections of neighbouring lines;
+    labels: (N,) the side label ``4 * square + side`` of each point of the final pass (-1: none), when known."""
 
     n_points: np.ndarray
     normal: np.ndarray
     offset: np.ndarray
     rms_px: np.ndarray
     corners: np.ndarray
+    labels: np.ndarray | None = None
 
     @property
     def covered(self) -> np.ndarray:
@@ -150,4 +152,7 @@ def side_fits(quads: np.ndarray, smap: np.ndarray, x, y, nx, ny, converged) -> S
     first = fit_lines(assign(quads, smap, x, y, nx, ny, converged, BAND_PASS1_PX), x, y, len(quads))
     # where pass 1 lost a corner, keep the detected quad's (the square then still gets assigned)
     quads2 = np.where(np.isfinite(first.corners), first.corners, quads)
-    return fit_lines(assign(quads2, smap, x, y, nx, ny, converged, BAND_PASS2_PX), x, y, len(quads))
+    labels = assign(quads2, smap, x, y, nx, ny, converged, BAND_PASS2_PX)
+    out = fit_lines(labels, x, y, len(quads))
+    out.labels = labels
+    return out

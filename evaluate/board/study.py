@@ -22,6 +22,7 @@ with other settings it is refused.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -97,22 +98,31 @@ def locate_squares(inp: BoardInputs, images, progress: bool):
     return cands, quads, smaps, table, keep
 
 
-def run_board_study(items: list[str], out, model: str | None = None, methods=None, channel: str = "luma",
-                    thresholds=None, progress: bool = True) -> Path:
-    """Run the board study (module docstring) into ``out``; returns the path of its report.md."""
-    from edgetruth.evaluate.run_dir import prepare_run_dir
-    from edgetruth.evaluate.board.report import header_lines, write_outputs
+@dataclass
+class BoardRun:
+    """Everything one board study computed (``compute_board_study``), before anything is written."""
+
+    inp: BoardInputs
+    names: list  # the photos used
+    size: tuple  # (w, h)
+    rows: list
+    summaries: list
+    comparisons: list
+    per_side: list
+    photo_table: list
+    reference: dict | None
+    has_reference_corners: bool
+    elapsed_s: float
+
+
+def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, channel: str = "luma",
+                        progress: bool = True, images=None, keep_points: bool = False) -> BoardRun:
+    """Steps 2-4 of the study (module docstring) on checked inputs; nothing is written.  ``images``: the photos
+    already read (else read here); ``keep_points``: each method row keeps its refined points (``Row.points``)."""
     from edgetruth.evaluate.board.summary import INTRINSICS
 
     t0 = time.perf_counter()
-    inp = resolve_inputs(list(items), model)
-    methods = mo.ordered(methods)
-    for m in methods:
-        locate.get_method(mo.resolve(m)[0])
-    options = mo.study_options(thresholds)
-    settings = settings_of(inp, methods, options, channel)
-    out = check_output(Path(out), settings)
-    images = load_photos(inp.photos, channel)
+    images = load_photos(inp.photos, channel) if images is None else images
     h, w = images[0].shape
 
     cands, quads, smaps, photo_table, keep = locate_squares(inp, images, progress)
@@ -126,7 +136,7 @@ def run_board_study(items: list[str], out, model: str | None = None, methods=Non
     rows: list[Row] = []
     for label in console.track(methods, desc="methods", unit="method", enabled=progress):
         method, kw = mo.resolve(label, options)
-        rows.append(method_row(label, method, kw, used_images, cands, quads, smaps))
+        rows.append(method_row(label, method, kw, used_images, cands, quads, smaps, keep_points=keep_points))
     if inp.reference_corners is not None:
         rows.append(Row(REFERENCE_ROW, [inp.reference_corners[i] for i in keep]))
     for r in console.track(rows, desc="calibration", unit="row", enabled=progress):
@@ -140,13 +150,36 @@ def run_board_study(items: list[str], out, model: str | None = None, methods=Non
     summaries = [row_summary(r, inp.model, reference, ref_corners) for r in rows]
     comparisons = compare_all(rows)
     per_side = per_side_rows(rows, inp.model, names)
-    elapsed = time.perf_counter() - t0
+    return BoardRun(inp, names, (w, h), rows, summaries, comparisons, per_side, photo_table, reference,
+                    ref_corners is not None, time.perf_counter() - t0)
 
-    header = header_lines(inp, names, (w, h), channel, methods, options, thresholds, reference,
-                          ref_corners is not None, elapsed)
+
+def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], options: dict, thresholds,
+                    title: str | None = None) -> Path:
+    """The study's files (``report.write_outputs``) of ``run`` into the existing directory ``out``."""
+    from edgetruth.evaluate.board.report import header_lines, write_outputs
+
+    inp = run.inp
+    header = header_lines(inp, run.names, run.size, channel, methods, options, thresholds, run.reference,
+                          run.has_reference_corners, run.elapsed_s)
+    title = title or f"Board study — {inp.set_name or f'{len(inp.photos)} photos'}"
+    return write_outputs(out, title=title, header_lines=header, photos_table=run.photo_table, rows=run.rows,
+                         summaries=run.summaries, comparisons=run.comparisons, reference=run.reference,
+                         model=inp.model, photo_names=run.names, per_side=run.per_side)
+
+
+def run_board_study(items: list[str], out, model: str | None = None, methods=None, channel: str = "luma",
+                    thresholds=None, progress: bool = True) -> Path:
+    """Run the board study (module docstring) into ``out``; returns the path of its report.md."""
+    from edgetruth.evaluate.run_dir import prepare_run_dir
+
+    inp = resolve_inputs(list(items), model)
+    methods = mo.ordered(methods)
+    for m in methods:
+        locate.get_method(mo.resolve(m)[0])
+    options = mo.study_options(thresholds)
+    settings = settings_of(inp, methods, options, channel)
+    out = check_output(Path(out), settings)
+    run = compute_board_study(inp, methods, options, channel, progress)
     out = prepare_run_dir(out, KIND, settings)
-    title = f"Board study — {inp.set_name or f'{len(inp.photos)} photos'}"
-    report = write_outputs(out, title=title, header_lines=header, photos_table=photo_table, rows=rows,
-                           summaries=summaries, comparisons=comparisons, reference=reference, model=inp.model,
-                           photo_names=names, per_side=per_side)
-    return report
+    return write_board_run(run, out, channel, methods, options, thresholds)

@@ -233,10 +233,10 @@ def _side_offsets(img: np.ndarray, camera, pose, quads: np.ndarray) -> np.ndarra
 def test_rendered_board_edges_lie_on_the_exact_outline(fast_variant):
     """The twin's image 0 (its PSF, distortion and K; radiance at 64 spp): an ERF fitted across each of
     the 256 square sides against the signed distance to the exact distorted outline centres within
-    0.02 px of it on every side, and within 0.002 px on average.  Why these tolerances: the mean
+    0.025 px of it on every side, and within 0.002 px on average.  Why these tolerances: the mean
     offset is < 0.001 px (no bias from the geometry, the PSF sampling or the float32 mesh, ~5e-5 px);
-    the spread is Monte-Carlo noise (SD 0.005 px at 64 spp, 0.0024 at 256: it falls as spp^-1/2), so
-    the largest of 256 sides lies near 3 SD = 0.015 px."""
+    the spread is Monte-Carlo noise (SD 0.0056 px at 64 spp with CalibIm1's measured PSF, sigma 4.41 x
+    4.47 um; it falls as spp^-1/2), so the largest of 256 sides lies near 3-4 SD = 0.017-0.022 px."""
     from edgetruth.render.dataset import get_rig
     from edgetruth.render.mitsuba_scene import RenderSettings
 
@@ -247,13 +247,13 @@ def test_rendered_board_edges_lie_on_the_exact_outline(fast_variant):
     img = rig.render(7)
     mu = _side_offsets(img, job.camera, job.pose, spec.squares.quads_local(-TARGET_STANDOFF_M))
     print(f"side offsets: mean {mu.mean():+.4f} px, SD {mu.std():.4f}, max |.| {np.abs(mu).max():.4f} (n = {len(mu)})")
-    assert len(mu) == 256 and abs(mu.mean()) < 0.002 and np.abs(mu).max() < 0.02
+    assert len(mu) == 256 and abs(mu.mean()) < 0.002 and np.abs(mu).max() < 0.025
 
 
 def test_twin_spec_renders_image_0_with_documented_truth(fast_variant, tmp_path):
     """The shipped twin through the driver (4 spp): an 8-bit image whose white board and squares sit at
-    the photos' levels (median ~215 and ~40 of 255), and a ground truth whose corners are the projection
-    and whose every key is documented."""
+    CalibIm1's levels (squares ~38 of 255, the white clipped near 255: docs/board.md "Digital twin"), and a
+    ground truth whose corners are the projection and whose every key is documented."""
     from edgetruth.render.driver import render_spec
     from edgetruth.render.ground_truth import squares_ground_truth
 
@@ -264,11 +264,11 @@ def test_twin_spec_renders_image_0_with_documented_truth(fast_variant, tmp_path)
     spec = load_spec(p)
     out = tmp_path / "data"
     render_spec(spec, out, only=[0], progress=False, announce=lambda s: None)
-    gt = json.loads((out / "0000_zhang.json").read_text())
+    gt = json.loads((out / "0000_calib1.json").read_text())
     from edgetruth.render import open_dataset
 
-    assert [s.name for s in open_dataset(out).square_boards()] == ["0000_zhang"]
-    img = cv2.imread(str(out / "0000_zhang.png"), cv2.IMREAD_UNCHANGED)
+    assert [s.name for s in open_dataset(out).square_boards()] == ["0000_calib1"]
+    img = cv2.imread(str(out / "0000_calib1.png"), cv2.IMREAD_UNCHANGED)
     assert img.dtype == np.uint8 and img.shape == (480, 640) and gt["kind"] == "squares"
     expect = squares_ground_truth(spec.jobs[0].camera, spec.jobs[0].pose, spec.squares)["squares"]
     np.testing.assert_array_equal(gt["squares"]["corners_distorted_px"], expect["corners_distorted_px"])
@@ -288,7 +288,7 @@ def test_twin_spec_renders_image_0_with_documented_truth(fast_variant, tmp_path)
             x, y = np.round(0.5 * (g[r, k][[1, 2]].mean(0) + g[r, k + 1][[0, 3]].mean(0))).astype(int)
             white.append(np.median(img[y - 2:y + 3, x - 2:x + 3]))
     print(f"twin levels: squares {np.median(black)}, white {np.median(white)}")
-    assert 35 <= np.median(black) <= 45 and 205 <= np.median(white) <= 225
+    assert 33 <= np.median(black) <= 43 and 240 <= np.median(white) <= 255
     # every key is documented (docs/formats.md, docs/spec.md)
     doc = (ROOT / "docs" / "formats.md").read_text() + (ROOT / "docs" / "spec.md").read_text()
     documented = set(re.findall(r"`([A-Za-z_][A-Za-z0-9_]*)`", doc))

@@ -1,5 +1,6 @@
-"""``edgetruth study synthetic|board``: the seed's synthetic study on analytic ground truth, and the board
-study on real photographs of a board of squares."""
+"""``edgetruth study synthetic|board|twin``: the seed's synthetic study on analytic ground truth, the board
+study on real photographs of a board of squares, and the digital twin of a shipped photo set (rendered, then
+the same board study on twin and photos, side by side)."""
 from __future__ import annotations
 
 import datetime as _dt
@@ -11,6 +12,7 @@ from edgetruth.errors import InputError
 _SYNTHETIC_ONLY = {"preset": "--preset", "images_per_scenario": "--images-per-scenario", "workers": "-j/--workers",
                    "address": "--address"}
 _BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model"}
+_TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant"}
 
 
 def register(sub) -> None:
@@ -23,14 +25,28 @@ def register(sub) -> None:
                                    "board: every method on real photos of a board of squares (straightness of the "
                                    "sides, Zhang calibration of the corners, leave-one-image-out, side lengths; "
                                    "docs/board.md), e.g. `edgetruth study board zhang1998 -o DIR` or "
-                                   "`edgetruth study board PHOTOS... --model Model.txt -o DIR`.")
-    p.add_argument("kind", choices=["synthetic", "board"], help="which study")
+                                   "`edgetruth study board PHOTOS... --model Model.txt -o DIR`. "
+                                   "twin: the digital twin of a shipped photo set, `edgetruth study twin zhang1998 "
+                                   "-o DIR`: renders the set's twin scene (scenes/zhang1998_twin.toml: the camera, "
+                                   "board and poses, with optics, noise and output measured on the photos) into "
+                                   "DIR/renders (resumable), runs the same board study on the twin's images and "
+                                   "on the photos, scores the twin's points against its exact outlines, measures "
+                                   "both with the photo model, and writes DIR/report.md with real and twin side "
+                                   "by side and the Spearman rank correlations (docs/board.md, 'Digital twin'); "
+                                   "~3-5 min on 2 cores.")
+    p.add_argument("kind", choices=["synthetic", "board", "twin"], help="which study")
     p.add_argument("inputs", nargs="*", metavar="PHOTOS",
                    help="board: photo files, folders of photos, or a shipped set's name (zhang1998: its photos, "
-                        "model, corners and published calibration)")
+                        "model, corners and published calibration); twin: the shipped set's name (zhang1998)")
     p.add_argument("--model", default=None, metavar="FILE",
                    help="board: the board model, one square per line, x y of its four corners in board units "
                         "(Zhang's Model.txt layout)")
+    p.add_argument("--images", default=None, metavar="LIST",
+                   help="twin: which of the set's photos (1-based, comma-separated, at least 3; default all), e.g. "
+                        "1,2,3")
+    p.add_argument("--spp", type=positive_int, default=None,
+                   help="twin: samples per pixel of the renders (a power of 4 up to 16384; default the scene's 256)")
+    p.add_argument("--variant", default=None, help="twin: Mitsuba variant of the renders (default: the fastest here)")
     p.add_argument("--preset", choices=["quick", "full"], default=None,
                    help="synthetic: quick (default): 24 images per scenario (~1 min); full: 200 per scenario "
                         "(the seed's scale)")
@@ -63,10 +79,23 @@ def run(args) -> int:
 
     out = Path(args.output) if args.output else default_runs_dir() / (
         _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d-%H%M%S") + f"-{args.kind}")
+    if args.kind == "twin":
+        from edgetruth.evaluate.board.twin import run_twin_study
+
+        _refuse(args, _SYNTHETIC_ONLY | {"model": "--model"}, "twin")
+        if args.backend != "local":
+            raise InputError("--backend: not an option of `study twin` (it renders in-process); drop it")
+        if len(args.inputs) != 1:
+            raise InputError("study twin: give one shipped set's name, e.g. `edgetruth study twin zhang1998 -o DIR`")
+        report = run_twin_study(args.inputs[0], out, methods=method_list(args.methods), images=_images(args.images),
+                                spp=args.spp, thresholds=args.thresholds, channel=args.channel, variant=args.variant,
+                                progress=not args.no_progress)
+        console.say(f"report: {report}")
+        return 0
     if args.kind == "board":
         from edgetruth.evaluate.board.study import run_board_study
 
-        _refuse(args, _SYNTHETIC_ONLY, "board")
+        _refuse(args, _SYNTHETIC_ONLY | _TWIN_ONLY, "board")
         if args.backend != "local":
             raise InputError("--backend: not an option of `study board` (it runs in-process); drop it")
         report = run_board_study(args.inputs, out, model=args.model, methods=method_list(args.methods),
@@ -75,9 +104,22 @@ def run(args) -> int:
         return 0
     from edgetruth.evaluate.synthetic.study import run_synthetic_study
 
-    _refuse(args, _BOARD_ONLY, "synthetic")
+    _refuse(args, _BOARD_ONLY | _TWIN_ONLY, "synthetic")
     report = run_synthetic_study(out, args.preset or "quick", method_list(args.methods), progress=not args.no_progress,
                                  images_per_scenario=args.images_per_scenario, backend=args.backend,
                                  workers=args.workers or 1, address=args.address, thresholds=args.thresholds)
     console.say(f"report: {report}")
     return 0
+
+
+def _images(text: str | None) -> list[int] | None:
+    """``--images 1,2,3`` -> [1, 2, 3]; None for all."""
+    if text is None:
+        return None
+    try:
+        out = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise InputError(f"--images {text!r}: give comma-separated photo numbers, e.g. 1,2,3") from None
+    if not out:
+        raise InputError(f"--images {text!r}: give comma-separated photo numbers, e.g. 1,2,3")
+    return out

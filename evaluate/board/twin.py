@@ -1,0 +1,302 @@
+"""The digital twin of a shipped photo set: render it, run the same board study on twin and photos, compare.
+
+``edgetruth study twin zhang1998 -o DIR``:
+
+1. **Render** the set's twin scene (``scenes/zhang1998_twin.toml``: Zhang's camera, board and poses;
+   optics, noise and output measured on his photos, ``photo_model``) into ``DIR/renders`` with the
+   render driver (resumable: a run that stops picks up where it was).
+2. **The same board study** (``study.compute_board_study``) on the twin's PNGs, read like photos
+   (``edgetruth.image_io.read_gray``), and on the real photos: the same methods and options, the same
+   squares, sides, lines, calibration and leave-one-out code.  Each study's own files go to
+   ``DIR/real`` and ``DIR/twin``.
+3. **Against the truth** (twin only): every method's points that the study assigned to a side are
+   scored against the square's exact distorted outline from the render's JSON (signed distance, > 0 on
+   the bright board; the study's assignment already leaves out the 3 px next to each corner): RMS,
+   median |e|, mean (the bias) and SD (the scatter about it).  Two truth rows: the exact corners (the JSON's), and *the exact outline*: points
+   on the exact outline at 0.5 px spacing, 3 px from the corners, through the study's line fit and
+   intersection -- the floor of the study's procedure (a straight line through a side that the lens
+   bends).
+4. **The photo model** (``photo_model.measure_photo``) of each real photo and each twin image, side by side,
+   and the twin settings the photos give (``photo_model.derive_twin``) next to those the scene uses.
+5. **Rankings**: Spearman ρ (``scipy.stats.spearmanr``, with its two-sided p and n) between real and twin
+   over the study's methods, for straightness, calibration RMS and leave-one-out RMS; and, on the twin,
+   between straightness and the per-point error against the truth.
+
+``DIR/report.md`` sets real and twin side by side; ``DIR/twin_vs_real.csv`` holds every number of its
+method table; ``DIR/photo_model.json`` the photo model of both.  The diagnostic row ``pae2013_floating``
+(PAE2013's default floating-window variant; the studies run its smoothed one) is in the tables but not in
+the rankings.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from edgetruth import console, locate
+from edgetruth.errors import InputError
+from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, resolve_inputs
+from edgetruth.evaluate.board.twin_report import PAE_DEFAULT, ranks, spearman, write_twin_report  # noqa: F401
+
+KIND = "study twin"
+#: shipped photo sets with a twin scene: set name -> shipped spec name
+TWINS = {"zhang1998": "zhang1998_twin"}
+EXACT_OUTLINE = "exact_outline"
+OUTLINE_STEP_PX = 0.5
+CORNER_EXCLUSION_PX = 3.0
+
+
+def check_set(name: str) -> str:
+    if name not in TWINS:
+        raise InputError(f"{name}: no twin for this set; sets with a twin: {', '.join(TWINS)}")
+    return TWINS[name]
+
+
+def check_images(images, n_total: int) -> list[int]:
+    """1-based photo numbers -> sorted 0-based indices (at least ``MIN_PHOTOS``, each once, in range)."""
+    if images is None:
+        return list(range(n_total))
+    idx = sorted(set(int(i) for i in images))
+    if len(idx) != len(list(images)):
+        raise InputError("--images: a photo is given twice; give each once")
+    if any(i < 1 or i > n_total for i in idx):
+        raise InputError(f"--images: photo numbers run from 1 to {n_total}")
+    if len(idx) < MIN_PHOTOS:
+        raise InputError(f"--images: {len(idx)} photo(s); leave-one-image-out calibration needs at least {MIN_PHOTOS}")
+    return [i - 1 for i in idx]
+
+
+def twin_spec(spec_name: str, spp: int | None):
+    """The shipped twin spec, at ``spp`` samples per pixel when given (checked like a spec's)."""
+    from edgetruth.render.spec import _check_sample_counts, load_spec
+
+    spec = load_spec(spec_name)
+    if spp is None or spp == spec.render.spp:
+        return spec
+    _check_sample_counts({"spp": spp, "sampler": spec.render.sampler}, "--spp")
+    return replace(spec, render=replace(spec.render, spp=int(spp)))
+
+
+# --- the twin's truth ------------------------------------------------------------------------------
+def truth_inputs(samples, model, real: BoardInputs) -> BoardInputs:
+    """The twin's photos as board-study inputs: its PNGs, the set's model, the exact corners (model order, from
+    the JSON) as the reference row, the twin camera's intrinsics as the reference calibration."""
+    corners, paths = [], []
+    for s in samples:
+        sq = s.truth["squares"]
+        c = np.asarray(sq["corners_distorted_px"], float)
+        if c.shape != model.corners.shape:
+            raise InputError(f"{s.name}: the render's squares ({c.shape[0]}) are not the model's ({len(model)})")
+        corners.append(c)
+        paths.append(s.dataset.path / s.dataset.manifest["images"][s.name]["files"]["png"]["path"])
+    cam = samples[0].truth["camera"]
+    ref = {"fx": cam["fx_px"], "fy": cam["fy_px"], "cx": cam["cx_px"], "cy": cam["cy_px"],
+           "k1": cam["dist_coeffs_opencv"][0], "k2": cam["dist_coeffs_opencv"][1],
+           "source": f"the twin's camera ({cam['name']})"}
+    return BoardInputs(paths, model, corners, ref, f"{real.set_name} twin")
+
+
+def outline_points(truth: dict, step_px: float = OUTLINE_STEP_PX) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x, y, label) of points on every square's exact distorted outline (the JSON's polylines, resampled at
+    ``step_px``), ``CORNER_EXCLUSION_PX`` from the corners; label ``4 * square + side``."""
+    sq = truth["squares"]
+    xs, ys, labs = [], [], []
+    for s, (poly, par) in enumerate(zip(sq["polylines_distorted_px"], sq["polylines_parameter"])):
+        poly, par = np.asarray(poly, float), np.asarray(par, float)
+        side = np.minimum((4 * par).astype(int), 3)
+        for k in range(4):
+            pts = poly[side == k]
+            nxt = poly[(np.flatnonzero(side == k)[-1] + 1) % len(poly)]  # the next corner
+            pts = np.vstack([pts, nxt])
+            seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+            arc = np.r_[0.0, np.cumsum(seg)]
+            t = np.arange(CORNER_EXCLUSION_PX, arc[-1] - CORNER_EXCLUSION_PX + 1e-9, step_px)
+            xs.append(np.interp(t, arc, pts[:, 0]))
+            ys.append(np.interp(t, arc, pts[:, 1]))
+            labs.append(np.full(len(t), 4 * s + k))
+    return np.concatenate(xs), np.concatenate(ys), np.concatenate(labs)
+
+
+def exact_outline_row(truths: list[dict], model):
+    """The study's line fit and intersection applied to points on the exact outline: the floor of its procedure."""
+    from edgetruth.evaluate.board.measure import Row
+    from edgetruth.evaluate.board.sides import fit_lines
+
+    corners, fits = [], []
+    for t in truths:
+        x, y, lab = outline_points(t)
+        f = fit_lines(lab, x, y, len(model))
+        fits.append(f)
+        corners.append(f.corners)
+    return Row(EXACT_OUTLINE, corners, fits)
+
+
+def point_errors(row, truths: list[dict]) -> dict:
+    """Signed distance of a method row's assigned points to their square's exact distorted outline (> 0 on the
+    bright board), all photos: RMS, median |e|, mean, SD (the scatter about the mean), n."""
+    from edgetruth.render.edge_truth import closed_polyline_signed_distance
+
+    errs = []
+    for pts, t in zip(row.points or [], truths):
+        lab = pts["label"]
+        if lab is None:
+            continue
+        polys = t["squares"]["polylines_distorted_px"]
+        ok = lab >= 0
+        sq = lab[ok] // 4
+        x, y = pts["x"][ok], pts["y"][ok]
+        for s in np.unique(sq):
+            m = sq == s
+            errs.append(closed_polyline_signed_distance(np.asarray(polys[s], float), x[m], y[m]))
+    e = np.concatenate(errs) if errs else np.zeros(0)
+    if not e.size:
+        return {"truth_rms_px": float("nan"), "truth_median_abs_px": float("nan"), "truth_mean_px": float("nan"),
+                "truth_sd_px": float("nan"), "truth_points": 0}
+    return {"truth_rms_px": float(np.sqrt(np.mean(e * e))), "truth_median_abs_px": float(np.median(np.abs(e))),
+            "truth_mean_px": float(np.mean(e)), "truth_sd_px": float(np.std(e)), "truth_points": int(e.size)}
+
+
+# --- the study ------------------------------------------------------------------------------------
+def settings_of(set_name: str, methods, options, images, spp, spec_sha: str, channel: str) -> dict:
+    from edgetruth.evaluate.board.study import _jsonable
+
+    return {"set": set_name, "methods": methods, "options": _jsonable(options), "images": [i + 1 for i in images],
+            "spp": spp, "spec_identity": spec_sha, "channel": channel}
+
+
+def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | None = None, thresholds=None,
+                   channel: str = "luma", variant: str | None = None, progress: bool = True) -> Path:
+    """Render the twin of ``set_name`` and compare it with the photos (module docstring); returns report.md."""
+    from edgetruth.evaluate.board.photo_model import derive_twin, measure_photo
+    from edgetruth.evaluate.board.study import compute_board_study, write_board_run
+    from edgetruth.evaluate.run_dir import check_run_dir, prepare_run_dir
+    from edgetruth.image_io import read_gray
+    from edgetruth.render.driver import check_variant_name, render_spec
+    from edgetruth.render.reader import open_dataset
+
+    t0 = time.perf_counter()
+    spec_name = check_set(set_name)
+    real_all = resolve_inputs([set_name])
+    keep = check_images(images, len(real_all.photos))
+    spec = twin_spec(spec_name, spp)
+    if spec.n_images != len(real_all.photos):
+        raise InputError(f"{spec_name}: {spec.n_images} images for {len(real_all.photos)} photos; the twin must "
+                         "render one image per photo")
+    methods = mo.ordered(methods)
+    for m in methods:
+        locate.get_method(mo.resolve(m)[0])
+    options = mo.study_options(thresholds)
+    diag = [PAE_DEFAULT] if "pae2013" in methods else []
+    if diag:
+        options[PAE_DEFAULT] = {"method": "pae2013", "variant": "floating"}
+    rows_methods = methods + diag
+    check_variant_name(variant)
+    settings = settings_of(set_name, methods, options, keep, spec.render.spp, spec.identity_sha256, channel)
+    out = _check_twin_output(Path(out), settings, check_run_dir)
+
+    # 1. render (resumable), into the run directory
+    out = prepare_run_dir(out, KIND, settings)
+    render_dir = out / "renders"
+    t_r = time.perf_counter()
+    render_spec(spec, render_dir, variant=variant, progress=progress, only=keep,
+                announce=lambda s: console.say(s) if progress else None)
+    render_s = time.perf_counter() - t_r
+    ds = open_dataset(render_dir)
+    by_index = {s.index: s for s in ds.square_boards()}
+    missing = [i for i in keep if i not in by_index]
+    if missing:
+        raise InputError(f"{render_dir}: image(s) {', '.join(str(i) for i in missing)} did not render; run again")
+    samples = [by_index[i] for i in keep]
+    truths = [s.truth for s in samples]
+
+    real = replace(real_all, photos=[real_all.photos[i] for i in keep],
+                   reference_corners=[real_all.reference_corners[i] for i in keep])
+    twin = truth_inputs(samples, real.model, real)
+
+    # 2. the same board study on both
+    t_s = time.perf_counter()
+    real_images = [read_gray(p, channel=channel) for p in real.photos]
+    twin_images = [read_gray(p, channel=channel) for p in twin.photos]
+    real_run = compute_board_study(real, rows_methods, options, channel, progress, images=real_images)
+    twin_run = compute_board_study(twin, rows_methods, options, channel, progress, images=twin_images,
+                                   keep_points=True)
+    study_s = time.perf_counter() - t_s
+
+    # 3. the twin against its truth
+    from edgetruth.evaluate.board.measure import calibrate_row
+    from edgetruth.evaluate.board.summary import row_summary
+
+    errors = {r.label: point_errors(r, truths) for r in twin_run.rows if r.is_method}
+    floor_row = calibrate_row(exact_outline_row(truths, twin.model), twin.model, twin_run.size)
+    floor = row_summary(floor_row, twin.model, twin_run.reference, [np.asarray(t["squares"]["corners_distorted_px"])
+                                                                     for t in truths])
+
+    # 4. the photo model of both, and the settings the photos give
+    t_p = time.perf_counter()
+    pm_real = [measure_photo(img, real.model, p.name, p) for img, p in zip(
+        console.track(real_images, desc="photo model (real)", unit="photo", enabled=progress), real.photos)]
+    pm_twin = [measure_photo(img, real.model, p.name, p) for img, p in zip(
+        console.track(twin_images, desc="photo model (twin)", unit="photo", enabled=progress), twin.photos)]
+    jobs = [spec.jobs[i] for i in keep]
+    defocus = [float(j.camera.defocus_radius_px(j.pose.distance_m)) for j in jobs]
+    try:
+        base_black, base_white = BASE_LEVELS[set_name]
+        derived = derive_twin(pm_real, spec.camera, defocus, base_white=base_white, base_black=base_black)
+        derived["closed_loop"] = closed_loop_noise(pm_real, pm_twin, [j.sensor for j in jobs])
+    except (KeyError, ValueError) as exc:  # pragma: no cover - a photo whose board was not found
+        derived = {"error": str(exc)}
+    photo_s = time.perf_counter() - t_p
+
+    # 5. files
+    for sub, run, title in (("real", real_run, f"Board study — {set_name} (real photos)"),
+                            ("twin", twin_run, f"Board study — {set_name} twin (renders)")):
+        (out / sub).mkdir(exist_ok=True)
+        write_board_run(run, out / sub, channel, rows_methods, options, thresholds, title=title)
+    timings = {"render_s": render_s, "studies_s": study_s, "photo_model_s": photo_s,
+               "total_s": time.perf_counter() - t0}
+    return write_twin_report(out, set_name=set_name, spec=spec, jobs=jobs, keep=keep, methods=methods, diag=diag,
+                             real_run=real_run, twin_run=twin_run, errors=errors, floor=floor, pm_real=pm_real,
+                             pm_twin=pm_twin, derived=derived, timings=timings, options=options,
+                             thresholds=thresholds)
+
+
+def closed_loop_noise(pm_real: list[dict], pm_twin: list[dict], sensors) -> list[dict]:
+    """Per photo not reduced to a coarse palette: the output noise that would make the twin's black SD equal the
+    photo's, from the twin's measured black SD s_t with its output noise n: the twin's other noise (Monte-Carlo,
+    sensor, through the sharpening) is s_t² − n² − 1/12, and n' = sqrt(s_real² − other − 1/12)."""
+    from edgetruth.evaluate.board.photo_model import PALETTE_LEVELS
+
+    out = []
+    for r, t, sen in zip(pm_real, pm_twin, sensors):
+        if r.get("levels", 0) < PALETTE_LEVELS or not t.get("found"):
+            continue
+        s_r, s_t, n = r["noise"]["black"]["sd"], t["noise"]["black"]["sd"], sen.output_noise_dn
+        other = s_t ** 2 - n ** 2 - 1.0 / 12.0
+        out.append({"photo": r["photo"], "real_black_sd": s_r, "twin_black_sd": s_t, "twin_noise_dn": n,
+                    "twin_other_sd": math.sqrt(max(other, 0.0)),
+                    "noise_for_real_sd": math.sqrt(max(s_r ** 2 - other - 1.0 / 12.0, 0.0))})
+    return out
+
+
+#: The twin's own stored (black, white) with output_gain 1 and offset 0 (its print and exposure; measured on
+#: its renders, the same on all five poses to 0.5): what ``derive_twin`` maps to each photo's levels.
+BASE_LEVELS = {"zhang1998": (41.1, 215.2)}
+
+
+def _check_twin_output(out: Path, settings: dict, check_run_dir) -> Path:
+    from edgetruth.evaluate.run_dir import RUN_MARKER
+    from edgetruth.fileio import read_json
+
+    out = check_run_dir(out, KIND)
+    marker = out / RUN_MARKER
+    if marker.is_file():
+        old = read_json(marker).get("settings", {})
+        if {k: old.get(k) for k in settings} != settings:
+            diff = [k for k in settings if old.get(k) != settings[k]]
+            raise InputError(f"-o {out}: holds a twin study of other {', '.join(diff)}; choose a new directory "
+                             "(or the same settings to resume or re-make it)")
+    return out

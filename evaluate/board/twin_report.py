@@ -1,0 +1,349 @@
+"""The twin study's files: report.md (real and twin side by side), twin_vs_real.csv, photo_model.json."""
+from __future__ import annotations
+
+import numpy as np
+
+from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.board.measure import REFERENCE_ROW
+from edgetruth.evaluate.report_format import num, table
+from edgetruth.fileio import atomic_write_text, write_json
+
+#: the diagnostic row: PAE2013's default (floating-window) variant, next to the study's smoothed one
+PAE_DEFAULT = "pae2013_floating"
+PAE_DEFAULT_LABEL = "PAE2013 (default floating variant; diagnostic)"
+EXACT_OUTLINE_LABEL = "exact outline → study's lines (truth)"
+
+CSV_COLUMNS = ("row", "label", "in_ranking", "straightness_real_px", "straightness_twin_px", "rank_straightness_real",
+               "rank_straightness_twin", "calib_rms_real_px", "calib_rms_twin_px", "rank_calib_real",
+               "rank_calib_twin", "loo_rms_real_px", "loo_rms_twin_px", "truth_rms_px", "truth_median_abs_px",
+               "truth_mean_px", "truth_sd_px", "truth_points", "converged_real", "converged_twin")
+
+
+def spearman(a, b) -> dict:
+    """Spearman ρ, its two-sided p and n over the pairs where both are finite."""
+    from scipy.stats import spearmanr
+
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 3:
+        return {"rho": float("nan"), "p": float("nan"), "n": int(ok.sum())}
+    r = spearmanr(a[ok], b[ok])
+    return {"rho": float(r.statistic), "p": float(r.pvalue), "n": int(ok.sum())}
+
+
+def ranks(values) -> np.ndarray:
+    """Ranks (1 = smallest, ties averaged) of the finite values; NaN elsewhere."""
+    from scipy.stats import rankdata
+
+    v = np.asarray(values, float)
+    out = np.full(v.shape, np.nan)
+    ok = np.isfinite(v)
+    out[ok] = rankdata(v[ok])
+    return out
+
+
+def _label(row: str) -> str:
+    return PAE_DEFAULT_LABEL if row == PAE_DEFAULT else mo.label(row)
+
+
+def method_table(methods, diag, real_s: dict, twin_s: dict, errors: dict) -> list[dict]:
+    """One dict per method row (ranked methods, then the diagnostic rows): real and twin figures and ranks."""
+    out = []
+    rk = {}
+    for key in ("straightness_px", "calib_rms_px"):
+        for side, s in (("real", real_s), ("twin", twin_s)):
+            rk[(key, side)] = dict(zip(methods, ranks([s[m].get(key, np.nan) for m in methods])))
+    for m in list(methods) + list(diag):
+        r, t = real_s[m], twin_s[m]
+        e = errors.get(m, {})
+        out.append({
+            "row": m, "label": _label(m), "in_ranking": m in methods,
+            "straightness_real_px": r.get("straightness_px"), "straightness_twin_px": t.get("straightness_px"),
+            "rank_straightness_real": rk[("straightness_px", "real")].get(m),
+            "rank_straightness_twin": rk[("straightness_px", "twin")].get(m),
+            "calib_rms_real_px": r.get("calib_rms_px"), "calib_rms_twin_px": t.get("calib_rms_px"),
+            "rank_calib_real": rk[("calib_rms_px", "real")].get(m), "rank_calib_twin": rk[("calib_rms_px", "twin")].get(m),
+            "loo_rms_real_px": r.get("loo_rms_px"), "loo_rms_twin_px": t.get("loo_rms_px"),
+            "converged_real": r.get("converged_fraction"), "converged_twin": t.get("converged_fraction"), **e})
+    return out
+
+
+def rankings(methods, real_s: dict, twin_s: dict, errors: dict) -> list[dict]:
+    def col(s, key):
+        return [s[m].get(key, np.nan) for m in methods]
+
+    return [
+        {"what": "straightness: real vs twin", **spearman(col(real_s, "straightness_px"), col(twin_s, "straightness_px"))},
+        {"what": "calibration RMS: real vs twin", **spearman(col(real_s, "calib_rms_px"), col(twin_s, "calib_rms_px"))},
+        {"what": "leave-one-out RMS: real vs twin", **spearman(col(real_s, "loo_rms_px"), col(twin_s, "loo_rms_px"))},
+        {"what": "twin: straightness vs per-point RMS against the truth",
+         **spearman(col(twin_s, "straightness_px"), [errors.get(m, {}).get("truth_rms_px", np.nan) for m in methods])},
+        {"what": "twin: straightness vs per-point SD against the truth (scatter about the bias)",
+         **spearman(col(twin_s, "straightness_px"), [errors.get(m, {}).get("truth_sd_px", np.nan) for m in methods])},
+        {"what": "twin: calibration RMS vs per-point RMS against the truth",
+         **spearman(col(twin_s, "calib_rms_px"), [errors.get(m, {}).get("truth_rms_px", np.nan) for m in methods])},
+        {"what": "real: straightness vs calibration RMS",
+         **spearman(col(real_s, "straightness_px"), col(real_s, "calib_rms_px"))},
+    ]
+
+
+def _csv(rows) -> str:
+    import csv
+    import io
+
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(CSV_COLUMNS)
+    for r in rows:
+        w.writerow(["" if r.get(k) is None or (isinstance(r.get(k), float) and not np.isfinite(r.get(k)))
+                    else (repr(float(r[k])) if isinstance(r[k], (float, np.floating)) else r[k]) for k in CSV_COLUMNS])
+    return buf.getvalue()
+
+
+def _strip(obj):
+    """JSON-safe copy of the photo model (the pooled ESF arrays dropped)."""
+    if isinstance(obj, dict):
+        return {k: _strip(v) for k, v in obj.items() if k != "esf"}
+    if isinstance(obj, (list, tuple)):
+        return [_strip(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.ndarray):
+        return _strip(obj.tolist())
+    return obj
+
+
+def _pm(m: dict, path: tuple, nd: int = 2) -> str:
+    v = m
+    for k in path:
+        if not isinstance(v, dict) or k not in v:
+            return "—"
+        v = v[k]
+    return num(v, nd) if isinstance(v, (int, float, np.floating, np.integer)) else str(v)
+
+
+def photo_model_table(pm_real: list[dict], pm_twin: list[dict]) -> str:
+    cols = [("σ horizontal sides (px)", ("blur", "horizontal", "sigma_px"), 3),
+            ("σ vertical sides (px)", ("blur", "vertical", "sigma_px"), 3),
+            ("MTF50 horiz. (cy/px)", ("blur", "horizontal", "mtf50_cy_px"), 3),
+            ("MTF50 vert. (cy/px)", ("blur", "vertical", "mtf50_cy_px"), 3),
+            ("overshoot vert. (%)", ("blur", "vertical", "overshoot_pct"), 1),
+            ("undershoot vert. (%)", ("blur", "vertical", "undershoot_pct"), 1),
+            ("overshoot horiz. (%)", ("blur", "horizontal", "overshoot_pct"), 1),
+            ("black mean", ("noise", "black", "mean"), 1), ("black SD", ("noise", "black", "sd"), 2),
+            ("white mean", ("noise", "white", "mean"), 1), ("white SD", ("noise", "white", "sd"), 2),
+            ("white at max (%)", ("noise", "white", "at_max_fraction"), 2),
+            ("black ρx / ρy", None, 2), ("black mean |Δx|", ("noise", "black", "mean_abs_dx"), 2),
+            ("distinct values", ("levels",), 0)]
+    body = []
+    for r, t in zip(pm_real, pm_twin):
+        for who, m in (("real " + r["photo"], r), ("twin " + t["photo"], t)):
+            row = [who]
+            for name, path, nd in cols:
+                if path is None:
+                    row.append(f"{_pm(m, ('noise', 'black', 'rho_x'))} / {_pm(m, ('noise', 'black', 'rho_y'))}")
+                elif path == ("noise", "white", "at_max_fraction"):
+                    v = m.get("noise", {}).get("white", {}).get("at_max_fraction")
+                    row.append(num(100 * v, 0) if v is not None else "—")
+                else:
+                    row.append(_pm(m, path, nd))
+            body.append(row)
+    return table(["image"] + [c[0] for c in cols], body)
+
+
+def settings_table(derived: dict, jobs) -> str:
+    if "per_photo" not in derived:
+        return f"(not derived: {derived.get('error', 'unknown')})"
+    body = []
+    for p, j in zip(derived["per_photo"], jobs):
+        cam, sen = j.camera, j.sensor
+        body.append([
+            p["photo"], j.group,
+            f"{p['x']['aberration_sigma_um']:.2f} / {cam.aberration_sigma_um:.2f}",
+            f"{p['y']['aberration_sigma_um']:.2f} / "
+            f"{(cam.aberration_sigma_y_um if cam.aberration_sigma_y_um is not None else cam.aberration_sigma_um):.2f}",
+            f"{p['x']['sharpen_amount']:.2f} / {sen.sharpen_amount:.2f}",
+            f"{num(p['x']['sharpen_sigma_px'], 2)} / {sen.sharpen_sigma_px:.2f}",
+            f"{p['y']['sharpen_amount']:.2f}",
+            f"{p['output_gain']:.3f} / {sen.output_gain:.3f}",
+            f"{p['output_offset_dn']:.1f} / {sen.output_offset_dn:.1f}",
+            ("clipped, " + f"{p['white']:.1f}") if p["white_clipped"] else f"{p['white']:.1f}",
+            f"{derived['output_noise_dn']:.2f} / {sen.output_noise_dn:.2f}",
+            (f"{p.get('output_levels_rgb')} × {[round(g, 3) for g in p.get('output_rgb_gains') or []]}"
+             if p["palette_reduced"] else "—") + " / " +
+            (f"{[int(v) for v in sen.output_levels_rgb]} × {list(sen.output_rgb_gains)}, {sen.output_dither}"
+             if sen.quantised else "—"),
+            f"{p['x']['fit_rms']:.3f}, {p['y']['fit_rms']:.3f}",
+        ])
+    return table(["photo", "twin group", "σ x (µm) derived / scene", "σ y (µm)", "sharpen x amount", "sharpen σ (px)",
+                  "sharpen y amount (fit)", "output gain", "offset (DN)", "white (DN)", "noise SD (DN)",
+                  "palette (levels × gains)", "ESF fit RMS x, y"], body)
+
+
+def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_run, twin_run, errors, floor, pm_real,
+                      pm_twin, derived, timings, options, thresholds):
+    from edgetruth import __version__
+    from edgetruth.evaluate.run_dir import utc_stamp
+    from edgetruth.resources import source_commit
+
+    real_s = {s["row"]: s for s in real_run.summaries}
+    twin_s = {s["row"]: s for s in twin_run.summaries}
+    rows = method_table(methods, diag, real_s, twin_s, errors)
+    rk = rankings(methods, real_s, twin_s, errors)
+    atomic_write_text(out / "twin_vs_real.csv", _csv(rows))
+    write_json(out / "photo_model.json", _strip({"real": pm_real, "twin": pm_twin, "derived": derived}))
+
+    def n3(v):
+        return num(v, 3)
+
+    body = []
+    for r in rows:
+        body.append([r["label"] + ("" if r["in_ranking"] else " *"), n3(r["straightness_real_px"]),
+                     n3(r["straightness_twin_px"]),
+                     f"{num(r['rank_straightness_real'], 0)} / {num(r['rank_straightness_twin'], 0)}"
+                     if r["in_ranking"] else "—",
+                     n3(r["calib_rms_real_px"]), n3(r["calib_rms_twin_px"]),
+                     f"{num(r['rank_calib_real'], 0)} / {num(r['rank_calib_twin'], 0)}" if r["in_ranking"] else "—",
+                     n3(r["loo_rms_real_px"]), n3(r["loo_rms_twin_px"]), n3(r.get("truth_rms_px")),
+                     n3(r.get("truth_median_abs_px")), f"{num(r.get('truth_mean_px'), 3)}",
+                     n3(r.get("truth_sd_px"))])
+    ref_r, ref_t = real_s.get(REFERENCE_ROW, {}), twin_s.get(REFERENCE_ROW, {})
+    body.append(["Zhang's corners (real) / exact corners (twin)", "—", "—", "—", n3(ref_r.get("calib_rms_px")),
+                 n3(ref_t.get("calib_rms_px")), "—", n3(ref_r.get("loo_rms_px")), n3(ref_t.get("loo_rms_px")),
+                 "0", "0", "0", "0"])
+    body.append([f"{_floor_label()} (twin)", "—", n3(floor.get("straightness_px")), "—", "—",
+                 n3(floor.get("calib_rms_px")), "—", "—", n3(floor.get("loo_rms_px")), "—", "—", "—", "—"])
+    rank_body = [[r["what"], num(r["rho"], 3), f"{r['p']:.3g}" if np.isfinite(r["p"]) else "—", r["n"]] for r in rk]
+
+    # per photo: straightness (median over the ranked methods), real and twin
+    per_photo = []
+    for i, name in enumerate(real_run.names):
+        rr = [real_s[m]["per_photo_straightness_px"][i] for m in methods]
+        tt = [twin_s[m]["per_photo_straightness_px"][i] for m in methods]
+        dev = [real_s[m]["per_photo_straightness_px"][i] for m in methods if m == "canny_devernay"]
+        devt = [twin_s[m]["per_photo_straightness_px"][i] for m in methods if m == "canny_devernay"]
+        per_photo.append([name, twin_run.names[i], n3(float(np.median(rr))), n3(float(np.median(tt))),
+                          n3(dev[0]) if dev else "—", n3(devt[0]) if devt else "—",
+                          n3(real_s[diag[0]]["per_photo_straightness_px"][i]) if diag else "—",
+                          n3(twin_s[diag[0]]["per_photo_straightness_px"][i]) if diag else "—"])
+
+    lines = [f"# Digital twin — {set_name}: real photos and their twin, side by side", "",
+             f"edgetruth {__version__}, commit {source_commit()[:12]}; {utc_stamp()} (UTC).  Time: render "
+             f"{timings['render_s']:.0f} s, both board studies {timings['studies_s']:.0f} s, photo model "
+             f"{timings['photo_model_s']:.0f} s; {timings['total_s']:.0f} s in all.", "",
+             f"- Twin: spec `{spec.name}` (identity {spec.identity_sha256[:12]}), {spec.render.spp} spp, images "
+             f"{', '.join(j.name for j in jobs)} for photos {', '.join(real_run.names)} (the photos' order).",
+             f"- The same board study (`edgetruth study board`, docs/board.md) on both, the twin's PNGs read like "
+             f"photos (`edgetruth.image_io.read_gray`); its files: `real/`, `twin/`.",
+             f"- Methods ({len(methods)}, ranked): {', '.join(methods)}; options as every study's "
+             f"({mo.STUDY_OPTIONS}).  * = a diagnostic row, not ranked.",
+             "- Against the truth (twin only): each method's points that the study assigned to a side (3 px from "
+             "the corners left out), signed distance to the square's exact distorted outline (> 0 on the white "
+             "board).", "",
+             "## Rankings", "",
+             "Spearman ρ between the methods' figures (n methods; p two-sided, `scipy.stats.spearmanr`).", "",
+             table(["ranking", "ρ", "p", "n"], rank_body), "",
+             "## Table 1 — per method: real and twin", "",
+             "Straightness: RMS of each side's points about its total-least-squares line, pooled (px).  Calibration: "
+             "OpenCV's reprojection RMS of the corners from the side lines (k1, k2); LOO: leave-one-image-out RMS. "
+             "Ranks: 1 = smallest.  Truth: the twin's points against the exact outline.", "",
+             table(["method", "straightness real", "twin", "rank real / twin", "calib RMS real", "twin",
+                    "rank real / twin", "LOO RMS real", "twin", "twin vs truth: RMS", "median |e|", "mean", "SD"], body), "",
+             f"The last row is the floor of the study's procedure: points on the exact outline (0.5 px apart, 3 px "
+             f"from the corners), the same total-least-squares lines and intersections: its straightness is the "
+             f"lens's bow of a side about its chord line, its calibration RMS what fitting straight lines to bent "
+             f"sides costs before any method adds its own error.", "",
+             "## Table 2 — per photo: straightness", "",
+             "Median over the ranked methods, and Canny–Devernay and PAE2013's default variant alone (px).", "",
+             table(["photo", "twin image", "median real", "median twin", "Devernay real", "Devernay twin",
+                    "PAE default real", "PAE default twin"], per_photo), "",
+             "## Table 3 — the photo model: what the camera did, real and twin", "",
+             "`edgetruth.evaluate.board.photo_model` on every photo and every twin image alike: ERF σ of the "
+             "squares' horizontal sides (blur along y) and vertical sides (blur along x), median over sides; MTF50 "
+             "of the pooled ESF; its over/undershoot in % of the step (sharpening); flat regions (inside the "
+             "squares, a ring around them, 4 px from the sides): mean, residual SD about a quadratic surface, lag-1 "
+             "correlation along x and y, share at the region's top value (clipping), mean |difference| of "
+             "horizontal neighbours; distinct values in the image.", "",
+             photo_model_table(pm_real, pm_twin), "",
+             "## Table 4 — the twin's settings: derived from the photos / used by the scene", "",
+             "`photo_model.derive_twin` on the real photos (its docstring: how each is derived) next to the values "
+             f"the scene `{spec.name}` renders with.  Noise from {', '.join(derived.get('noise_from', []))}.", "",
+             settings_table(derived, jobs), "",
+             *closed_loop_lines(derived), "",
+             "## Reading", "", *reading(rows, rk, methods, diag, floor, real_s, twin_s),
+             "- How each setting was measured and what each fix changed (the ρ before and after each): "
+             "docs/board.md, \"Digital twin\".", "",
+             "## Files", "",
+             "`twin_vs_real.csv` (Table 1), `photo_model.json` (Table 3 and 4 in full), `real/` and `twin/` (each "
+             "a board study's own files: report.md, summary.csv, per_side.csv, calibration/, figures/), "
+             "`renders/` (the twin's dataset: PNG, EXR and truth JSON per image).", ""]
+    report = out / "report.md"
+    atomic_write_text(report, "\n".join(lines))
+    return report
+
+
+def closed_loop_lines(derived: dict) -> list[str]:
+    cl = derived.get("closed_loop") or []
+    if not cl:
+        return []
+    return ["Closed loop on the noise (photos without a coarse palette): the twin renders its own noise too (the "
+            "Monte-Carlo noise of the diffraction tail's samples in the dark squares near white, the quiet sensor's, "
+            "both through the sharpening), so the output noise that gives the photo's black SD is:", "",
+            table(["photo", "black SD real", "twin", "twin output noise (DN)", "twin's other noise (DN)",
+                   "output noise for the photo's SD (DN)"],
+                  [[c["photo"], num(c["real_black_sd"], 2), num(c["twin_black_sd"], 2), num(c["twin_noise_dn"], 2),
+                    num(c["twin_other_sd"], 2), num(c["noise_for_real_sd"], 2)] for c in cl])]
+
+
+def _floor_label() -> str:
+    return EXACT_OUTLINE_LABEL
+
+
+def reading(rows, rk, methods, diag, floor, real_s, twin_s) -> list[str]:
+    """What the numbers say, computed from them (nothing here is typed in by hand)."""
+    out = []
+    s, c, loo = rk[0], rk[1], rk[2]
+    out.append(f"- Straightness ranks alike on real and twin with ρ = {s['rho']:.2f} (p = {s['p']:.2g}, n = {s['n']}); "
+               f"calibration RMS with ρ = {c['rho']:.2f} (p = {c['p']:.2g}); leave-one-out with ρ = {loo['rho']:.2f} "
+               f"(p = {loo['p']:.2g}).")
+    ranked = [r for r in rows if r["in_ranking"] and np.isfinite(r["rank_straightness_real"] or np.nan)
+              and np.isfinite(r["rank_straightness_twin"] or np.nan)]
+    if ranked:
+        worst = sorted(ranked, key=lambda r: -abs(r["rank_straightness_real"] - r["rank_straightness_twin"]))[:3]
+        worst = [r for r in worst if r["rank_straightness_real"] != r["rank_straightness_twin"]]
+        out.append("- Largest straightness rank differences (real / twin rank, value): " + ("; ".join(
+            f"{r['label']} {r['rank_straightness_real']:.1f} / {r['rank_straightness_twin']:.1f} "
+            f"({r['straightness_real_px']:.3f} / {r['straightness_twin_px']:.3f} px)" for r in worst) or "none")
+            + ".")
+        ratio = np.median([r["straightness_twin_px"] / r["straightness_real_px"] for r in ranked])
+        out.append(f"- Level: the twin's straightness is {ratio:.2f}× the real one's (median over methods).")
+    for d in diag:
+        if "pae2013" in real_s:
+            out.append(f"- PAE2013: the default floating-window variant scatters {real_s[d]['straightness_px']:.3f} px "
+                       f"on the photos and {twin_s[d]['straightness_px']:.3f} px on the twin; the smoothed variant "
+                       f"(the studies') {real_s['pae2013']['straightness_px']:.3f} and "
+                       f"{twin_s['pae2013']['straightness_px']:.3f} px.")
+    t, sd = rk[3], rk[4]
+    out.append(f"- On the twin, straightness ranks like the per-point RMS against the truth with ρ = {t['rho']:.2f} "
+               f"(p = {t['p']:.2g}) and like its SD (the scatter about each method's bias) with ρ = {sd['rho']:.2f} "
+               f"(p = {sd['p']:.2g}); calibration RMS like the RMS with ρ = {rk[5]['rho']:.2f} "
+               f"(p = {rk[5]['p']:.2g}).")
+    bias = [r["truth_mean_px"] for r in rows if r["in_ranking"] and np.isfinite(r.get("truth_mean_px") or np.nan)]
+    if bias:
+        out.append(f"- Every method's points lie inside the squares on the twin: mean signed error "
+                   f"{min(bias):+.3f} to {max(bias):+.3f} px (the edge moves towards the dark side through the "
+                   "output's tone curve and clipping); the bias is common to all and is what the RMS against the truth "
+                   "mostly measures.")
+    best = min((r for r in rows if r["in_ranking"] and np.isfinite(r.get("truth_rms_px") or np.nan)),
+               key=lambda r: r["truth_rms_px"], default=None)
+    if best is not None:
+        out.append(f"- Closest to the truth on the twin: {best['label']} (RMS {best['truth_rms_px']:.3f} px, median "
+                   f"|e| {best['truth_median_abs_px']:.3f} px, mean {best['truth_mean_px']:+.3f} px).")
+    cal = [r["calib_rms_twin_px"] for r in rows if r["in_ranking"] and np.isfinite(r["calib_rms_twin_px"] or np.nan)]
+    if cal and np.isfinite(floor.get("calib_rms_px", np.nan)):
+        out.append(f"- The study's procedure alone (exact outline → lines → corners) calibrates to "
+                   f"{floor['calib_rms_px']:.3f} px on the twin; the methods' corners to {min(cal):.3f}–{max(cal):.3f} "
+                   f"px; the exact corners to {twin_s.get(REFERENCE_ROW, {}).get('calib_rms_px', np.nan):.3f} px.")
+    return out

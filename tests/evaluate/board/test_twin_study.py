@@ -1,0 +1,127 @@
+"""`edgetruth study twin`: its parts on analytic inputs, a reduced twin run end to end (3 of Zhang's poses, 4 spp,
+3 methods: both columns, finite rho and p, the files; ~40 s on 2 cores, marked slow), and bad inputs refused with
+one line and exit code 2 before anything is written."""
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from edgetruth.cli import main
+from edgetruth.errors import InputError
+from edgetruth.evaluate.board import twin
+
+
+# --- parts ----------------------------------------------------------------------------------------
+def _square_truth(corners: np.ndarray) -> dict:
+    """A truth block of one square whose outline is the straight polygon ``corners`` (4, 2), polyline 1 px apart."""
+    poly, par = [], []
+    for k in range(4):
+        a, b = corners[k], corners[(k + 1) % 4]
+        n = int(np.ceil(np.linalg.norm(b - a)))
+        for i in range(n):
+            poly.append(a + (b - a) * i / n)
+            par.append((k + i / n) / 4)
+    return {"squares": {"polylines_distorted_px": [np.asarray(poly).tolist()], "polylines_parameter": [par],
+                        "corners_distorted_px": [corners.tolist()]}}
+
+
+def test_outline_points_and_point_errors():
+    from edgetruth.evaluate.board.measure import Row
+    from edgetruth.evaluate.board.sides import fit_lines
+
+    c = np.array([[10.0, 10.0], [50.0, 12.0], [48.0, 52.0], [8.0, 50.0]])
+    truth = _square_truth(c)
+    x, y, lab = twin.outline_points(truth)
+    assert set(np.unique(lab)) == {0, 1, 2, 3}
+    f = fit_lines(lab, x, y, 1)
+    np.testing.assert_allclose(f.corners[0], c, atol=1e-9)  # straight sides: the lines give the corners back
+    assert np.nanmax(f.rms_px) < 1e-9
+    # points moved 0.2 px outward (away from the centre) along their side's normal: error +0.2 each
+    centre = c.mean(0)
+    n = f.normal[0][lab]
+    n = n * np.sign(((np.c_[x, y] - centre) * n).sum(1))[:, None]
+    row = Row("m", [f.corners], points=[{"x": x + 0.2 * n[:, 0], "y": y + 0.2 * n[:, 1], "label": lab}])
+    e = twin.point_errors(row, [truth])
+    assert e["truth_mean_px"] == pytest.approx(0.2, abs=1e-6) and e["truth_rms_px"] == pytest.approx(0.2, abs=1e-6)
+    assert e["truth_points"] == len(x)
+
+
+def test_spearman_and_ranks():
+    r = twin.spearman([1, 2, 3, 4, np.nan], [10, 20, 40, 30, 5])
+    assert r["n"] == 4 and r["rho"] == pytest.approx(0.8) and 0 < r["p"] < 1
+    assert np.isnan(twin.spearman([1, 2], [1, 2])["rho"])
+    np.testing.assert_array_equal(twin.ranks([0.3, 0.1, np.nan, 0.2]), [3, 1, np.nan, 2])
+
+
+def test_checks():
+    with pytest.raises(InputError, match="sets with a twin: zhang1998"):
+        twin.check_set("opencv_left")
+    assert twin.check_images(None, 5) == [0, 1, 2, 3, 4]
+    assert twin.check_images([3, 1, 2], 5) == [0, 1, 2]
+    for bad, match in (([1, 2], "at least 3"), ([1, 2, 9], "from 1 to 5"), ([1, 1, 2], "twice")):
+        with pytest.raises(InputError, match=match):
+            twin.check_images(bad, 5)
+    with pytest.raises(InputError, match="--spp"):
+        twin.twin_spec("zhang1998_twin", 10)
+    assert twin.twin_spec("zhang1998_twin", 16).render.spp == 16
+
+
+# --- the CLI --------------------------------------------------------------------------------------
+def _bad(tmp_path, capsys, argv, match):
+    out = tmp_path / "out"
+    rc = main(["study", "twin", *argv, "-o", str(out), "--no-progress"])
+    err = [line for line in capsys.readouterr().err.strip().splitlines() if not line.startswith("warning:")]
+    assert rc == 2, err
+    assert len(err) == 1 and match in err[0], err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["nosuchset"], "nosuchset: no twin for this set"),
+    (["opencv_left"], "no twin for this set"),
+    ([], "give one shipped set"),
+    (["zhang1998", "zhang1998"], "give one shipped set"),
+    (["zhang1998", "--images", "1,2"], "at least 3"),
+    (["zhang1998", "--images", "1,x"], "comma-separated photo numbers"),
+    (["zhang1998", "--spp", "10"], "--spp"),
+    (["zhang1998", "--model", "Model.txt"], "--model"),
+    (["zhang1998", "--methods", "nosuchmethod"], "nosuchmethod"),
+])
+def test_bad_inputs_exit_2_with_one_line(tmp_path, capsys, argv, match):
+    _bad(tmp_path, capsys, argv, match)
+
+
+def test_twin_options_are_refused_by_board(tmp_path, capsys):
+    rc = main(["study", "board", "zhang1998", "--spp", "16", "-o", str(tmp_path / "b"), "--no-progress"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "--spp" in err[0]
+
+
+# --- a reduced twin run ----------------------------------------------------------------------------
+@pytest.mark.slow
+def test_reduced_twin_run(tmp_path, fast_variant):
+    out = tmp_path / "twin"
+    argv = ["study", "twin", "zhang1998", "-o", str(out), "--images", "1,2,3", "--spp", "4",
+            "--methods", "canny_devernay,pae2013,erf4p_fixed11", "--no-progress"]
+    assert main(argv) == 0
+    report = (out / "report.md").read_text()
+    assert "straightness real" in report and "## Rankings" in report and "Table 3" in report
+    with open(out / "twin_vs_real.csv", newline="") as fh:
+        rows = {r["row"]: r for r in csv.DictReader(fh)}
+    assert list(rows) == ["canny_devernay", "pae2013", "erf4p_fixed11", "pae2013_floating"]
+    for r in rows.values():
+        for k in ("straightness_real_px", "straightness_twin_px", "calib_rms_real_px", "calib_rms_twin_px",
+                  "loo_rms_real_px", "loo_rms_twin_px", "truth_rms_px", "truth_median_abs_px"):
+            assert np.isfinite(float(r[k])), k
+    assert rows["pae2013_floating"]["in_ranking"] == "False"
+    line = next(ln for ln in report.splitlines() if ln.startswith("| straightness: real vs twin"))
+    rho, p, n = (c.strip() for c in line.strip("|").split("|")[1:4])
+    assert np.isfinite(float(rho)) and np.isfinite(float(p)) and n == "3"
+    for sub in ("real", "twin"):
+        assert (out / sub / "summary.csv").is_file() and (out / sub / "report.md").is_file()
+    assert len(list((out / "renders").glob("*.png"))) == 3 and (out / "photo_model.json").is_file()
+    # the same settings again: resumes (nothing to render) and re-makes the report; others are refused
+    assert main(argv) == 0
+    assert main([*argv[:-1], "--spp", "16", "--no-progress"]) == 2
