@@ -11,7 +11,6 @@ $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check --upgrade pip
 	$(PY) -m pip install -q --disable-pip-version-check -e '.[test]'
-	-$(PY) -m pip install -q --disable-pip-version-check karellen-llvm-core || echo "note: karellen-llvm-core (pip libLLVM 23) not installed: rendering falls back to the slow scalar_rgb variant unless a libLLVM >= 18 is present"
 	@touch $@
 
 setup: $(STAMP)

@@ -88,6 +88,11 @@ def sha256_file(path: str | Path) -> str:
 
 
 # --- path checks --------------------------------------------------------------------
+def _a(noun: str) -> str:
+    """``noun`` with its indefinite article: 'an image', 'an EXR file', 'a photo'."""
+    return f"{'an' if noun[:1].lower() in 'aeiou' else 'a'} {noun}"
+
+
 def check_input_file(path: str | Path, what: str = "input") -> Path:
     """``path`` exists and is a regular, readable file (a FIFO or device would block or never end)."""
     p = Path(path)
@@ -98,9 +103,10 @@ def check_input_file(path: str | Path, what: str = "input") -> Path:
     except OSError as exc:
         raise InputError(f"{p}: cannot access this {what} ({exc.strerror}); check the path") from None
     if stat.S_ISDIR(st.st_mode):
-        raise InputError(f"{p}: is a directory, not a {what}; pass a file")
+        raise InputError(f"{p}: is a directory, not {_a(what)}; pass a file")
     if not stat.S_ISREG(st.st_mode):
-        raise InputError(f"{p}: not a regular file (a pipe, socket or device); pass a {what} file on disk")
+        on_disk = _a(what) if what.endswith("file") else f"{_a(what)} file"
+        raise InputError(f"{p}: not a regular file (a pipe, socket or device); pass {on_disk} on disk")
     if not os.access(p, os.R_OK):
         raise InputError(f"{p}: {what} is not readable; fix its permissions")
     return p

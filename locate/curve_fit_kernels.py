@@ -56,13 +56,13 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from edgetruth.locate.erf_kernels import _chol4
 from edgetruth.locate.normal_cdf import cdf_pdf
 from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
 from edgetruth.locate.profiles import bilinear
+from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
 
 ERF = 0
 ARCTAN = 1
@@ -88,7 +88,7 @@ __all__ = ["ERF", "ARCTAN", "LOGISTIC", "GAUSS", "OK", "NOT_CONVERGED", "NO_CONT
            "model_value", "initial_guess", "fit_profiles", "refine_step_model", "refine_gauss_differences"]
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _shape(model, z):
     """F(z) and F'(z) of a step model, one transcendental call."""
     if model == ERF:
@@ -100,7 +100,7 @@ def _shape(model, z):
     return f, f * (1.0 - f)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def model_value(model, p, t):
     """y(t) of ``model`` at parameters ``p``."""
     if model == GAUSS:
@@ -110,7 +110,7 @@ def model_value(model, p, t):
     return p[0] + p[1] * f
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _eval_step(model, t, y, n, A, B, mu, w):
     """One pass: cost, J^T J (lower triangle, 10 scalars) and J^T r of a step model."""
     c = 0.0
@@ -140,7 +140,7 @@ def _eval_step(model, t, y, n, A, B, mu, w):
     return c, float(n), h10, h11, h20, h21, h22, h30, h31, h32, h33, g0, g1, g2, g3
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _eval_gauss(t, y, n, a, mu, w):
     """One pass: cost, J^T J (6 scalars) and J^T r of a * exp(-z^2/2)."""
     c = 0.0
@@ -166,7 +166,7 @@ def _eval_gauss(t, y, n, a, mu, w):
     return c, h00, h10, h11, h20, h21, h22, g0, g1, g2
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _chol3(m00, m10, m11, m20, m21, m22, b0, b1, b2):
     """Solve a symmetric positive-definite 3x3 system by Cholesky, in scalars: (ok, x0, x1, x2)."""
     if not m00 > 0.0:
@@ -192,7 +192,7 @@ def _chol3(m00, m10, m11, m20, m21, m22, b0, b1, b2):
     return True, x0, x1, x2
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _step_guess(model, t, y, n):
     """Closed-form start of a step model: (ok, A, B, mu, w) (module docstring)."""
     ymin = y[0]
@@ -233,7 +233,7 @@ def _step_guess(model, t, y, n):
     return True, ymin, B, mu, sd
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _gauss_guess(t, y, n):
     """Closed-form start of the Gaussian: the log-parabola through the largest sample: (ok, a, mu, w)."""
     kmax = 0
@@ -259,7 +259,7 @@ def _gauss_guess(t, y, n):
     return True, a, mu, w
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def initial_guess(model, t, y, n, p):
     """Data-driven start into p (see module docstring); returns False if the samples have no contrast."""
     if model == GAUSS:
@@ -285,19 +285,19 @@ def initial_guess(model, t, y, n, p):
 _FAST = {"contract", "reassoc"}
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out):
     """LM fit of a step model to (t[:n], y[:n]) from (A, B, mu, w); out as in the module docstring."""
     _fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out)
 
 
-@numba.njit(cache=True, fastmath=_FAST)
+@njit(cache=True, fastmath=_FAST)
 def fit_step_fast(model, t, y, n, A, B, mu, w, maxit, tol, out):
     """``fit_step`` with reassociated sums (the arctangent and logistic models)."""
     _fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out)
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out):
     lam = 1e-4
     c, h00, h10, h11, h20, h21, h22, h30, h31, h32, h33, g0, g1, g2, g3 = _eval_step(model, t, y, n, A, B, mu, w)
@@ -357,7 +357,7 @@ def _fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out):
     out[7] = status
 
 
-@numba.njit(cache=True, fastmath=_FAST)
+@njit(cache=True, fastmath=_FAST)
 def fit_gauss(t, y, n, a, mu, w, maxit, tol, out):
     """LM fit of a * exp(-((t - mu)/w)^2 / 2) to (t[:n], y[:n]) from (a, mu, w)."""
     lam = 1e-4
@@ -414,7 +414,7 @@ def fit_gauss(t, y, n, a, mu, w, maxit, tol, out):
     out[7] = status
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _no_contrast(out):
     for a in range(OUT_LEN):
         out[a] = 0.0
@@ -422,7 +422,7 @@ def _no_contrast(out):
     out[7] = NO_CONTRAST
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def fit_auto(model, t, y, n, maxit, tol, out):
     """``initial_guess`` then the fit; NO_CONTRAST when the guess is undefined."""
     if model == GAUSS:
@@ -442,17 +442,17 @@ def fit_auto(model, t, y, n, maxit, tol, out):
         fit_step_fast(model, t, y, n, A, B, mu, w, maxit, tol, out)
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _fit_batch(model, t, ys, maxit, tol, out):
     n = t.shape[0]
-    for i in numba.prange(ys.shape[0]):
+    for i in prange(ys.shape[0]):
         fit_auto(model, t, ys[i], n, maxit, tol, out[i])
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _fit_batch_from(model, t, ys, p0s, maxit, tol, out):
     n = t.shape[0]
-    for i in numba.prange(ys.shape[0]):
+    for i in prange(ys.shape[0]):
         p = p0s[i]
         if model == GAUSS:
             fit_gauss(t, ys[i], n, p[0], p[1], p[2], maxit, tol, out[i])
@@ -462,11 +462,11 @@ def _fit_batch_from(model, t, ys, p0s, maxit, tol, out):
             fit_step_fast(model, t, ys[i], n, p[0], p[1], p[2], p[3], maxit, tol, out[i])
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _refine_kernel(model, img, xs, ys, nxs, nys, t, work, maxit, tol, out):
     """Sample each candidate's 11-point normal profile into its row of ``work`` and fit it (step models),
     or fit the Gaussian to its 10 differences at the mid-points ``t`` (GAUSS): all points in parallel."""
-    for i in numba.prange(xs.shape[0]):
+    for i in prange(xs.shape[0]):
         prof = work[i]
         for k in range(PROFILE_LEN):
             tk = float(k - PROFILE_HALF)

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from edgetruth.locate.profiles import bilinear
@@ -30,9 +29,10 @@ _LN_M = math.log(PROFILE_LEN - 1)
 S_MIN = 0.05  # blur scale floor (px): below it the model is a step, mu is undetermined within a pixel
 
 from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW  # noqa: E402
+from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def normalised_entropy(prof):
     """H = -sum p ln p / ln M over g_k = |I_{k+1} - I_k|, M = len(prof) - 1; NaN for a flat profile."""
     m = prof.shape[0] - 1
@@ -49,7 +49,7 @@ def normalised_entropy(prof):
     return h / math.log(m)
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def window_from_entropy(h, tau1, tau2, tau3):
     if h < tau1:
         return 5
@@ -72,7 +72,7 @@ _AS_A4 = -1.453152027
 _AS_A5 = 1.061405429
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def cdf_pdf(z):
     """(Phi(z), phi(z)) of the standard normal with a single exp."""
     e = math.exp(-0.5 * z * z)
@@ -83,7 +83,7 @@ def cdf_pdf(z):
     return Phi, _INV_SQRT2PI * e
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _chol4(m00, m10, m11, m20, m21, m22, m30, m31, m32, m33, b0, b1, b2, b3):
     """Solve a symmetric positive-definite 4x4 system by Cholesky, in scalars (no allocation).
     Returns (ok, x0, x1, x2, x3)."""
@@ -119,7 +119,7 @@ def _chol4(m00, m10, m11, m20, m21, m22, m30, m31, m32, m33, b0, b1, b2, b3):
     return True, x0, x1, x2, x3
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _eval4(prof, lo, w, t0, A, B, mu, s):
     """One pass over the window: cost and the normal equations (J^T J, J^T r) of the 4P model."""
     c = 0.0
@@ -150,7 +150,7 @@ def _eval4(prof, lo, w, t0, A, B, mu, s):
     return c, h00, h10, h11, h20, h21, h22, h30, h31, h32, h33, g0, g1, g2, g3
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _eval2(prof, lo, w, t0, A, B, mu, s):
     """Cost and normal equations of the 2P model (A, B fixed; unknowns mu, s)."""
     c = 0.0
@@ -172,7 +172,7 @@ def _eval2(prof, lo, w, t0, A, B, mu, s):
     return c, h22, h32, h33, g2, g3
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def fit_one(prof, w, four_param, maxit, tol, out):
     """Fit the centred ``w``-sample window of an 11-sample profile (Levenberg-Marquardt).
 
@@ -304,18 +304,18 @@ def fit_one(prof, w, four_param, maxit, tol, out):
     out[7] = status
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def fit_profiles(profiles, windows, four_param, maxit, tol, out):
     """Fit every profile (N, 11) with its window size windows[i]; out (N, 8) as in ``fit_one``."""
-    for i in numba.prange(profiles.shape[0]):
+    for i in prange(profiles.shape[0]):
         fit_one(profiles[i], windows[i], four_param, maxit, tol, out[i])
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def refine_erf(img, xs, ys, nxs, nys, fixed_window, tau1, tau2, tau3, four_param, maxit, tol,
                profiles, entropy, windows, out):
     """Sample, choose the window (fixed_window > 0 forces it), fit: all points in parallel."""
-    for i in numba.prange(xs.shape[0]):
+    for i in prange(xs.shape[0]):
         prof = profiles[i]
         for k in range(PROFILE_LEN):
             t = k - PROFILE_HALF

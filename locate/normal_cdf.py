@@ -3,7 +3,8 @@
 Phi(z) = 1/2 erfc(|z|/sqrt 2) (z < 0) or 1 - that (z >= 0), and erfc(x) = exp(-x^2) erfcx(x): the
 exp(-x^2) = exp(-z^2/2) is the density's own exponential, so one exp gives both.  erfcx is smooth
 and slowly varying on [0, 6]: a degree-8 polynomial on each of 24 intervals of width 1/4 (Chebyshev
-interpolants of scipy.special.erfcx, computed here at import, in monomial form for Horner's rule).
+interpolants of scipy.special.erfcx, computed here before the kernel is first compiled -- not at
+import: scipy is slow to import -- in monomial form for Horner's rule).
 Beyond x = 6, 1/2 exp(-x^2) erfcx(x) < 1e-17: Phi is 0 or 1 to double precision.
 |Phi error| < 2e-13 (tests/locate/test_normal_cdf.py): it moves a fitted edge by ~1e-12 px.
 
@@ -14,10 +15,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
-from numpy.polynomial import chebyshev as _cheb
-from scipy.special import erfcx
+
+from edgetruth.locate.jit import before_compile, njit  # numba, imported when a kernel is first called
 
 WIDTH = 0.25
 DEGREE = 8
@@ -26,6 +26,9 @@ N_INTERVALS = int(round(X_MAX / WIDTH))
 
 
 def _table() -> np.ndarray:
+    from numpy.polynomial import chebyshev as _cheb
+    from scipy.special import erfcx
+
     rows = []
     for j in range(N_INTERVALS):
         a = j * WIDTH
@@ -36,14 +39,28 @@ def _table() -> np.ndarray:
     return t
 
 
-ERFCX_POLY = _table()  # row j: erfcx(j W + (u + 1) W / 2) = sum_k c_jk u^k, u in [-1, 1]
+@before_compile
+def _erfcx_poly() -> np.ndarray:
+    """``ERFCX_POLY``, row j: erfcx(j W + (u + 1) W / 2) = sum_k c_jk u^k, u in [-1, 1] (made once; the
+    kernel reads it as a global, so it exists before the kernel compiles)."""
+    t = globals().get("ERFCX_POLY")
+    if t is None:
+        t = globals()["ERFCX_POLY"] = _table()
+    return t
+
+
+def __getattr__(name: str):
+    if name == "ERFCX_POLY":
+        return _erfcx_poly()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 _INV_SQRT2 = 1.0 / math.sqrt(2.0)
 _INV_SQRT2PI = 1.0 / math.sqrt(2.0 * math.pi)
 _INV_WIDTH = 1.0 / WIDTH
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def cdf_pdf(z):
     """(Phi(z), phi(z)) of the standard normal, |Phi error| < 2e-13, one exp."""
     e = math.exp(-0.5 * z * z)

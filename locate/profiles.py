@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from edgetruth.locate.candidates import PROFILE_HALF
+from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def bilinear(img, x, y):
     """Bilinear interpolation at (x, y), OpenCV convention; (x, y) inside the pixel-centre hull."""
     h, w = img.shape
@@ -35,9 +35,9 @@ def bilinear(img, x, y):
     return top * (1.0 - fy) + bot * fy
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _sample_kernel(img, xs, ys, nxs, nys, ts, out):
-    for i in numba.prange(xs.shape[0]):
+    for i in prange(xs.shape[0]):
         for k in range(ts.shape[0]):
             out[i, k] = bilinear(img, xs[i] + ts[k] * nxs[i], ys[i] + ts[k] * nys[i])
 

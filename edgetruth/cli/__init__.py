@@ -92,9 +92,41 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _asks_version(argv: list[str]) -> bool:
+    """``--version`` among the global options before any command: answered without building the parser
+    (which imports every command module)."""
+    for tok in argv:
+        if tok == "--version":
+            return True
+        if tok not in ("-q", "--quiet"):
+            return False
+    return False
+
+
+def _empty_output(argv: list[str]) -> str | None:
+    """The option of an empty ``-o ''`` (argparse would take it, and ``Path('')`` is the current folder)."""
+    for i, tok in enumerate(argv):
+        if tok == "--":
+            break
+        if tok in ("-o", "--output") and i + 1 < len(argv) and argv[i + 1] == "":
+            return tok
+        if tok == "--output=":
+            return "--output"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if _asks_version(argv):  # as argparse's version action: print, exit 0
+        print(f"edgetruth {__version__}")
+        raise SystemExit(0)
     parser = build_parser()
     args = parser.parse_args(argv)  # argparse itself exits 2 on bad usage
+    empty = _empty_output(argv)
+    if empty and getattr(args, "handler", None):
+        print(f"edgetruth {args.command}: error: {empty} '': an empty path; give a file or folder name",
+              file=sys.stderr)
+        return 2
     if not getattr(args, "handler", None):
         parser.print_help()
         return 2

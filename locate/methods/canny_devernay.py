@@ -50,18 +50,18 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
+from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
 
 #: IPOL's tolerance in ``greater(a, b)``: a - b must exceed 1000 * DBL_EPSILON.
 GREATER_TOL = 1000.0 * np.finfo(np.float64).eps
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _greater(a, b):
     if a <= b:
         return False
@@ -70,17 +70,17 @@ def _greater(a, b):
     return True
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _mod_g(g, x, y):
     gx = g[y, x + 1] - g[y, x - 1]
     gy = g[y + 1, x] - g[y - 1, x]
     return math.sqrt(gx * gx + gy * gy)
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _devernay_kernel(g, xs, ys, strict, out_x, out_y, out_eta, out_axis):
     h, w = g.shape
-    for i in numba.prange(xs.shape[0]):
+    for i in prange(xs.shape[0]):
         x = xs[i]
         y = ys[i]
         out_x[i] = x

@@ -51,13 +51,13 @@ from __future__ import annotations
 import math
 from functools import lru_cache
 
-import numba
 import numpy as np
 
 from edgetruth.errors import InputError
 from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
+from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
 
 MASK_SIZE = 7
 _NODES_PER_PX = 4000
@@ -95,12 +95,12 @@ def zernike_masks(n: int = MASK_SIZE, nodes_per_px: int = _NODES_PER_PX):
     return mx, my, m20
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _zernike_kernel(img, xs, ys, mx, my, m20, out):
     n = mx.shape[0]
     half = n // 2
     r = n / 2.0
-    for i in numba.prange(xs.shape[0]):
+    for i in prange(xs.shape[0]):
         x = int(xs[i])
         y = int(ys[i])
         cx = 0.0

@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from edgetruth.errors import InputError
@@ -47,14 +46,15 @@ from edgetruth.locate.profiles import bilinear
 from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
+from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
 
 DEFAULT_HALF = 5
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _glm_kernel(img, xs, ys, nxs, nys, half, out):
     n = 2 * half + 1
-    for i in numba.prange(xs.shape[0]):
+    for i in prange(xs.shape[0]):
         prof = np.empty(n)
         m1 = 0.0
         for k in range(n):

@@ -75,13 +75,13 @@ from __future__ import annotations
 import math
 
 import cv2
-import numba
 import numpy as np
 
 from edgetruth.errors import InputError
 from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
+from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
 
 VARIANTS = ("floating", "smoothed", "basic")
 ALIASES = {"first_order": "basic"}
@@ -97,7 +97,7 @@ REACH_ALONG = 2
 N_OUT = 11
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _px(img, x, y, horiz, along, across):
     """img at the pixel ``along`` lines and ``across`` rows from (x, y) (transposed for vertical edges)."""
     if horiz:
@@ -105,12 +105,12 @@ def _px(img, x, y, horiz, along, across):
     return img[y + along, x + across]
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _ad(gc, x, y, horiz, along, across):
     return abs(_px(gc, x, y, horiz, along, across))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _is_edge_pixel(ga, gc, x, y, horiz):
     """The authors' edge-pixel test at (x, y): |g_across| maximal along the line, dominant over |g_along|."""
     v = abs(_px(gc, x, y, horiz, 0, 0))
@@ -123,7 +123,7 @@ def _is_edge_pixel(ga, gc, x, y, horiz):
     return v >= _ad(gc, x, y, horiz, 0, -1) and v > _ad(gc, x, y, horiz, 0, 1)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def floating_one(F, G, ga, gc, x, y, horiz, smoothed, order, w, threshold, out):
     """The released detector's floating-window estimate at edge pixel (x, y).
 
@@ -270,10 +270,10 @@ def floating_one(F, G, ga, gc, x, y, horiz, smoothed, order, w, threshold, out):
         out[5] = 1.0
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _floating_kernel(F, G, gx, gy, xs, ys, smoothed, order, w, threshold, out, moved):
     h, wd = F.shape
-    for i in numba.prange(xs.shape[0]):
+    for i in prange(xs.shape[0]):
         x = xs[i]
         y = ys[i]
         for k in range(N_OUT):
@@ -305,12 +305,12 @@ def _floating_kernel(F, G, gx, gy, xs, ys, smoothed, order, w, threshold, out, m
         out[i, 10] = float(moved[i])
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _basic_kernel(f, xs, ys, gxs, gys, order, out):
     """The paper's basic first-order detector on a fixed 3 x 5 window (Sec. 3); out[0] = a with the
     point at (x, y + a) / (x + a, y): A is the level above the curve, B below."""
     h, w = f.shape
-    for i in numba.prange(xs.shape[0]):
+    for i in prange(xs.shape[0]):
         x = int(xs[i])
         y = int(ys[i])
         gx = gxs[i]
@@ -427,7 +427,7 @@ def detect(image, threshold: float, variant: str = "floating", order: int = 2,
             "valid": out[:, 5] > 0.5, "horizontal": horiz}
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _points_at(F, G, gx, gy, xs, ys, horiz, smoothed, order, w, threshold, out):
     for i in range(xs.shape[0]):
         if horiz[i]:

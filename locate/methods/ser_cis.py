@@ -64,7 +64,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from edgetruth.errors import InputError
@@ -73,6 +72,7 @@ from edgetruth.locate.profiles import bilinear
 from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
+from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
 
 PROFILE_HALF = 5
 H_MIN = 4
@@ -93,7 +93,7 @@ def image_noise_sigma(image, cand) -> float:
     return float(math.sqrt(math.pi / 2.0) / 6.0 * total / count)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _immerkaer_sums(img, gx, gy, low):
     """Sum and count of |I * L| over the interior pixels with smoothed gradient magnitude below ``low``
     (all interior pixels when low <= 0), and over all interior pixels: one serial pass (memory-bound; a
@@ -121,7 +121,7 @@ def _immerkaer_sums(img, gx, gy, low):
     return rows_sum.sum(), rows_n.sum(), rows_sum_all.sum(), float((h - 2) * (w - 2))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def cis_one(prof, h_min, segment, tol_abs, flat_rel, out):
     """Stable region + CIS on one 11-sample profile; out <- [mu, g_b, g_a, c, n, status]."""
     c0 = PROFILE_HALF
@@ -173,16 +173,16 @@ def cis_one(prof, h_min, segment, tol_abs, flat_rel, out):
         out[5] = NO_CONTRAST
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def cis_batch(profiles, h_min, segment, tol_abs, flat_rel, out):
-    for i in numba.prange(profiles.shape[0]):
+    for i in prange(profiles.shape[0]):
         cis_one(profiles[i], h_min, segment, tol_abs, flat_rel, out[i])
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _sample_and_cis(img, xs, ys, nxs, nys, h_min, segment, tol_abs, flat_rel, profiles, out):
     """Sample each 11-point normal profile (``locate.profiles.bilinear``) and apply ``cis_one``, in one pass."""
-    for i in numba.prange(xs.shape[0]):
+    for i in prange(xs.shape[0]):
         prof = profiles[i]
         for k in range(2 * PROFILE_HALF + 1):
             t = k - PROFILE_HALF

@@ -1,12 +1,18 @@
-"""The wheel is the product: built, installed non-editable into a clean virtual environment and run
-from a directory outside the checkout, it renders the `quick` spec and locates points exactly as the
-checkout does; site-packages holds `edgetruth` only (no top-level render/locate/evaluate)."""
+"""The wheel is the product: built, installed non-editable into a clean virtual environment (a plain
+`pip install`, nothing else) and run from a directory outside the checkout, it renders the `quick`
+spec with the fast llvm_ad_rgb variant where the platform allows (its pip libLLVM comes as a
+dependency) and locates points exactly as the checkout does, one image or a folder per call;
+site-packages holds `edgetruth` only (no top-level render/locate/evaluate); and the numba kernels'
+cache works from a read-only site-packages (a per-user folder instead)."""
 from __future__ import annotations
 
 import hashlib
+import os
+import platform
 import shutil
 import subprocess
 import sys
+import tempfile
 import venv
 from pathlib import Path
 
@@ -16,16 +22,32 @@ ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.slow
 
 
+#: what this (checkout) process set or inherited must not help the installed wheel
+CLEAN_ENV = {k: v for k, v in os.environ.items()
+             if k not in ("DRJIT_LIBLLVM_PATH", "PYTHONPATH", "VIRTUAL_ENV") and not k.startswith("NUMBA_")}
+
+
 def _run(cmd, cwd, timeout=900):
-    r = subprocess.run([str(c) for c in cmd], cwd=cwd, capture_output=True, text=True, timeout=timeout)
+    r = subprocess.run([str(c) for c in cmd], cwd=cwd, capture_output=True, text=True, timeout=timeout,
+                       env=CLEAN_ENV)
     assert r.returncode == 0, f"{cmd}\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
     return r
 
 
 @pytest.fixture(scope="module")
-def installed(tmp_path_factory):
-    """(python of a clean venv with the wheel installed, a working directory outside the checkout)."""
-    d = tmp_path_factory.mktemp("wheel")
+def installed():
+    """(python of a clean venv with the wheel installed, a working directory outside the checkout).
+    In a folder of its own that other users may read (the read-only test runs as one)."""
+    d = Path(tempfile.mkdtemp(prefix="edgetruth-wheel-"))
+    d.chmod(0o755)
+    try:
+        yield _install(d)
+    finally:
+        subprocess.run(["chmod", "-R", "u+w", str(d)], capture_output=True)
+        shutil.rmtree(d, ignore_errors=True)
+
+
+def _install(d: Path):
     # build from a copy: setuptools leaves build/ in the source tree, and stale files there would ship
     src = d / "src"
     shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(".venv", "build", "runs", ".git", "__pycache__",
@@ -35,19 +57,20 @@ def installed(tmp_path_factory):
     assert len(wheels) == 1
     venv.create(d / "v", with_pip=True)
     py = d / "v" / "bin" / "python"
-    _run([py, "-m", "pip", "install", "-q", "--disable-pip-version-check", wheels[0]], d)
-    # the optional speed-up `make` installs, so both sides render with the same Mitsuba variant
-    subprocess.run([py, "-m", "pip", "install", "-q", "--disable-pip-version-check", "karellen-llvm-core"],
-                   cwd=d, capture_output=True, timeout=900)
+    _run([py, "-m", "pip", "install", "-q", "--disable-pip-version-check", wheels[0]], d)  # that is all
     work = d / "elsewhere"
     work.mkdir()
     return py, work
 
 
+def _site(py, work) -> Path:
+    r = _run([py, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], work)
+    return Path(r.stdout.strip())
+
+
 def test_site_packages_holds_one_namespace(installed):
     py, work = installed
-    r = _run([py, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], work)
-    site = Path(r.stdout.strip())
+    site = _site(py, work)
     assert (site / "edgetruth" / "render" / "spec.py").is_file()
     assert (site / "edgetruth" / "scenes" / "quick.toml").is_file()
     assert (site / "edgetruth" / "assets" / "entropy_thresholds.json").is_file()
@@ -76,7 +99,10 @@ def test_wheel_renders_and_locates_exactly_like_the_checkout(installed, tmp_path
     out = work / "runs" / "render" / "quick"  # the default output: under the current directory
     assert (out / "manifest.json").is_file(), r.stdout
     wheel_ds = open_dataset(out)
-    assert len(wheel_ds) == 2 and "variant " + fast_variant in r.stdout
+    chosen = next(line for line in r.stdout.splitlines() if "Mitsuba variant" in line)
+    print(chosen)  # e.g. "render: using Mitsuba variant llvm_ad_rgb"
+    assert len(wheel_ds) == 2 and chosen.endswith("variant " + fast_variant)
+    assert "warning" not in r.stderr, r.stderr  # no fallback note: nothing to install
     first = wheel_ds.targets()[0]
     _run([edgetruth, "locate", out / f"{first.name}.png", "-m", "dynamic_erf_4p", "-o", work / "pts.csv"], work)
 
@@ -91,3 +117,87 @@ def test_wheel_renders_and_locates_exactly_like_the_checkout(installed, tmp_path
     pts.to_csv(tmp_path / "pts.csv")
     assert (work / "pts.csv").read_bytes() == (tmp_path / "pts.csv").read_bytes()
     assert len(pts) > 100 and here.kind == "target"
+
+
+@pytest.mark.skipif(not (sys.platform == "linux" and platform.machine() == "x86_64"),
+                    reason="karellen-llvm-core has wheels for Linux x86_64 only")
+def test_a_plain_install_brings_the_pip_libllvm(installed):
+    py, work = installed
+    r = _run([py, "-c", "from importlib.metadata import version as v; print(v('karellen-llvm-core'), "
+                        "v('wheel-axle-runtime'))"], work)
+    assert len(r.stdout.split()) == 2
+    r = _run([py, "-c", "import os, edgetruth.render.variants as V; print(V.pip_libllvm_path()); "
+                        "print(os.environ.get('DRJIT_LIBLLVM_PATH'))"], work)
+    lib, env = r.stdout.split()
+    assert Path(lib).is_file() and Path(lib).parent == py.parent.parent / "lib" and env == lib
+
+
+def test_wheel_locates_a_folder_in_one_call(installed, tmp_path):
+    import cv2
+    import numpy as np
+
+    py, work = installed
+    edgetruth = py.parent / "edgetruth"
+    shots = work / "shots"
+    shots.mkdir(exist_ok=True)
+    for i in range(3):
+        img = np.full((48, 64), 200, np.uint8)
+        img[:, 20 + 7 * i:] = 40
+        cv2.imwrite(str(shots / f"s{i}.png"), cv2.GaussianBlur(img, (0, 0), 1.0))
+    _run([edgetruth, "locate", shots, "-m", "glm1984", "-o", work / "each"], work)
+    _run([edgetruth, "locate", str(shots / "s*.png"), "-m", "glm1984", "-o", work / "all.csv"], work)
+    _run([edgetruth, "locate", shots / "s1.png", "-m", "glm1984", "-o", work / "one.csv"], work)
+    assert (work / "each" / "s1.csv").read_bytes() == (work / "one.csv").read_bytes()
+    rows = (work / "all.csv").read_text().splitlines()
+    assert rows[0].startswith("image,x,y,") and len({r.split(",")[0] for r in rows[1:]}) == 3
+
+
+def _as_other_user() -> list[str] | None:
+    """A command prefix that drops root (a read-only folder stops no root process), [] when not root."""
+    if os.geteuid() != 0:
+        return []
+    if not shutil.which("setpriv"):
+        return None
+    return ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", "--"]
+
+
+def test_numba_cache_from_a_read_only_site_packages(installed):
+    """chmod -R a-w site-packages/edgetruth, a home that cannot be written either: locate runs twice, the
+    first call compiles into the per-user folder under TMPDIR, the second loads from it."""
+    import cv2
+    import numpy as np
+
+    prefix = _as_other_user()
+    if prefix is None:
+        pytest.skip("running as root without setpriv: cannot make a folder read-only to this process")
+    py, work = installed
+    site = _site(py, work) / "edgetruth"
+    ro = work.parent / "ro"
+    ro.mkdir()
+    tmp = ro / "tmp"
+    tmp.mkdir()
+    tmp.chmod(0o1777)
+    img = np.full((48, 64), 200, np.uint8)
+    img[:, 30:] = 40
+    cv2.imwrite(str(ro / "img.png"), cv2.GaussianBlur(img, (0, 0), 1.0))
+    (ro / "img.png").chmod(0o644)
+    _run(["chmod", "-R", "a-w", site], work)
+    try:
+        in_package = sorted(site.rglob("*.nb[ic]"))  # the root runs above may have cached there
+        env = dict(CLEAN_ENV)
+        env.update(HOME="/nonexistent", TMPDIR=str(tmp), NUMBA_DEBUG_CACHE="1", XDG_CACHE_HOME="/nonexistent/c")
+        runs = []
+        for k in range(2):
+            r = subprocess.run([*prefix, str(py.parent / "edgetruth"), "locate", str(ro / "img.png"), "-o",
+                                str(tmp / f"p{k}.csv")], cwd=tmp, env=env, capture_output=True, text=True, timeout=900)
+            assert r.returncode == 0, r.stdout + r.stderr
+            runs.append(r.stdout)
+            assert not r.stderr.strip(), r.stderr  # a cache folder was found: no warning
+        folder = [p for p in tmp.iterdir() if p.name.startswith("edgetruth-numba-")]
+        assert len(folder) == 1 and list(folder[0].rglob("*.nbc")), runs[0]
+        assert "data saved" in runs[0] and str(folder[0]) in runs[0]
+        assert "data loaded" in runs[1] and "data saved" not in runs[1], runs[1]
+        assert sorted(site.rglob("*.nb[ic]")) == in_package  # nothing was written into the package
+        assert (tmp / "p0.csv").read_bytes() == (tmp / "p1.csv").read_bytes()
+    finally:
+        _run(["chmod", "-R", "u+w", site], work)

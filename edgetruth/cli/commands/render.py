@@ -7,6 +7,9 @@ from pathlib import Path
 
 def register(subparsers) -> None:
     from edgetruth.cli import add_backend_options, add_progress_option
+    from edgetruth.resources import shipped_spec_names
+
+    shipped = ", ".join(shipped_spec_names()) or "none (broken install)"
 
     p = subparsers.add_parser(
         "render", help="render a spec into images + ground truth (resumable)",
@@ -14,7 +17,7 @@ def register(subparsers) -> None:
                     "DIR: NAME.exr (radiance), NAME.png (16-bit sensor image), NAME.json (ground truth) and "
                     "manifest.json (formats in docs/formats.md).  Images already complete (hashes verified) "
                     "are skipped, so an interrupted run resumes.")
-    p.add_argument("spec", metavar="SPEC", help="spec name (quick, study, calibration) or TOML path")
+    p.add_argument("spec", metavar="SPEC", help=f"a shipped spec ({shipped}) or a TOML path")
     p.add_argument("-o", "--output", metavar="DIR", type=Path, default=None,
                    help="output directory (default: ./runs/render/SPEC)")
     p.add_argument("--variant", default=None,
