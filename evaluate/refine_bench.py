@@ -47,14 +47,16 @@ def bench_image(shape=BENCH_SHAPE, tile: int = 128, seed: int = 0) -> np.ndarray
 def interleaved_times(img, cand, methods, repeats: int, options: dict | None = None) -> dict:
     """Wall times (s) of one refinement call per method, ``repeats`` rounds, every method once per round:
     a change of machine load hits all methods alike, so per-round ratios compare like with like."""
-    options = options or {}
+    from edgetruth.evaluate.method_order import resolve
+
+    run = {m: resolve(m, options) for m in methods}  # a label with options (pae2013:variant=floating) runs its method
     for m in methods:
-        locate.refine(img, cand, m, **options.get(m, {}))  # compile / warm caches
+        locate.refine(img, cand, run[m][0], **run[m][1])  # compile / warm caches
     times = {m: [] for m in methods}
     for _ in range(repeats):
         for m in methods:
             t0 = time.perf_counter()
-            locate.refine(img, cand, m, **options.get(m, {}))
+            locate.refine(img, cand, run[m][0], **run[m][1])
             times[m].append(time.perf_counter() - t0)
     return times
 

@@ -110,6 +110,128 @@ def check_options(m: Method, options: dict) -> None:
                          f"{', '.join(known) or 'none'}")
 
 
+#: Between a method id and its options, and between options, in a method spec: ``pae2013:variant=smoothed:order=1``.
+OPTION_SEP = ":"
+
+
+class _ProbeStop(Exception):
+    """Raised by the probe's candidates the moment a method reads them (its option checks are behind it)."""
+
+
+class _ProbeCandidates:
+    def __getattr__(self, name):
+        raise _ProbeStop
+
+    def __len__(self):
+        raise _ProbeStop
+
+    def __getitem__(self, key):
+        raise _ProbeStop
+
+
+def _spec_value(raw: str):
+    """A spec's value text -> bool, None, int, float or str (in that order of trial)."""
+    low = raw.lower()
+    if low in ("true", "false"):
+        return low == "true"
+    if low == "none":
+        return None
+    for kind in (int, float):
+        try:
+            return kind(raw)
+        except ValueError:
+            pass
+    return raw
+
+
+def format_option_value(v) -> str:
+    """The spec text of an option value (``_spec_value`` reads it back)."""
+    if isinstance(v, bool) or v is None:
+        return str(v).lower()
+    return repr(v) if isinstance(v, float) else str(v)
+
+
+def _shown(v) -> str:
+    return f"{v:.6g}" if isinstance(v, float) else format_option_value(v)
+
+
+def _coerce(m: Method, param: inspect.Parameter, raw: str, spec: str, accepted: str):
+    """``raw`` as the type ``param``'s default (or its annotation, when the default is None) says."""
+    v = _spec_value(raw)
+    d = param.default
+    ann = "" if param.annotation is inspect.Parameter.empty else str(param.annotation)
+    kinds = set(re.findall(r"\b(bool|int|float|str)\b", ann))
+
+    def bad(what: str):
+        return InputError(f"{spec}: option {param.name} of method {m.id} takes {what}, not {raw!r} "
+                          f"(its options: {accepted})")
+
+    if isinstance(d, bool) or (d is None and kinds == {"bool"}):
+        if not isinstance(v, bool):
+            raise bad("true or false")
+        return v
+    if isinstance(d, str) or (d is None and "str" in kinds):
+        return raw
+    if isinstance(d, int) or (d is None and kinds and kinds <= {"int"}):
+        if d is None and v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise bad("an integer" + (" or none" if d is None else ""))
+        return v
+    if isinstance(d, float) or (d is None and "float" in kinds):
+        if d is None and v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise bad("a number" + (" or none" if d is None else ""))
+        return float(v)
+    return v  # no default type to go by: the value as read; the method checks it
+
+
+def parse_method_spec(spec: str, probe: bool = True) -> tuple[str, dict]:
+    """``METHOD[:key=value]...`` -> (method id, {option: value}), checked against the method's signature.
+
+    Values are read as true/false, none, integers, numbers or text, then held to the type of the option's
+    default (an int option refuses 2.5; a float one takes 2 as 2.0; a str one keeps the text as written).
+    ``probe``: also call the method with the options on a stand-in that stops it as soon as it reads the
+    candidates, so a value the method refuses up front (``variant=nope``) is refused here, one line."""
+    if not isinstance(spec, str):
+        raise InputError(f"method {spec!r}: give a method id (see `edgetruth methods`)")
+    method_id, *parts = spec.strip().split(OPTION_SEP)
+    m = get_method(method_id.strip())
+    if not parts:
+        return m.id, {}
+    params = {p.name: p for p in list(inspect.signature(m.fn).parameters.values())[2:]
+              if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    accepted = ", ".join(f"{k}={_shown(p.default) if p.default is not p.empty else '?'}"
+                         for k, p in params.items()) or "none"
+    options: dict = {}
+    for part in parts:
+        key, eq, raw = part.partition("=")
+        key, raw = key.strip(), raw.strip()
+        if not eq or not key or not raw:
+            raise InputError(f"{spec}: {part!r} is not key=value; write {m.id}{OPTION_SEP}key=value"
+                             f"[{OPTION_SEP}key=value] (options of {m.id}: {accepted})")
+        if key not in params:
+            raise InputError(f"{spec}: method {m.id} has no option {key!r}; its options: {accepted}")
+        if key in options:
+            raise InputError(f"{spec}: option {key} is given twice; give it once")
+        options[key] = _coerce(m, params[key], raw, spec, accepted)
+    options = {k: options[k] for k in params if k in options}  # the signature's order
+    if probe:
+        try:
+            m.fn(np.zeros((16, 16)), _ProbeCandidates(), **options)
+        except InputError as exc:
+            raise InputError(f"{spec}: {exc}") from None
+        except Exception:  # _ProbeStop, or a method that reads the image or candidates first: it checks at run time
+            pass
+    return m.id, options
+
+
+def method_spec(method_id: str, options: dict) -> str:
+    """The canonical spec text of ``method_id`` with ``options`` (``parse_method_spec`` reads it back)."""
+    return OPTION_SEP.join([method_id, *(f"{k}={format_option_value(v)}" for k, v in options.items())])
+
+
 def refine(image, cand: Candidates, method: str = "dynamic_erf_4p", **options) -> EdgePoints:
     """Refine the candidates ``cand`` of ``image`` with ``method``.
 

@@ -60,18 +60,23 @@ def positive_int(text: str) -> int:
     return n
 
 
-def method_list(text: str | None) -> list[str] | None:
-    """``--methods a,b`` -> ['a', 'b'] (checked against the registry), None for all."""
-    if not text:
-        return None
-    from edgetruth import locate
+#: ``--methods`` / ``-m`` help: the method-options syntax, the same on every command
+METHOD_SYNTAX = ("a method's options go after its id, joined by ':' (METHOD:key=value[:key=value]), e.g. "
+                 "pae2013:variant=floating:order=1; values are read as true/false, none, integers, numbers or "
+                 "text and checked against the method's signature (`edgetruth methods` lists the methods).  "
+                 "Options are added to those the studies use (pae2013 runs variant=smoothed unless told otherwise)")
 
-    ids = [m.strip() for m in text.split(",") if m.strip()]
-    if not ids:
-        raise InputError(f"--methods {text!r}: give comma-separated method ids (see `edgetruth methods`)")
-    for m in ids:
-        locate.get_method(m)
-    return ids
+
+def methods_help(what: str = "comma-separated method ids (default: all, plug-ins included)") -> str:
+    return f"{what}; {METHOD_SYNTAX}; a method given twice with different options gives one row each"
+
+
+def method_list(text: str | None) -> list[str] | None:
+    """``--methods a,b:key=value`` -> ['a', 'b:key=value'] (each checked against the registry and the
+    method's signature, written the canonical way), None for all."""
+    from edgetruth.evaluate.method_order import method_specs
+
+    return method_specs(text)
 
 
 def build_parser() -> argparse.ArgumentParser:

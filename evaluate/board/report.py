@@ -82,7 +82,6 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
     from edgetruth.resources import source_commit
 
     tau = mo.thresholds_in_use(thresholds)
-    opts = {m: {k: v for k, v in o.items() if k != "tau"} for m, o in options.items() if m in methods}
     w, h = size
     return [
         f"edgetruth {__version__}, commit {source_commit()[:12]}; {utc_stamp()} (UTC); study time {elapsed_s:.1f} s.",
@@ -93,8 +92,9 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
         f"{inp.model.units}.",
         f"- Reference: {reference['source'] if reference else 'none'}"
         + (f"; reference row: the set's own corners ({REFERENCE_ROW})" if reference_row else "") + ".",
-        f"- Methods ({len(methods)}): {', '.join(methods)}; options {opts or '{}'}; entropy thresholds "
+        f"- Methods ({len(methods)}): {', '.join(methods)}; entropy thresholds "
         f"2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']}).",
+        f"- {mo.options_line(methods, options)}",
         "- Candidates: `locate.candidates` (Canny on the σ = 1 px smoothed image), once per photo, the same for "
         "every method; those within 5 px of a detected square's side are refined.",
         "- Procedure (docs/board.md): dark quads → the model's squares by a homography (symmetric boards: no mirror, "

@@ -32,6 +32,12 @@ def _label(m: str) -> str:
     return label(m)
 
 
+def _options_line(methods) -> str:
+    """The options each method ran with (the studies' ``STUDY_OPTIONS`` and any ``METHOD:key=value`` label)."""
+    from edgetruth.evaluate.method_order import options_line
+    return options_line(methods)
+
+
 def _ok(rows):
     return [r for r in rows if r.get("status") == "ok" and np.isfinite(r.get("error_cm", np.nan))]
 
@@ -415,6 +421,7 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     L = [f"# edgetruth {title}", ""]
     for k, v in (header or {}).items():
         L.append(f"- **{k}**: {v}")
+    L.append(f"- **method options**: {_options_line(methods)}")
     if synthetic_report:
         import os
 

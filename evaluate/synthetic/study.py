@@ -68,7 +68,8 @@ def _warm_up(methods, options):
     s = synthetic_image("ideal", 0, split="unit")
     cand = locate.candidates(s.image)
     for m in methods:
-        locate.refine(s.image, cand, m, **options.get(m, {}))
+        mid, kw = mo.resolve(m, options)
+        locate.refine(s.image, cand, mid, **kw)
 
 
 def _run_block(scenario, start, stop, methods, shape, options):
@@ -86,7 +87,8 @@ def _run_block(scenario, start, stop, methods, shape, options):
         n = len(cand)
         rec["image"].append(np.full(n, i))
         for m in methods:
-            pts = locate.refine(s.image, cand, m, **options.get(m, {}))
+            mid, kw = mo.resolve(m, options)
+            pts = locate.refine(s.image, cand, mid, **kw)
             rec["errors"][m].append(s.errors(pts.x, pts.y))
             rec["conv"][m].append(pts.converged)
             rec["time"][m] += pts.elapsed_s
@@ -124,7 +126,8 @@ def _reference_bound(s, cand) -> np.ndarray:
 def _footprint_bounds(s, cand, methods, options) -> dict:
     """Each method's per-point bound over its own footprint (evaluate.crb): the true edge, blur(s),
     levels and Gaussian noise of the image; slope and texture are known background (no information)."""
-    masks = {m: locate.METHODS[m].footprint_masks(cand, **options.get(m, {})) for m in methods}
+    masks = {m: locate.METHODS[mo.resolve(m, options)[0]].footprint_masks(cand, **mo.resolve(m, options)[1])
+             for m in methods}
     # methods sharing a footprint share its Fisher matrices
     unique, key_of = {}, {}
     for m, mk in masks.items():
@@ -496,7 +499,7 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
         f"(|candidate − true edge| ≤ {MATCH_RADIUS_PX} px), {d.off_edge} off-edge candidates excluded for every method. "
         "Seeds: test split (disjoint from the threshold calibration split). "
         f"Entropy thresholds: 2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']}). "
-        f"Study options: { {m: {k: v for k, v in o.items() if k != 'tau'} for m, o in d.options.items()} }. "
+        f"{mo.options_line(d.methods, d.options)} "
         "Errors are signed distances to the true edge along the true normal.",
         "",
         "Every method answers every candidate; where it declines one (`converged=False`) the answer is the candidate "
@@ -612,7 +615,7 @@ def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: 
         raise InputError(f"images per scenario = {n_per}: need at least 2")
     methods = mo.ordered(methods)
     for m in methods:
-        locate.get_method(m)
+        locate.get_method(mo.resolve(m)[0])
     from edgetruth.backends import check_backend_args
     from edgetruth.fileio import make_output_dir
 

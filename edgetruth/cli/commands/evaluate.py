@@ -17,7 +17,8 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    from edgetruth.cli import add_backend_options, add_image_options, add_plugin_option, add_progress_option
+    from edgetruth.cli import (add_backend_options, add_image_options, add_plugin_option, add_progress_option,
+                               methods_help)
 
     p = sub.add_parser("evaluate", help="rank every method on datasets you rendered (ranging + edge error report)",
                        description=__doc__.split("\n\n")[1], formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -31,7 +32,7 @@ def register(sub) -> None:
     p.add_argument("--calibration", metavar="FILE|DIR", default=None,
                    help="calibration.json (of a run or `edgetruth calibrate`), or a dataset of checkerboard renders "
                         "to calibrate from (default: the checkerboards among the DATASETs; required with --photos)")
-    p.add_argument("--methods", default=None, help="comma-separated method ids (default: all, plug-ins included)")
+    p.add_argument("--methods", default=None, metavar="LIST", help=methods_help())
     p.add_argument("--thresholds", default=None, metavar="FILE",
                    help="entropy thresholds for the dynamic methods (default: the shipped ones)")
     p.add_argument("--camera-thresholds", default=None, metavar="FILE",

@@ -21,7 +21,7 @@ BATCH_HELP = ("One IMAGE file: -o is its CSV file.  Several IMAGEs, a folder (it
 
 
 def register(sub) -> None:
-    from edgetruth.cli import add_image_options, add_plugin_option, add_progress_option
+    from edgetruth.cli import METHOD_SYNTAX, add_image_options, add_plugin_option, add_progress_option
 
     p = sub.add_parser("locate", help="subpixel edge points of images -> CSV (one or many images per call)",
                        description="Canny candidates refined by METHOD; one CSV row per point "
@@ -30,7 +30,11 @@ def register(sub) -> None:
     p.add_argument("image", nargs="+", metavar="IMAGE",
                    help="image file (PNG/TIFF/JPEG 8/16-bit, EXR, .npy), gray or colour (see --channel), its EXIF "
                         "orientation honoured; or a folder of them, or a glob pattern; several may be given")
-    p.add_argument("--method", "-m", default="dynamic_erf_4p", help="method id (see `edgetruth methods`)")
+    p.add_argument("--method", "-m", default="dynamic_erf_4p", metavar="METHOD[:key=value...]",
+                   help="method id (see `edgetruth methods`; default dynamic_erf_4p), with its options if wanted; "
+                        + METHOD_SYNTAX + ", so `-m pae2013` gives the points `edgetruth evaluate` and the "
+                        "studies compute, and `-m pae2013:variant=floating` the method's own default.  The "
+                        "options that ran are printed")
     p.add_argument("-o", "--output", required=True,
                    help="one IMAGE: the CSV file to write; several: a folder (one STEM.csv per image) or a "
                         "FILE.csv (all points, with an image column); written atomically")
@@ -146,19 +150,48 @@ def _quote(text: str) -> str:
     return buf.getvalue()
 
 
+def method_and_options(spec: str) -> tuple[str, dict]:
+    """``-m METHOD[:key=value...]`` -> (method id, the options it runs with): the studies' options for it
+    (``method_order.STUDY_OPTIONS``) overridden by the spec's own, every one checked first."""
+    from edgetruth.errors import InputError
+    from edgetruth.evaluate import method_order as mo
+
+    labels = mo.method_specs(spec)
+    if not labels or len(labels) != 1:
+        raise InputError(f"-m {spec!r}: give one method, METHOD[:key=value...] (for several, call locate once "
+                         "per method)")
+    return mo.resolve(labels[0], mo.STUDY_OPTIONS)
+
+
+def options_note(method: str, options: dict, spec: str) -> str | None:
+    """The line that says which options ran (None: the method's own defaults, none given)."""
+    from edgetruth.evaluate import method_order as mo
+    from edgetruth.locate.registry import OPTION_SEP, format_option_value
+
+    shown = {k: v for k, v in options.items() if k != "tau"}
+    if not shown:
+        return None
+    study = mo.STUDY_OPTIONS.get(method, {})
+    from_study = [k for k in shown if k in study and study[k] == shown[k] and f"{k}=" not in spec]
+    text = ", ".join(f"{k}={format_option_value(v)}" for k, v in shown.items())
+    note = (f" ({', '.join(from_study)}: the studies' choice, STUDY_OPTIONS; set it with -m "
+            f"{method}{OPTION_SEP}{from_study[0]}=VALUE)") if from_study else ""
+    return f"{method} ran with {text}{note}"
+
+
 def run(args: argparse.Namespace) -> int:
     from edgetruth import console, locate
     from edgetruth.errors import InputError
     from edgetruth.fileio import atomic_write_text, check_output_file
     from edgetruth.locate import thresholds as thr
 
-    locate.get_method(args.method)
+    method, options = method_and_options(args.method)
     images, batch = expand_images(args.image)
-    options = {}
     if args.thresholds is not None:
-        if not args.method.startswith("dynamic_erf_"):
-            raise InputError(f"--thresholds applies to dynamic_erf_2p/4p only, not {args.method}")
-        options["tau"] = thr.load(args.method[-2:], args.thresholds)
+        if not method.startswith("dynamic_erf_"):
+            raise InputError(f"--thresholds applies to dynamic_erf_2p/4p only, not {method}")
+        options["tau"] = thr.load(method[-2:], args.thresholds)
+    args.method, args.method_label = method, args.method
     if not batch:
         name, path = images[0]
         out = check_output_file(args.output, "-o", inputs=[path])
@@ -169,12 +202,22 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise InputError(f"-o {out}: cannot write ({exc.strerror}); choose a writable location") from exc
         console.say(f"{len(pts)} points ({int(pts.converged.sum())} converged) -> {out}")
+        _say_options(args, options)
         return 0
     out, targets = plan_outputs(images, args.output)
     n_pts, n_conv = _write_batch(images, targets, out, args, options)
     where = f"{len(images)} CSV files in {out}" if targets is not None else str(out)
     console.say(f"{len(images)} images, {n_pts} points ({n_conv} converged) -> {where}")
+    _say_options(args, options)
     return 0
+
+
+def _say_options(args, options: dict) -> None:
+    from edgetruth import console
+
+    note = options_note(args.method, options, args.method_label)
+    if note:
+        console.say(note)
 
 
 def _points(name: str, path: Path, args, options):

@@ -19,7 +19,7 @@ from pathlib import Path
 
 
 def register(subparsers) -> None:
-    from edgetruth.cli import add_plugin_option, add_progress_option, positive_int
+    from edgetruth.cli import add_plugin_option, add_progress_option, methods_help, positive_int
     from edgetruth.evaluate.ranging.main_job import STUDIES
 
     p = subparsers.add_parser(
@@ -32,7 +32,7 @@ def register(subparsers) -> None:
                    help="at most N target images per group (evenly spread over distance)")
     p.add_argument("--calib-limit", metavar="N", type=int, default=None,
                    help="at most N calibration boards (>= 4)")
-    p.add_argument("--methods", default=None, help="comma-separated method ids (default: all, plug-ins included)")
+    p.add_argument("--methods", default=None, metavar="LIST", help=methods_help())
     p.add_argument("--thresholds", default=None, metavar="FILE",
                    help="entropy thresholds for the dynamic methods (default: the shipped ones)")
     p.add_argument("--camera-thresholds", default=None, metavar="FILE",

@@ -17,7 +17,7 @@ _TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant"}
 
 def register(sub) -> None:
     from edgetruth.cli import (add_backend_options, add_image_options, add_plugin_option, add_progress_option,
-                               positive_int)
+                               methods_help, positive_int)
 
     p = sub.add_parser("study", help="run a study and write its report",
                        description="synthetic: the seed's synthetic study (Tables 3-8, Figures 4-7) on analytic "
@@ -52,7 +52,7 @@ def register(sub) -> None:
                         "(the seed's scale)")
     p.add_argument("--images-per-scenario", type=positive_int, default=None,
                    help="synthetic: override the preset's image count")
-    p.add_argument("--methods", default=None, help="comma-separated method ids (default: all, plug-ins included)")
+    p.add_argument("--methods", default=None, metavar="LIST", help=methods_help())
     p.add_argument("--thresholds", default=None, metavar="FILE",
                    help="entropy thresholds for the dynamic methods (default: the shipped ones)")
     p.add_argument("-o", "--output", default=None, help="output directory (default ./runs/<UTC stamp>-<kind>); "
