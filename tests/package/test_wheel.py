@@ -201,3 +201,21 @@ def test_numba_cache_from_a_read_only_site_packages(installed):
         assert (tmp / "p0.csv").read_bytes() == (tmp / "p1.csv").read_bytes()
     finally:
         _run(["chmod", "-R", "u+w", site], work)
+
+
+def test_wheel_runs_the_board_study_on_the_shipped_real_photos(installed):
+    """Zhang's photos, model and corners are package data: the board study runs from the wheel, from
+    any folder, and its reference row (Zhang's own corners) gives his calibration."""
+    import csv
+
+    py, work = installed
+    (work / "board").mkdir(exist_ok=True)
+    _run([py.parent / "edgetruth", "study", "board", "zhang1998", "--methods", "canny_devernay,erf4p_fixed11",
+          "-o", work / "board" / "zhang", "--no-progress"], work / "board")
+    out = work / "board" / "zhang"
+    report = (out / "report.md").read_text()
+    assert "Zhang's corners" in report and "Canny" in report
+    rows = {r["row"]: r for r in csv.DictReader(open(out / "summary.csv"))}
+    ref = rows["zhang_corners"]
+    assert abs(float(ref["calib_rms_px"]) - 0.337) <= 0.01 and abs(float(ref["fx"]) - 832.2) <= 1.0
+    assert float(rows["canny_devernay"]["straightness_px"]) > 0
