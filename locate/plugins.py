@@ -30,6 +30,7 @@ from edgetruth.locate.registry import METHODS, Method, register
 
 ENTRY_POINT_GROUP = "edgetruth.methods"
 _loaded: dict[str, object] = {}
+_path_added: list[str] = []  # folders put on sys.path to import a plug-in by name (python -m's rule)
 _entry_points_loaded = False
 
 
@@ -85,6 +86,7 @@ def _import_by_name(ref: str):
         cwd = str(Path.cwd())
         if cwd not in sys.path:
             sys.path.insert(0, cwd)
+            _path_added.append(cwd)
         importlib.invalidate_caches()
         if importlib.util.find_spec(ref.split(".")[0]) is None:
             raise InputError(f"--plugin {ref}: no module named {ref.split('.')[0]!r} on the import path nor in the "
@@ -109,13 +111,22 @@ def _ship(m: Method) -> bool:
     return getattr(m.fn, "__module__", "") not in {getattr(v, "__name__", None) for v in _loaded.values()}
 
 
+def _worker_ref(ref: str, module) -> str:
+    """How a worker imports a plug-in: its name, or its file when it was found in this process's
+    current folder (a worker may start elsewhere)."""
+    f = getattr(module, "__file__", None)
+    if f and any(str(Path(f).resolve()).startswith(str(Path(d).resolve()) + "/") for d in _path_added):
+        return f
+    return ref
+
+
 def worker_payload(methods=None) -> tuple:
     """Initializer arguments that make a worker know the same methods as this process."""
     import cloudpickle
 
     wanted = list(METHODS) if methods is None else list(methods)
     extra = {k: METHODS[k] for k in wanted if k in METHODS and _ship(METHODS[k])}
-    return (tuple(_loaded), cloudpickle.dumps(extra) if extra else b"")
+    return (tuple(_worker_ref(r, m) for r, m in _loaded.items()), cloudpickle.dumps(extra) if extra else b"")
 
 
 def init_worker(plugin_refs: tuple = (), shipped: bytes = b"") -> None:

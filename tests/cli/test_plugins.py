@@ -114,8 +114,26 @@ def test_bad_plugin_is_one_line(argv, expect, capsys):
     assert len(err) == 1 and expect in err[0]
 
 
-def test_plugin_by_module_name_from_its_own_folder(tmp_path, monkeypatch, capsys):
-    """`--plugin my_edges` run from the folder that holds my_edges.py imports it, as `python -m` would."""
+@pytest.fixture
+def isolated_plugins(monkeypatch):
+    """The registry, the loaded plug-ins and sys.path as they were before the test (later tests run
+    'all methods' and start workers that import every loaded plug-in)."""
+    from edgetruth.locate import plugins, registry
+
+    monkeypatch.setattr(plugins, "_loaded", {})
+    monkeypatch.setattr(plugins, "_path_added", [])
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    saved = dict(registry.METHODS)
+    yield
+    registry.METHODS.clear()
+    registry.METHODS.update(saved)
+    sys.modules.pop("my_edges_cwd", None)
+    sys.modules.pop("broken_dep_mod", None)
+
+
+def test_plugin_by_module_name_from_its_own_folder(tmp_path, monkeypatch, capsys, isolated_plugins):
+    """`--plugin my_edges` run from the folder that holds my_edges.py imports it, as `python -m` would;
+    workers, which may start elsewhere, get its file."""
     (tmp_path / "my_edges_cwd.py").write_text(PLUGIN.read_text().replace("user_gradient_centroid",
                                                                           "user_cwd_centroid"))
     monkeypatch.chdir(tmp_path)
@@ -123,9 +141,13 @@ def test_plugin_by_module_name_from_its_own_folder(tmp_path, monkeypatch, capsys
     rc = main(["methods", "--plugin", "my_edges_cwd"])
     assert rc == 0, capsys.readouterr().err
     assert "user_cwd_centroid" in capsys.readouterr().out
+    from edgetruth.locate.plugins import worker_payload
+
+    refs, _ = worker_payload(["user_cwd_centroid"])
+    assert refs == (str(tmp_path / "my_edges_cwd.py"),)
 
 
-def test_plugin_errors_name_the_real_cause(tmp_path, monkeypatch, capsys):
+def test_plugin_errors_name_the_real_cause(tmp_path, monkeypatch, capsys, isolated_plugins):
     monkeypatch.chdir(tmp_path)
     assert main(["methods", "--plugin", "no_such_module_xyz"]) == 2
     err = capsys.readouterr().err.strip()
