@@ -45,3 +45,17 @@ def prepare_run_dir(out: str | Path, kind: str, settings: dict, option: str = "-
     out.mkdir(parents=True, exist_ok=True)
     write_json(marker, {"kind": kind, "edgetruth": __version__, "settings": settings, "updated_utc": utc_stamp()})
     return out
+
+
+def check_same_settings(out: str | Path, kind: str, settings: dict, what: str, option: str = "-o") -> Path:
+    """``check_run_dir``, and refuse a ``kind`` run made with other ``settings`` (a study that can only
+    be resumed or re-made with its own settings); ``what`` names it in the message."""
+    out = check_run_dir(out, kind, option)
+    marker = out / RUN_MARKER
+    if marker.is_file():
+        old = read_json(marker).get("settings", {})
+        if {k: old.get(k) for k in settings} != settings:
+            diff = [k for k in settings if old.get(k) != settings[k]]
+            raise InputError(f"{option} {out}: holds {what} of other {', '.join(diff)}; choose a new directory "
+                             "(or the same settings to resume or re-make it)")
+    return out

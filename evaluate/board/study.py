@@ -56,19 +56,10 @@ def _jsonable(options: dict) -> dict:
 
 
 def check_output(out: Path, settings: dict) -> Path:
-    """Refuse a foreign directory (``check_run_dir``) or a board study of other settings, before any work."""
-    from edgetruth.evaluate.run_dir import RUN_MARKER, check_run_dir
-    from edgetruth.fileio import read_json
+    """Refuse a foreign directory or a board study of other settings, before any work."""
+    from edgetruth.evaluate.run_dir import check_same_settings
 
-    out = check_run_dir(out, KIND)
-    marker = out / RUN_MARKER
-    if marker.is_file():
-        old = read_json(marker).get("settings", {})
-        if {k: old.get(k) for k in settings} != settings:
-            diff = [k for k in settings if old.get(k) != settings[k]]
-            raise InputError(f"-o {out}: holds a board study of other {', '.join(diff)}; choose a new directory "
-                             "(or the same settings to re-make it)")
-    return out
+    return check_same_settings(out, KIND, settings, "a board study")
 
 
 def locate_squares(inp: BoardInputs, images, progress: bool):

@@ -173,7 +173,7 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     """Render the twin of ``set_name`` and compare it with the photos (module docstring); returns report.md."""
     from edgetruth.evaluate.board.photo_model import derive_twin, measure_photo
     from edgetruth.evaluate.board.study import compute_board_study, write_board_run
-    from edgetruth.evaluate.run_dir import check_run_dir, prepare_run_dir
+    from edgetruth.evaluate.run_dir import prepare_run_dir
     from edgetruth.image_io import read_gray
     from edgetruth.render.driver import check_variant_name, render_spec
     from edgetruth.render.reader import open_dataset
@@ -196,7 +196,7 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     rows_methods = methods + diag
     check_variant_name(variant)
     settings = settings_of(set_name, methods, options, keep, spec.render.spp, spec.identity_sha256, channel)
-    out = _check_twin_output(Path(out), settings, check_run_dir)
+    out = _check_twin_output(Path(out), settings)
 
     # 1. render (resumable), into the run directory
     out = prepare_run_dir(out, KIND, settings)
@@ -287,16 +287,7 @@ def closed_loop_noise(pm_real: list[dict], pm_twin: list[dict], sensors) -> list
 BASE_LEVELS = {"zhang1998": (41.1, 215.2)}
 
 
-def _check_twin_output(out: Path, settings: dict, check_run_dir) -> Path:
-    from edgetruth.evaluate.run_dir import RUN_MARKER
-    from edgetruth.fileio import read_json
+def _check_twin_output(out: Path, settings: dict) -> Path:
+    from edgetruth.evaluate.run_dir import check_same_settings
 
-    out = check_run_dir(out, KIND)
-    marker = out / RUN_MARKER
-    if marker.is_file():
-        old = read_json(marker).get("settings", {})
-        if {k: old.get(k) for k in settings} != settings:
-            diff = [k for k in settings if old.get(k) != settings[k]]
-            raise InputError(f"-o {out}: holds a twin study of other {', '.join(diff)}; choose a new directory "
-                             "(or the same settings to resume or re-make it)")
-    return out
+    return check_same_settings(out, KIND, settings, "a twin study")

@@ -179,3 +179,17 @@ def test_foreign_directory_and_synthetic_options(tmp_path, capsys):
     _bad(tmp_path, capsys, ["zhang1998", "--preset", "full"], "--preset")
     rc = main(["study", "synthetic", "zhang1998", "-o", str(tmp_path / "s")])
     assert rc == 2 and "PHOTOS" in capsys.readouterr().err
+
+
+def test_a_board_study_of_other_settings_is_refused_untouched(tmp_path, capsys):
+    from edgetruth.cli import main
+    from tests.support.files import tree_hash
+
+    out = tmp_path / "b"
+    assert main(["study", "board", "zhang1998", "--methods", "canny_pixel", "-o", str(out), "--no-progress"]) == 0
+    before = tree_hash(out)
+    capsys.readouterr()
+    assert main(["study", "board", "zhang1998", "--methods", "canny_devernay", "-o", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "other methods" in err[0]
+    assert tree_hash(out) == before
