@@ -179,3 +179,31 @@ def test_no_temporary_files_after_success(shots, tmp_path):
     assert main(["-q", "locate", str(shots), "-o", str(tmp_path / "all.csv")]) == 0
     leftovers = [p for p in [*out.iterdir(), *tmp_path.iterdir()] if p.name.startswith(".tmp-")]
     assert not leftovers and os.listdir(out)
+
+
+@pytest.mark.parametrize("out_name", ["out", "all.csv"])
+def test_a_second_formatting_process_writes_the_same_bytes(shots, tmp_path, monkeypatch, out_name):
+    """Long batches make their CSV text in a second process (``POOL_FROM_IMAGES``); the files are those of
+    the one-process loop, byte for byte, in image order."""
+    from edgetruth.cli.commands import locate as cmd
+
+    inline, pooled = tmp_path / "inline" / out_name, tmp_path / "pooled" / out_name
+    for where in (inline, pooled):
+        where.parent.mkdir()
+    assert main(["-q", "locate", str(shots), "-o", str(inline)]) == 0
+    monkeypatch.setattr(cmd, "POOL_FROM_IMAGES", 1)
+    assert main(["-q", "locate", str(shots), "-o", str(pooled)]) == 0
+    assert tree_hash(inline.parent) == tree_hash(pooled.parent)
+
+
+def test_a_bad_image_with_the_formatting_process_leaves_the_outputs_untouched(shots, tmp_path, capsys, monkeypatch):
+    from edgetruth.cli.commands import locate as cmd
+
+    monkeypatch.setattr(cmd, "POOL_FROM_IMAGES", 1)
+    (shots / "b.npy").write_bytes(b"\x93NUMPY broken")  # last: the images before it are already formatted
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "a0.csv").write_text("an earlier result\n")
+    before = tree_hash(tmp_path)
+    _fails(["locate", str(shots), "-o", str(out)], capsys, "b.npy")
+    assert tree_hash(tmp_path) == before

@@ -232,9 +232,53 @@ def _points(name: str, path: Path, args, options):
         raise InputError(f"{name}: {exc}") from exc
 
 
+#: from this many images on, a second process makes the CSV text (its start-up, ~0.3 s, then pays)
+POOL_FROM_IMAGES = 12
+
+
+def csv_block(columns: dict, image: str | None = None) -> tuple[list[str], str]:
+    """(column names, the CSV rows of ``columns``, with ``image`` first on every row if given): what a
+    batch writes for one image, a pure function of plain arrays (it runs in the formatting process)."""
+    class _Cols:
+        def columns(self):
+            return columns
+
+    names, cells = csv_cells(_Cols())
+    return names, csv_text(names, cells, image=image)
+
+
+class _InlineFuture:
+    def __init__(self, value):
+        self.value = value
+
+    def result(self):
+        return self.value
+
+
+def _formatter(n_images: int):
+    """A process pool of one for the CSV text of a long batch (None: format inline).  Python's ``repr``
+    of every float takes as long as the refinement itself and holds the interpreter lock, so only a
+    second process overlaps it with the next image's work."""
+    if n_images < POOL_FROM_IMAGES:
+        return None
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    try:
+        return ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"))
+    except (OSError, ValueError):  # no processes here (a sandbox): inline
+        return None
+
+
 def _write_batch(images, targets, out: Path, args, options) -> tuple[int, int]:
     """Refine every image into temporary files next to the outputs; rename them into place only when all
-    are done (on any error or interrupt the temporary files go and nothing else is touched)."""
+    are done (on any error or interrupt the temporary files go and nothing else is touched).  The CSV
+    text of image k is made (by a second process on long batches: ``_formatter``) while image k + 1 is
+    read and refined, and written in image order, so the files are those of the one-by-one loop."""
+    from collections import deque
+
+    import numpy as np
+
     from edgetruth import console
     from edgetruth.errors import InputError
     from edgetruth.fileio import make_output_dir, tmp_path
@@ -243,34 +287,49 @@ def _write_batch(images, targets, out: Path, args, options) -> tuple[int, int]:
     n_pts = n_conv = 0
     combined = None
     made_dir = targets is not None and not out.exists()
+    pending: deque = deque()
+    header = None
+    pool = None
+
+    def write_next() -> None:
+        nonlocal header
+        k, name, n, future = pending.popleft()
+        names, text = future.result()
+        if combined is None:
+            with open(temps[k], "w", encoding="utf-8", newline="") as fh:
+                fh.write(",".join(names) + "\n" + text)
+        elif n:
+            if header is None:
+                header = names
+                combined.write(",".join(["image", *names]) + "\n")
+            elif names != header:
+                raise InputError(f"{name}: method {args.method} gave columns {', '.join(names)}, not "
+                                 f"those of the images before it ({', '.join(header)}); write one CSV per "
+                                 "image instead (-o DIR)")
+            combined.write(text)
+
     try:
         if targets is not None:
             make_output_dir(out, "-o")
+            temps += [tmp_path(t) for t in targets]
         else:
             temps.append(tmp_path(out))
             combined = open(temps[0], "w", encoding="utf-8", newline="")
-        header = None
+        pool = _formatter(len(images))
         with console.bar(total=len(images), desc="locate", unit="img", enabled=not args.no_progress) as bar:
             for k, (name, path) in enumerate(images):
                 pts = _points(name, path, args, options)
                 n_pts += len(pts)
                 n_conv += int(pts.converged.sum())
-                names, cells = csv_cells(pts)
-                if combined is None:
-                    t = tmp_path(targets[k])
-                    temps.append(t)
-                    with open(t, "w", encoding="utf-8", newline="") as fh:
-                        fh.write(",".join(names) + "\n" + csv_text(names, cells))
-                elif len(pts):
-                    if header is None:
-                        header = names
-                        combined.write(",".join(["image", *names]) + "\n")
-                    elif names != header:
-                        raise InputError(f"{name}: method {args.method} gave columns {', '.join(names)}, not "
-                                         f"those of the images before it ({', '.join(header)}); write one CSV per "
-                                         "image instead (-o DIR)")
-                    combined.write(csv_text(names, cells, image=name))
+                cols = {c: np.asarray(v) for c, v in pts.columns().items()}
+                image = None if combined is None else name
+                future = pool.submit(csv_block, cols, image) if pool else _InlineFuture(csv_block(cols, image))
+                pending.append((k, name, len(pts), future))
+                while len(pending) > 1:  # one image in flight: memory stays flat
+                    write_next()
                 bar.update(1)
+        while pending:
+            write_next()
         if combined is not None:
             if header is None:  # no image had a point: the header of an empty result
                 combined.write("image,x,y,nx,ny,converged\n")
@@ -283,6 +342,8 @@ def _write_batch(images, targets, out: Path, args, options) -> tuple[int, int]:
     except OSError as exc:
         raise InputError(f"-o {out}: cannot write ({exc.strerror}); choose a writable location") from exc
     finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
         if combined is not None and not combined.closed:
             combined.close()
         for t in temps or ():
