@@ -19,12 +19,11 @@ from edgetruth import __version__
 from edgetruth.errors import InputError
 from edgetruth.render.camera import Camera
 from edgetruth.render.ground_truth import (checker_ground_truth, outline_in_view, squares_ground_truth,
-                                           target_ground_truth, target_outline_local)
+                                           target_ground_truth, view_outline_local)
 from edgetruth.render.mitsuba_scene import CheckerRig, RenderSettings, TargetRig
 from edgetruth.render.pose import Pose
 from edgetruth.render.sensor import make_rng
 from edgetruth.render.spec import Job, Spec
-from edgetruth.render.targets import TARGETS
 
 FORMAT_VERSION = 1
 POSE_STREAM, SENSOR_STREAM = 1, 2
@@ -101,8 +100,7 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
     if job.kind == "target":
         size_m = spec.target_size_m
         # paired cells share the pose whatever the target: the view check uses the square (it bounds the circle)
-        shape = "square" if job.slot is not None else TARGETS[job.target]["shape"]
-        pose = job_pose(job, camera, target_outline_local(shape, size_m))
+        pose = job_pose(job, camera, view_outline_local(job.target, size_m, paired=job.slot is not None))
         rig = get_rig("target", camera, settings, size_m, crop)
         le = rig.set_state(job.target, pose, e_render, job.light_position_m)
         gt = target_ground_truth(camera, pose, job.target, size_m, exposure_s=sensor.exposure_s)

@@ -55,7 +55,12 @@ def motion_ground_truth(camera: Camera, exposure_s: float, points_cam: np.ndarra
                                           for t in taus]}
 
 
-def target_ground_truth(camera: Camera, pose: Pose, target: str, size_m: float, exposure_s: float = 0.0) -> dict:
+def target_ground_truth(camera: Camera, pose: Pose, target, size_m: float, exposure_s: float = 0.0) -> dict:
+    """The truth of a target image: ``target`` a preset id (T1..T4) or a ``TargetScene``."""
+    from edgetruth.render.shapes import TargetScene
+
+    if isinstance(target, TargetScene):
+        return scene_ground_truth(camera, pose, target, exposure_s)
     spec = TARGETS[target]
     centre_cam = pose.to_camera(np.array([[0.0, 0.0, -TARGET_STANDOFF_M]]))
     outline = pose.to_camera(target_outline_local(spec["shape"], size_m))
@@ -159,3 +164,168 @@ def outline_in_view(camera: Camera, pts_cam: np.ndarray, margin_px: float) -> bo
         return False
     px = camera.project(pts_cam)
     return bool(np.all(inside_image(px[:, 0], px[:, 1], camera.shape, margin_px)))
+
+
+# --- the shape catalogue ------------------------------------------------------------------------------
+def view_outline_local(target, size_m: float, paired: bool = False) -> np.ndarray:
+    """Board points that must stay in view when a pose is drawn: a preset's outline (paired design slots:
+    the square, which bounds the circle, so every cell draws the same pose), or a ``TargetScene``'s shapes'
+    outlines (plus that square when paired)."""
+    from edgetruth.render.shapes import TargetScene
+
+    if not isinstance(target, TargetScene):
+        return target_outline_local("square" if paired else TARGETS[target]["shape"], size_m)
+    xy = target.sample_points()
+    pts = np.column_stack([xy, np.full(len(xy), -TARGET_STANDOFF_M)])
+    return np.concatenate([target_outline_local("square", size_m), pts]) if paired else pts
+
+
+def shape_outline_truth(camera: Camera, pose: Pose, scene, k: int) -> list[dict]:
+    """Every outline of shape ``k`` of ``scene``: its exact distorted curve (dense polyline, parameters,
+    chord error), its corners, and the parts of it that later shapes leave visible."""
+    from edgetruth.render.shapes import visible_intervals
+
+    shape = scene.shapes[k]
+    standoff = (k + 1) * TARGET_STANDOFF_M
+    occluders = list(scene.shapes[k + 1:])
+    out = []
+    for o in shape.outlines():
+        curve = OutlineCurve.of(camera, pose, o, standoff)
+        t = curve.parameters()
+        vis = visible_intervals(o, occluders)
+        pieces = []
+        for t0, t1 in vis:
+            n = max(2, int(np.ceil((t1 - t0) * len(t))) + 1)
+            pieces.append(curve.points(np.linspace(t0, t1, n)).tolist())
+        ends = [e for iv in vis for e in iv] if vis != [[0.0, 1.0]] else []
+        d = {"name": o.name, "curve": o.kind,
+             "polyline_distorted_px": curve.points(t).tolist(), "polyline_parameter": t.tolist(),
+             "polyline_chord_error_px": curve.chord_error_px(),
+             "visible_intervals": vis,
+             "visible_polylines_distorted_px": pieces,
+             "occlusion_points_distorted_px": curve.points(np.mod(ends, 1.0)).tolist() if ends else []}
+        if o.kind == "polygon":
+            tc = o.corner_parameters()
+            d["corners_distorted_px"] = curve.points(tc).tolist()
+            d["corners_undistorted_px"] = curve.points(tc, distorted=False).tolist()
+            d["corners_visible"] = [any(a - 1e-12 <= tt <= b + 1e-12 or a - 1e-12 <= tt + 1 <= b + 1e-12
+                                        for a, b in vis) for tt in tc]
+        else:
+            d["conic_board_m"] = dict(zip(("cx", "cy", "a", "b", "theta_rad"), o.conic))
+        out.append(d)
+    return out
+
+
+def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.0) -> dict:
+    """The truth of a ``TargetScene`` image.  ``target`` and ``outline`` describe shape 0 (the ranged
+    target) as for a preset, so the evaluation reads either; ``shapes`` lists every shape with every
+    outline (a ring: outer and inner), its corners and its visible parts."""
+    p = scene.primary
+    standoff = TARGET_STANDOFF_M
+    centre_cam = pose.to_camera(np.array([[p.offset_m[0], p.offset_m[1], -standoff]]))
+    o = p.outlines()[0]
+    curve = OutlineCurve.of(camera, pose, o, standoff)
+    t = curve.parameters()
+    square = p.type == "rectangle" and p.width_m == p.height_m
+    circle = p.type == "circle"
+    if o.kind == "polygon":
+        corners_xy = np.asarray(o.vertices, float)
+        kind, order = "corners", "the polygon's vertices in order (rectangle: top-left, top-right, bottom-right, " \
+                                 "bottom-left of the unturned shape, board frame)"
+    else:
+        corners_xy = o.local_xy(np.arange(CIRCLE_OUTLINE_POINTS) / CIRCLE_OUTLINE_POINTS)
+        kind, order = "points", "angle 2*pi*k/n from the conic's turned +x axis towards +y"
+    pts_cam = pose.to_camera(np.column_stack([corners_xy, np.full(len(corners_xy), -standoff)]))
+    m = p.material
+    size = {"rectangle": p.width_m, "circle": p.diameter_m, "ring": p.outer_diameter_m,
+            "ellipse": max(p.axes_m)}.get(p.type, float(2 * np.max(np.linalg.norm(corners_xy - p.offset_m, axis=1))))
+    extra = {}
+    if camera.moving:
+        extra["motion"] = motion_ground_truth(camera, exposure_s, pts_cam, centre_cam)
+    return {
+        "target": {"id": scene.id, "shape": "square" if square else ("circle" if circle else p.type),
+                   "type": p.type, "material": m.label or m.type, "material_params": m.to_dict(),
+                   "size_m": size,
+                   "size_meaning": {"rectangle": "width", "circle": "diameter", "ring": "outer diameter",
+                                    "ellipse": "longer axis"}.get(p.type, "largest extent"),
+                   "reflectance": m.albedo if m.type != "roughconductor" else None, "standoff_m": standoff,
+                   "offset_m": list(p.offset_m), "rotation_deg": p.rotation_deg,
+                   **({"ggx_alpha": m.alpha, "ior": m.eta} if m.type == "roughplastic" else {})},
+        "board": {"material": scene.board.label or scene.board.type, "material_params": scene.board.to_dict(),
+                  "reflectance": scene.board.albedo, "half_size_m": list(BOARD_HALF_SIZE_M)},
+        "true_distance_m": float(centre_cam[0, 2]),
+        "true_range_m": float(np.linalg.norm(centre_cam)),
+        "centre": _project_both(camera, centre_cam),
+        "outline": {"kind": kind, "order": order, **_project_both(camera, pts_cam),
+                    "polyline_distorted_px": curve.points(t).tolist(), "polyline_parameter": t.tolist(),
+                    "polyline_meaning": "dense points ON shape 0's exact distorted outline (polygon: side floor(n t) "
+                                        "from vertex floor(n t); conic: angle 2*pi*t); the full outline, whether or "
+                                        "not later shapes cover part of it (shapes[0] says which parts are visible)",
+                    "polyline_chord_error_px": curve.chord_error_px(),
+                    "optical_edge": optical_edge_ground_truth(curve, t)},
+        "shapes": [{"index": k, **s.to_dict(), "standoff_m": (k + 1) * TARGET_STANDOFF_M,
+                    "centre": _project_both(camera, pose.to_camera(
+                        np.array([[s.offset_m[0], s.offset_m[1], -(k + 1) * TARGET_STANDOFF_M]]))),
+                    "outlines": shape_outline_truth(camera, pose, scene, k)} for k, s in enumerate(scene.shapes)],
+        "shapes_meaning": "shape k lies (k + 1) x 10 um in front of the board and covers shapes 0..k-1 (a ring covers "
+                          "its whole outer disk: its hole shows the board); per outline: the exact distorted curve "
+                          "(edgetruth.render.outline.OutlineCurve.of), visible_intervals [t0, t1] of its parameter "
+                          "not covered by later shapes (t1 > 1 wraps), their polylines, and the points where a "
+                          "covering shape cuts it (corners of the visible region)",
+        "defocus_radius_px": float(camera.defocus_radius_px(centre_cam[0, 2])),
+        **extra,
+    }
+
+
+class SceneOutline:
+    """Every visible edge of a ``TargetScene`` image, read from its ground truth (``shapes``): the parts of
+    each shape's outlines that no later shape covers.  ``signed_distance(x, y)``: px to the nearest visible
+    edge, > 0 on its board side (outside a shape, inside a ring's hole); ``edge_index`` says which outline
+    ((shape, outline) pairs in ``outlines``) it is.  Distances come from the dense polylines (chords within
+    ``polyline_chord_error_px`` of the exact curves)."""
+
+    def __init__(self, gt: dict):
+        self.outlines, self._full, self._pieces, self._flip = [], [], [], []
+        for s in gt["shapes"]:
+            for o in s["outlines"]:
+                self.outlines.append((s["index"], o["name"]))
+                self._full.append(np.asarray(o["polyline_distorted_px"], float))
+                self._pieces.append([np.asarray(p, float) for p in o["visible_polylines_distorted_px"]])
+                self._flip.append(o["name"] == "inner")  # a ring's hole: the board is inside
+
+    @classmethod
+    def from_ground_truth(cls, gt: dict) -> "SceneOutline":
+        return cls(gt)
+
+    @staticmethod
+    def _open_distance(poly: np.ndarray, q: np.ndarray) -> np.ndarray:
+        a, b = poly[:-1], poly[1:]
+        best = np.full(len(q), np.inf)
+        for k in range(0, len(a), 256):  # segments in blocks: memory ~ points x 256
+            aa, dd = a[k:k + 256][None], (b[k:k + 256] - a[k:k + 256])[None]
+            u = np.clip(np.sum((q[:, None] - aa) * dd, axis=2) / np.maximum(np.sum(dd * dd, axis=2), 1e-300), 0, 1)
+            dist = np.linalg.norm(q[:, None] - (aa + u[..., None] * dd), axis=2)
+            best = np.minimum(best, dist.min(axis=1))
+        return best
+
+    def edge_index(self, x, y) -> np.ndarray:
+        return self._nearest(x, y)[1]
+
+    def _nearest(self, x, y):
+        q = np.column_stack([np.ravel(x), np.ravel(y)]).astype(float)
+        dist = np.full((len(self.outlines), len(q)), np.inf)
+        for i, pieces in enumerate(self._pieces):
+            for p in pieces:
+                dist[i] = np.minimum(dist[i], self._open_distance(p, q))
+        return dist, np.argmin(dist, axis=0), q
+
+    def signed_distance(self, x, y) -> np.ndarray:
+        from edgetruth.render.edge_truth import closed_polyline_signed_distance
+
+        dist, idx, q = self._nearest(x, y)
+        out = np.empty(len(q))
+        for i in np.unique(idx):
+            sel = idx == i
+            sign = np.sign(closed_polyline_signed_distance(self._full[i], q[sel, 0], q[sel, 1]))
+            out[sel] = (-sign if self._flip[i] else sign) * dist[i, sel]
+        return out.reshape(np.shape(x))

@@ -9,6 +9,11 @@ edge) and the others are parked out of sight behind the camera:
 T1 black matte square, T2 black matte disk, T3 gray matte square, T4 glossy black
 square (rough plastic: specular highlights from the light).
 
+A target group with a scene of its own (``edgetruth.render.shapes.TargetScene``: the shape catalogue,
+materials, lights) renders through ``SceneRig``, which ``TargetRig.set_state`` loads on first use (one
+per scene, with the same camera, settings, crop and window); at equal emitted radiance it renders the
+T1-T4 presets bit for bit as the fixed scene does.
+
 Checkerboard scene: a white plate with black matte squares (one mesh with an explicit diffuse
 BSDF of ``CHECKER_BLACK_REFLECTANCE``, its triangles facing the camera), flush likewise.  A board of
 squares (``SquareBoard``) is the same scene with its own quads, plate and reflectances.
@@ -55,12 +60,18 @@ class RenderSettings:
     edge_spp: int = 0
     #: spp of checkerboard images; 0: ``spp``
     checkerboard_spp: int = 0
+    #: the edge band: "path" (path-traced at ``edge_spp``, the reference) or "analytic" (the board and
+    #: the target's material rendered without an edge at ``edge_spp``, composited with the exact
+    #: lens-weighted coverage: ``edgetruth.render.edge_coverage``)
+    edge_mode: str = "path"
 
     def to_dict(self) -> dict:
         d = {"spp": self.spp, "sampler": self.sampler, "samples_per_pass": self.samples_per_pass,
              "edge_spp": self.edge_spp}
         if self.checkerboard_spp:
             d["checkerboard_spp"] = self.checkerboard_spp
+        if self.edge_mode != "path":  # absent by default: the shipped specs' identities are unchanged
+            d["edge_mode"] = self.edge_mode
         if self.exposure_s:
             d["exposure_s"] = self.exposure_s
         return d
@@ -184,6 +195,8 @@ class TargetRig(_Rig):
     def __init__(self, camera: Camera, settings: RenderSettings, target_size_m: float = 0.13, crop=None,
                  window=None):
         self.target_size_m = float(target_size_m)
+        self._scene_rigs: dict = {}  # TargetScene -> SceneRig
+        self._active = None
         super().__init__(camera, settings, crop, window)
 
     def _shapes(self) -> dict:
@@ -204,8 +217,18 @@ class TargetRig(_Rig):
                                        "diffuse_reflectance": TARGETS["T4"]["reflectance"]}},
         }
 
-    def set_state(self, target: str, pose: Pose, irradiance_w_m2: float, light_position_m=None) -> float:
-        """Place ``target`` (T1..T4) at ``pose``; returns the light's radiance."""
+    def set_state(self, target, pose: Pose, irradiance_w_m2: float, light_position_m=None) -> float:
+        """Place ``target`` at ``pose``; returns the (first) light's radiance.  ``target``: a preset id
+        (T1..T4: this rig's fixed scene) or a ``TargetScene`` (its own ``SceneRig``, loaded on first use
+        with this rig's camera, settings, crop and window, and rendered until the next ``set_state``)."""
+        from edgetruth.render.shapes import TargetScene
+
+        if isinstance(target, TargetScene):
+            if target not in self._scene_rigs:
+                self._scene_rigs[target] = SceneRig(self.camera, self.settings, target, self.crop, self.window)
+            self._active = self._scene_rigs[target]
+            return self._active.set_state(target, pose, irradiance_w_m2)
+        self._active = None
         board = pose.matrix @ _rect_local(*BOARD_HALF_SIZE_M, 0.0)
         self._set_transform("board.to_world", board)
         half = self.target_size_m / 2
@@ -216,6 +239,160 @@ class TargetRig(_Rig):
         le = self._set_light(pose, irradiance_w_m2, light_position_m)
         self.params.update()
         return le
+
+    def render(self, seed: int, window_at: tuple[int, int] | None = None) -> np.ndarray:
+        if getattr(self, "_active", None) is not None:
+            return self._active.render(seed, window_at)
+        return super().render(seed, window_at)
+
+    def light_ground_truth(self, pose: Pose, le: float, irradiance_w_m2: float) -> dict:
+        if getattr(self, "_active", None) is not None:
+            return self._active.light_ground_truth(pose, le, irradiance_w_m2)
+        return super().light_ground_truth(pose, le, irradiance_w_m2)
+
+
+def _shape_local(cx: float, cy: float, a: float, b: float, theta_rad: float, z_m: float) -> np.ndarray:
+    """Local transform of Mitsuba's [-1,1]² rectangle / unit disk to a board rectangle or ellipse of half
+    sizes (a, b) turned by theta about the board normal, centred at (cx, cy), facing the camera (as
+    ``_rect_local``: y and z flipped, det > 0, the normal towards the camera)."""
+    c, s = np.cos(theta_rad), np.sin(theta_rad)
+    m = np.eye(4)
+    m[:2, :2] = np.array([[c, -s], [s, c]]) @ np.diag([a, -b])
+    m[2, 2] = -1.0
+    m[:3, 3] = (cx, cy, z_m)
+    return m
+
+
+def _make_mesh(mi, name: str, verts: np.ndarray, faces: np.ndarray, bsdf: dict):
+    """A triangle mesh with its own BSDF (without one a mesh gets Mitsuba's default diffuse 0.5)."""
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict(bsdf)
+    mesh = mi.Mesh(name, vertex_count=len(verts), face_count=len(faces), has_vertex_normals=False,
+                   has_vertex_texcoords=False, props=props)
+    params = mi.traverse(mesh)
+    vtype = type(params["vertex_positions"])  # mi.Float on JIT, drjit.scalar.ArrayXf on scalar
+    params["vertex_positions"] = vtype(np.asarray(verts, np.float32).ravel())
+    params["faces"] = type(params["faces"])(np.asarray(faces, np.uint32).ravel())
+    params.update()
+    return mesh, vtype
+
+
+class SceneRig(_Rig):
+    """The target scene of a ``TargetScene``: the board, the catalogue's shapes (rectangles as Mitsuba
+    rectangles, conics as affinely mapped disks -- both exact --, polygons as triangle meshes, a ring as
+    its outer disk with a disk of the board's material on its hole), each with its own material, shape k
+    ``(k + 1) x TARGET_STANDOFF_M`` in front of the board; its lights and an optional constant ambient
+    emitter.  Materials and the set of lights are fixed per loaded scene; poses and powers are updated."""
+
+    def __init__(self, camera: Camera, settings: RenderSettings, scene, crop=None, window=None):
+        self.target_scene = scene
+        super().__init__(camera, settings, crop, window)
+
+    def _shapes(self) -> dict:
+        from edgetruth.render.shapes import triangulate
+
+        sc = self.target_scene
+        T = self._T(np.eye(4))
+        d: dict = {}
+        for i, lt in enumerate(sc.lights):
+            # distinct placeholder values: the loader merges equal dicts into one object, whose value
+            # ``traverse`` would then list (and ``set_state`` set) under one light's key only
+            unit = {"type": "uniform", "value": 1.0 + i}
+            if lt.type == "area":
+                d[f"light{i}"] = {"type": "rectangle", "to_world": T, "emitter": {"type": "area", "radiance": unit}}
+            elif lt.type == "point":
+                d[f"light{i}"] = {"type": "point", "position": [0.0, 0.0, -1.0], "intensity": unit}
+            else:
+                d[f"light{i}"] = {"type": "spot", "to_world": T, "intensity": unit, "cutoff_angle": lt.cutoff_deg,
+                                  "beam_width": lt.beam_deg}
+        if sc.ambient > 0:
+            d["ambient"] = {"type": "constant", "radiance": {"type": "uniform", "value": 0.5}}
+        d["board"] = {"type": "rectangle", "to_world": self._T(_rect_local(*BOARD_HALF_SIZE_M, 0.0)),
+                      "bsdf": sc.board.to_bsdf()}
+        self._locals, self._meshes = {}, {}
+        for k, shape in enumerate(sc.shapes):
+            z = -(k + 1) * TARGET_STANDOFF_M
+            outs = shape.outlines()
+            o = outs[0]
+            if o.kind == "ellipse":
+                cx, cy, a, b, th = o.conic
+                self._locals[f"shape{k}"] = _shape_local(cx, cy, a, b, th, z)
+                d[f"shape{k}"] = {"type": "disk", "to_world": T, "bsdf": shape.material.to_bsdf()}
+                if shape.type == "ring":  # the hole: the board's material, half a stand-off in front
+                    cx, cy, a, b, th = outs[1].conic
+                    self._locals[f"shape{k}_hole"] = _shape_local(cx, cy, a, b, th, z - 0.5 * TARGET_STANDOFF_M)
+                    d[f"shape{k}_hole"] = {"type": "disk", "to_world": T, "bsdf": sc.board.to_bsdf()}
+            elif shape.type == "rectangle":
+                w, h = shape.width_m / 2, shape.height_m / 2
+                self._locals[f"shape{k}"] = _shape_local(*shape.offset_m, w, h, np.radians(shape.rotation_deg), z)
+                d[f"shape{k}"] = {"type": "rectangle", "to_world": T, "bsdf": shape.material.to_bsdf()}
+            else:
+                v = np.asarray(o.vertices, float)
+                tris = triangulate(v)[:, ::-1]  # reversed: the face normal points to the camera (as the checker)
+                verts = np.column_stack([v, np.full(len(v), z)])
+                mesh, vtype = _make_mesh(self.mi, f"shape{k}", verts, tris, shape.material.to_bsdf())
+                self._meshes[f"shape{k}"] = (verts, vtype)
+                d[f"shape{k}"] = mesh
+        return d
+
+    def set_state(self, scene, pose: Pose, irradiance_w_m2: float, light_position_m=None) -> float:
+        self._set_transform("board.to_world", pose.matrix @ _rect_local(*BOARD_HALF_SIZE_M, 0.0))
+        for key, m in self._locals.items():
+            self._set_transform(f"{key}.to_world", pose.matrix @ m)
+        for key, (verts, vtype) in self._meshes.items():
+            self.params[f"{key}.vertex_positions"] = vtype(pose.to_camera(verts).astype(np.float32).ravel())
+        first = None
+        for i, lt in enumerate(self.target_scene.lights):
+            e = lt.emission_for(irradiance_w_m2, pose)
+            first = e if first is None else first
+            if lt.type == "point":
+                key = f"light{i}.position"
+                self.params[key] = type(self.params[key])(*[float(c) for c in lt.position_m])
+                self.params[f"light{i}.intensity.value"] = e
+            else:
+                self._set_transform(f"light{i}.to_world", lt.to_world(pose))
+                self.params[f"light{i}.emitter.radiance.value" if lt.type == "area"
+                            else f"light{i}.intensity.value"] = e
+        if self.target_scene.ambient > 0:  # a uniform sky of radiance L gives pi L on the open board
+            self.params["ambient.radiance.value"] = self.target_scene.ambient * irradiance_w_m2 / np.pi
+        self.params.update()
+        return float(first)
+
+    def light_ground_truth(self, pose: Pose, le: float, irradiance_w_m2: float) -> dict:
+        sc = self.target_scene
+        centres = [pose.to_camera(np.array([[0.0, 0.0, 0.0]]))[0]] + [
+            pose.to_camera(np.array([[*s.offset_m, -(k + 1) * TARGET_STANDOFF_M]]))[0] for k, s in enumerate(sc.shapes)]
+        pts = np.asarray(centres)
+        lights, total = [], np.zeros(len(pts))
+        for lt in sc.lights:
+            e = lt.irradiance_at(irradiance_w_m2, pose, pts)
+            total += e
+            lights.append({**lt.to_dict(), "position_m": list(lt.position_m),
+                           "aim_point_camera_m": lt.aim_point(pose).tolist(),
+                           ("radiance_w_m2_sr" if lt.type == "area" else "intensity_w_sr"):
+                               lt.emission_for(irradiance_w_m2, pose),
+                           "irradiance_board_centre_w_m2": float(e[0]),
+                           "irradiance_shape_centres_w_m2": e[1:].tolist()})
+        amb = sc.ambient * irradiance_w_m2
+        # across the target (shape 0's outline): the illumination's non-uniformity there
+        xy = sc.primary.sample_points(64)
+        edge = pose.to_camera(np.column_stack([xy, np.full(len(xy), -TARGET_STANDOFF_M)]))
+        e_edge = sum(lt.irradiance_at(irradiance_w_m2, pose, edge) for lt in sc.lights) + amb
+        out = {"type": "lights", "lights": lights,
+               "board_centre_irradiance_w_m2": float(total[0] + amb),
+               "shape_centre_irradiance_w_m2": (total[1:] + amb).tolist(),
+               "target_outline_irradiance_w_m2": {"min": float(np.min(e_edge)), "max": float(np.max(e_edge)),
+                                                  "nonuniformity_pct": float(100.0 * (np.max(e_edge) - np.min(e_edge))
+                                                                             / np.mean(e_edge))},
+               "meaning": "irradiance (W/m^2) on the board plane at the board centre and at each shape's centre "
+                          "from every light (exact: area lights integrated over their square; nothing on the flat "
+                          "board shadows them); each light gives share x irradiance_w_m2 at its aim point; "
+                          "target_outline_irradiance_w_m2: the range on shape 0's outline, its non-uniformity "
+                          "100 (max - min) / mean"}
+        if sc.ambient > 0:
+            out["ambient"] = {"type": "constant environment", "radiance_w_m2_sr": amb / np.pi,
+                              "irradiance_w_m2": amb, "share": sc.ambient}
+        return out
 
 
 class CheckerRig(_Rig):

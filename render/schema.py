@@ -25,7 +25,8 @@ REQUIRED = object()
 class Key:
     name: str
     type: str  # "int", "float", "str", "bool", "name", "table", "tables" (a list of tables), "range2" (a [lo, hi]
-    # pair), "ranges" ([[lo, hi], ...]), "vec3" ([x, y, z], each in [lo, hi]), "vec2" ([x, y], each in [lo, hi])
+    # pair), "ranges" ([[lo, hi], ...]), "vec3" ([x, y, z], each in [lo, hi]), "vec2" ([x, y], each in [lo, hi]),
+    # "points2" ([[x, y], ...], three or more, each coordinate in [lo, hi])
     default: Any
     unit: str
     meaning: str
@@ -98,6 +99,11 @@ def check_value(k: Key, v, where: str):
         if not (isinstance(v, list) and len(v) == 2 and all(_is_num(x) and _in(k, x) for x in v)):
             bad(f"give [x, y], each a number in {rng}" + (f" {k.unit}" if k.unit else ""))
         v = tuple(float(x) for x in v)
+    elif k.type == "points2":
+        if not (isinstance(v, list) and len(v) >= 3 and all(isinstance(p, list) and len(p) == 2 and
+                                                            all(_is_num(x) and _in(k, x) for x in p) for p in v)):
+            bad(f"give three or more points [[x, y], ...], each a number in {rng}" + (f" {k.unit}" if k.unit else ""))
+        v = tuple((float(p[0]), float(p[1])) for p in v)
     elif k.type == "table":
         if not isinstance(v, dict):
             bad("must be a table { key = value, ... }")

@@ -37,6 +37,7 @@ from edgetruth.render.mitsuba_scene import LIGHT_OFFSET_M, RenderSettings
 from edgetruth.render.pose import ROTATION_TOLERANCE, ExplicitPose, nearest_rotation
 from edgetruth.render.schema import REQUIRED, Key, _is_num, parse_table
 from edgetruth.render.sensor import SensorModel, sensor_from_dict
+from edgetruth.render.shapes import SCENE_GROUP_KEYS, scene_from_group
 from edgetruth.render.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard, SquareBoard, square_board_from_dict
 
 KINDS = ("target", "checkerboard", "squares")
@@ -97,6 +98,19 @@ GROUP_KEYS = [
         "sits (camera frame), aimed at the board centre; z < 0 (behind the image plane: never in view)",
         -100.0, 100.0, check=lambda v: None if v[2] < 0 else "z must be < 0 (behind the camera's image plane), "
         "or the light could stand in view or shade the board"),
+    # the scene of a target group (edgetruth.render.shapes): any key here renders the group's own scene
+    Key("shapes", "tables", None, "", "kind = target: the shapes on the board [{type, offset_m, rotation_deg, "
+        "size keys, material}, ...] (\"Shapes\" below), replacing the target preset's; shape 0 is the ranged "
+        "target, a later shape covers earlier ones"),
+    Key("target_material", "table", {}, "", "kind = target: material keys {type, albedo, alpha, eta, "
+        "specular_reflectance, label} over shape 0's material (\"Materials\" below); in a [design], levels of "
+        "two factors merge (albedo x gloss)"),
+    Key("board_material", "table", {}, "", "kind = target: the board's material keys (default diffuse, albedo "
+        "0.8)"),
+    Key("lights", "tables", None, "", "kind = target: the lights [{type, position_m, aim_board_m, size_m, share, "
+        "cutoff_deg, beam_deg}, ...] (\"Lights\" below), replacing the default square area light"),
+    Key("ambient", "float", 0.0, "", "kind = target: a constant environment light giving ambient x "
+        "irradiance_w_m2 on the open board (adds Monte-Carlo noise: it is sampled over the sphere)", 0.0, 100.0),
 ]
 
 
@@ -144,7 +158,7 @@ class Group:
 
     name: str
     kind: str
-    target: str | None
+    target: object  # a preset id (str), a ``TargetScene`` (the group's own scene) or None (not a target)
     first_index: int
     distances_cm: tuple  # one per image, stratified (see ``_distances_cm``)
     lateral_fraction: float
@@ -185,7 +199,7 @@ class Job:
     kind: str
     seed: int
     distance_cm: float
-    target: str | None
+    target: object  # a preset id (str), a ``TargetScene`` or None
     lateral_fraction: float
     tilt_max_deg: float
     roll_max_deg: float
@@ -287,7 +301,8 @@ class Spec:
         hashes of specs without them are unchanged)."""
         groups = []
         for g in self.groups:
-            d = {"name": g.name, "kind": g.kind, "target": g.target, "count": g.count,
+            d = {"name": g.name, "kind": g.kind, "target": str(g.target) if g.target is not None else None,
+                 "count": g.count,
                  "distances_cm": list(g.distances_cm), "lateral_fraction": g.lateral_fraction,
                  "tilt_max_deg": g.tilt_max_deg, "roll_max_deg": g.roll_max_deg,
                  "irradiance_w_m2": g.irradiance_w_m2, "sensor": g.sensor.identity(),
@@ -297,6 +312,8 @@ class Spec:
                 d["poses"] = [p.to_dict() for p in g.poses]
             if g.light_position_m is not None:
                 d["light_position_m"] = list(g.light_position_m)
+            if g.target is not None and not isinstance(g.target, str):  # a scene of its own
+                d["scene"] = g.target.resolved()
             groups.append(d)
         out = {"name": self.name, "camera": self.camera.to_dict(), "camera_scale": self.camera_scale,
                "render": self.render.to_dict(), "target_size_m": self.target_size_m,
@@ -443,7 +460,7 @@ def parse_poses(poses: list, unit_m: float, where: str) -> tuple:
 
 def _check_explicit_poses(poses: tuple, g: dict, spec_parts: dict, camera: Camera, where: str) -> None:
     """The board must lie in front of the camera; a target's outline in the image."""
-    from edgetruth.render.ground_truth import outline_in_view, target_outline_local
+    from edgetruth.render.ground_truth import outline_in_view, view_outline_local
 
     for i, pose in enumerate(poses):
         if g["kind"] == "squares":
@@ -451,7 +468,7 @@ def _check_explicit_poses(poses: tuple, g: dict, spec_parts: dict, camera: Camer
         elif g["kind"] == "checkerboard":
             pts = spec_parts["checkerboard"].plate_corners_local()
         else:
-            pts = target_outline_local(TARGETS[g["target"]]["shape"], spec_parts["target_size_m"])
+            pts = view_outline_local(spec_parts["scene"] or g["target"], spec_parts["target_size_m"])
         cam_pts = pose.to_camera(pts)
         if np.any(cam_pts[:, 2] <= 0):
             raise InputError(f"{where}: poses[{i}]: the board reaches behind the camera (z <= 0); check R, t and "
@@ -550,18 +567,27 @@ def load_spec(name_or_path: str | Path) -> Spec:
         sensor = sensor_from_dict(g["sensor"], base_sensor, where=f"{where} sensor")
         cam_over = camera_overrides(g["camera"], f"{where} camera")
         camera = replace(base_camera, **cam_over) if cam_over else base_camera
+        scene = None
+        if g["kind"] == "target":
+            scene = scene_from_group(g, raw, s["target_size_m"], g["light_position_m"], where)
+        else:
+            given = [k for k in SCENE_GROUP_KEYS if k in raw]
+            if given:
+                raise InputError(f"{where}: {', '.join(given)} applies to kind = \"target\" groups; remove it")
         poses = None
         if g.get("poses") is not None:
             poses = parse_poses(g["poses"], g["pose_unit_m"], where)
             if g["kind"] == "squares":  # model frame -> the rendering's board frame (centred on the squares)
                 poses = tuple(p.moved_origin(squares.centre_model_m) for p in poses)
-            _check_explicit_poses(poses, g, {"squares": squares, "checkerboard": board,
+            _check_explicit_poses(poses, g, {"squares": squares, "checkerboard": board, "scene": scene,
                                              "target_size_m": s["target_size_m"]}, camera, where)
         light = None if "light_position_m" not in raw else tuple(g["light_position_m"])
         unit = unit_e = None
         if levels is not None:
             # cells that differ only in light power and sensor settings share one radiance render
             key = (g["kind"], g["target"], json.dumps(camera.to_dict(), sort_keys=True))
+            if scene is not None:  # materials, shapes and lights change the radiance, not just its scale
+                key += (json.dumps(scene.resolved(), sort_keys=True),)
             if camera.moving:  # the exposure sets the motion blur: part of the radiance
                 key += (sensor.exposure_s,)
             unit, unit_e = units.setdefault(key, (len(units), g["irradiance_w_m2"]))
@@ -570,7 +596,8 @@ def load_spec(name_or_path: str | Path) -> Spec:
             dists = tuple(100.0 * p.distance_m for p in poses)  # the board centre's z
         else:
             dists = _distances_cm(image_seed(name, -1 - first), g)  # seeded by the group's first image index
-        groups.append(Group(name=g["name"], kind=g["kind"], target=g["target"] if g["kind"] == "target" else None,
+        target = (scene or g["target"]) if g["kind"] == "target" else None
+        groups.append(Group(name=g["name"], kind=g["kind"], target=target,
                             first_index=first, distances_cm=dists,
                             lateral_fraction=g["lateral_fraction"], tilt_max_deg=g["tilt_max_deg"],
                             roll_max_deg=g["roll_max_deg"], irradiance_w_m2=g["irradiance_w_m2"], sensor=sensor,

@@ -82,6 +82,52 @@ def table(keys: list[Key], per_group_column: bool = False) -> str:
     return "\n".join(rows)
 
 
+def scene_section() -> list[str]:
+    """The target scene's own keys: shapes, materials, lights (``edgetruth.render.shapes``)."""
+    from edgetruth.render.lights import LIGHT_KEYS
+    from edgetruth.render.materials import MATERIAL_KEYS
+    from edgetruth.render.shapes import SHAPE_KEYS
+
+    return [
+        "### The target scene: shapes, materials, lights", "",
+        "T1-T4 are presets of a catalogue of shapes (the shipped `assets/targets.toml`).  A `kind = \"target\"` "
+        "group that sets any of `shapes`, `target_material`, `board_material`, `lights` or `ambient` renders "
+        "its own scene (a group that sets none renders the presets' fixed scene, byte for byte as before).  "
+        "Each of these keys may also be a `[design]` level's, so a factor can sweep albedo, gloss or the "
+        "light; two factors' `target_material` tables merge (albedo x gloss).  Cells that differ in them "
+        "are separate radiance units.", "",
+        "```toml", "[[group]]", 'name = "mixed"',
+        'lights = [ { type = "area", position_m = [0, -0.15, -0.05] },',
+        '           { type = "spot", position_m = [0.5, 0, -0.05], aim_board_m = [0.1, 0], share = 0.3 } ]',
+        "ambient = 0.05", "", "[[group.shapes]]      # shape 0: the ranged target", 'type = "rectangle"',
+        "width_m = 0.12", "height_m = 0.08", "rotation_deg = 15", "", "[[group.shapes]]", 'type = "ring"',
+        "offset_m = [0.15, 0]", "outer_diameter_m = 0.1", "inner_diameter_m = 0.05",
+        'material = { type = "roughplastic", albedo = 0.03, alpha = 0.1 }', "", "[[group.shapes]]",
+        'type = "polygon"', "offset_m = [-0.15, 0]", "vertices_m = [[-0.04, -0.03], [0.05, 0], [-0.04, 0.03]]",
+        "```", "",
+        "**Shapes** (`shapes = [...]`): shape 0 is the ranged target (the ground truth's `target` and "
+        "`outline`); every shape lies on the board at `offset_m`, turned by `rotation_deg`, shape k "
+        "(k + 1) x 10 um in front of the board, so a later shape covers an earlier one; a ring's hole shows "
+        "the board.  Sizes default to `[spec] target_size_m`.  The ground truth lists every shape under "
+        "`shapes`: each outline (a ring has two) as its exact distorted curve (straight sides and conics "
+        "through the lens), its corners, and the parts later shapes leave visible "
+        "(`visible_intervals`, `visible_polylines_distorted_px`, `occlusion_points_distorted_px`; the "
+        "JSON's `shapes_meaning` says how to read them).", "",
+        table(SHAPE_KEYS), "",
+        "**Materials** (a shape's `material`, `target_material`, `board_material`): achromatic; keys that a "
+        "type does not use are refused.  `target_material` changes only the keys it gives over shape 0's "
+        "material (a preset's or your shape's).", "",
+        table(MATERIAL_KEYS), "",
+        "**Lights** (`lights = [...]`, replacing the default 5 cm area light above the camera; "
+        "`light_position_m` moves only the default one).  Each light's power is the irradiance it gives at "
+        "its aim point, `share` x the group's `irradiance_w_m2`; `ambient` adds a constant environment "
+        "giving `ambient` x `irradiance_w_m2` on the open board.  With several lights the direct integrator "
+        "picks one per sample (more Monte-Carlo noise per spp).  The ground truth's `illumination` records "
+        "every light, its emission, and the irradiance it gives at the board centre and at each shape's "
+        "centre, and the range of the total irradiance on the target's outline (its non-uniformity, %).", "",
+        table(LIGHT_KEYS), ""]
+
+
 def spec_markdown() -> str:
     targets = "\n".join(f"| `{t}` | {d['shape']} | {d['material'].replace('_', ' ')} | {d['reflectance']} |"
                         for t, d in TARGETS.items())
@@ -107,6 +153,7 @@ def spec_markdown() -> str:
              "(deterministically) until the board's outline lies inside the image.", "",
              table(GROUP_KEYS), "",
              "Targets (`target`):", "", "| id | shape | material | Lambertian albedo |", "|---|---|---|---|", targets, "",
+             *scene_section(),
              "### Explicit poses", "",
              "A group may list its poses instead of drawing them (one image per pose, in order): each is a "
              "rotation `R` (3 x 3, by rows) and a translation `t` (in `pose_unit_m`) with "

@@ -14,6 +14,7 @@ import numpy as np
 
 from edgetruth.errors import InputError
 from edgetruth.render.schema import Key, parse_table
+from edgetruth.render.shapes import legacy_targets
 
 #: Targets are mounted flush on the board: 10 um stand-off, only to avoid coplanar surfaces
 #: (a real stand-off casts ambient-occlusion shading that moves the edge; BRIEF §1).
@@ -22,13 +23,10 @@ BOARD_HALF_SIZE_M = (1.8, 1.5)  # fills the frame at 3 m with room for lateral o
 BOARD_REFLECTANCE = 0.8  # white matte board (Lambertian albedo)
 CHECKER_BLACK_REFLECTANCE = 0.04  # the checkerboard's black squares: matte black print
 
-#: Target ids -> shape and material.  Reflectances are Lambertian albedos.
-TARGETS = {
-    "T1": {"shape": "square", "material": "black_matte", "reflectance": 0.04},
-    "T2": {"shape": "circle", "material": "black_matte", "reflectance": 0.04},
-    "T3": {"shape": "square", "material": "gray_matte", "reflectance": 0.25},
-    "T4": {"shape": "square", "material": "glossy_black", "reflectance": 0.03, "alpha": 0.15, "eta": 1.5},
-}
+#: Target ids -> shape and material (Lambertian albedos): the presets of the shape catalogue, read from the
+#: shipped ``assets/targets.toml`` (``edgetruth.render.shapes``).  A group showing a preset with no scene
+#: key of its own renders the fixed scene of ``TargetRig`` (the same BSDFs), so its images are unchanged.
+TARGETS = legacy_targets()
 
 
 @dataclass(frozen=True)
