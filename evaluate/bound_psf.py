@@ -14,8 +14,11 @@ the normal, whose transfer function is the 2-D OTF on the normal's line:
 
 (σ_r: a reference Gaussian that carries the step; the Fourier term is the smooth, decaying
 difference, computed by one FFT on a 1/64-px grid over ±512 px).  P_ψ and P'_ψ are tabulated for
-ψ in 0.25° steps over [0, 90°] (T depends on |cos ψ|, |sin ψ| only) and interpolated: cubic
-Hermite in d, linear in ψ.  The PSF may be scaled by λ (blur scale): OTF_psf(λν).
+ψ in 0.25° steps (``angle_step_deg``) over [0, 90°] (T depends on |cos ψ|, |sin ψ| only) and
+interpolated: cubic Hermite in d, linear in ψ.  ``EdgeSpread.stack`` builds many bins at once with a
+third table, λ ∂P/∂λ, and ``means_and_derivatives`` evaluates the means and their derivatives by the
+chain rule through the tables in numba (``footprint_bounds`` uses it; ``jacobian``, central differences
+of ``unit_means``, stays as the reference).  The PSF may be scaled by λ (blur scale): OTF_psf(λν).
 
 **Circle.**  Per pixel the tangent line (the true distance d and local normal ψ of the pixel
 centre), the circle's bend inside the pixel (1/(24 r), as ``evaluate.crb``) and the bend seen by
@@ -35,6 +38,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 from scipy.special import ndtr
 
@@ -99,11 +103,16 @@ class Optics:
 
 @dataclass
 class EdgeSpread:
-    """Tabulated P_ψ(d) and P'_ψ(d) of box ⊗ PSF (scale λ), built per angle bin when first needed."""
+    """Tabulated P_ψ(d) and P'_ψ(d) of box ⊗ PSF (scale λ), built per angle bin when first needed.
+
+    ``angle_step_deg``: the bins of ψ (linear interpolation between them); ``fft_len``: the FFT's
+    length on the 1/64-px grid (its period: ``fft_len``/64 px).  ``stack`` builds many bins at once
+    (batched FFTs over the PSF's band only) with a third table, dP/dλ (relative: λ ∂P/∂λ)."""
 
     optics: Optics
     scale: float = 1.0
     fft_len: int = FFT_LEN
+    angle_step_deg: float = ANGLE_STEP_DEG
     _tables: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -112,12 +121,17 @@ class EdgeSpread:
         self._k = int(round(TABLE_HALF_PX / GRID_STEP_PX))
         self.d = np.arange(-self._k, self._k + 1) * GRID_STEP_PX
         self._sr = self.optics.reference_sigma() * self.scale
+        self.n_bins = int(round(90.0 / self.angle_step_deg))
+        if abs(self.n_bins * self.angle_step_deg - 90.0) > 1e-9:
+            raise ValueError(f"angle_step_deg={self.angle_step_deg}: must divide 90")
+        self._stack = None  # (P, dP, L) over all bins, rows filled by ``stack``
+        self._built = np.zeros(self.n_bins + 1, bool)
 
     def _table(self, j: int):
         t = self._tables.get(j)
         if t is not None:
             return t
-        psi = math.radians(j * ANGLE_STEP_DEG)
+        psi = math.radians(j * self.angle_step_deg)
         c, s = math.cos(psi), math.sin(psi)
         nu = self._nu
         T = self.optics.otf(nu * c, nu * s, self.scale) * np.sinc(nu * c) * np.sinc(nu * s)
@@ -135,12 +149,67 @@ class EdgeSpread:
         self._tables[j] = t
         return t
 
+    def band_limit_cy_px(self) -> float:
+        """Frequency beyond which the PSF's OTF is 0 (diffraction) or below 1e-13 (Gaussian)."""
+        o = self.optics
+        lim = o.cutoff_cy_px
+        smin = min(o.sigma_x_px, o.sigma_y_px)
+        if smin > 0:
+            lim = min(lim, math.sqrt(30.0 / (2.0 * math.pi ** 2)) / smin)
+        return lim / self.scale
+
+    def stack(self, bins=None):
+        """(P, dP, L) arrays (n_bins + 1, len(d)) of every angle bin, the rows of ``bins`` (default:
+        all) built: P and P' as ``_table``, L = λ ∂P/∂λ (the PSF's scale, relative; the pixel box
+        fixed) from the central difference of the OTF in λ (step 1e-4)."""
+        nd = self.d.size
+        if self._stack is None:
+            self._stack = (np.zeros((self.n_bins + 1, nd)), np.zeros((self.n_bins + 1, nd)),
+                           np.zeros((self.n_bins + 1, nd)))
+        want = np.arange(self.n_bins + 1) if bins is None else np.unique(np.asarray(bins, np.int64))
+        want = want[(want >= 0) & (want <= self.n_bins)]
+        want = want[~self._built[want]]
+        if want.size:
+            self._build(want)
+        return self._stack
+
+    def _build(self, bins, chunk: int = 48):
+        n = self.fft_len
+        h = GRID_STEP_PX
+        nu_all = self._nu
+        lim = self.band_limit_cy_px()
+        m = nu_all.size if not math.isfinite(lim) else min(nu_all.size, int(np.searchsorted(nu_all, lim * 1.01)) + 2)
+        nu = nu_all[:m]
+        inv = np.zeros(m, complex)
+        inv[1:] = 1.0 / (2j * np.pi * nu[1:])
+        G_all = np.exp(-2.0 * np.pi ** 2 * self._sr ** 2 * nu_all ** 2)
+        idx = np.r_[n - self._k:n, 0:self._k + 1]
+        # beyond the band the OTF is 0: that part of (T - G)/(2 pi i nu) is -G/(2 pi i nu), the same for every bin
+        tail = np.zeros(nu_all.size, complex)
+        tail[m:] = -G_all[m:] / (2j * np.pi * nu_all[m:])
+        base = ndtr(self.d / self._sr) + (np.fft.irfft(tail, n=n) / h)[idx]
+        eps = 1e-4
+        P, dP, L = self._stack
+        for c0 in range(0, bins.size, chunk):
+            b = bins[c0:c0 + chunk]
+            psi = np.radians(b * self.angle_step_deg)[:, None]
+            nx, ny = nu[None, :] * np.cos(psi), nu[None, :] * np.sin(psi)
+            box = np.sinc(nx) * np.sinc(ny)
+            T = self.optics.otf(nx, ny, self.scale) * box
+            dT = (self.optics.otf(nx, ny, self.scale * (1 + eps))
+                  - self.optics.otf(nx, ny, self.scale * (1 - eps))) * box / (2 * eps)
+            D = (T - G_all[None, :m]) * inv[None, :]
+            P[b] = base[None, :] + (np.fft.irfft(D, n=n, axis=1) / h)[:, idx]
+            dP[b] = (np.fft.irfft(T, n=n, axis=1) / h)[:, idx]
+            L[b] = (np.fft.irfft(dT * inv[None, :], n=n, axis=1) / h)[:, idx]
+            self._built[b] = True
+
     def value(self, d, psi):
         """(P, dP/dd) at signed distances d and local normal directions psi (arrays, same shape)."""
         d = np.asarray(d, float)
         a = np.abs(np.arctan2(np.abs(np.sin(psi)), np.abs(np.cos(psi))))  # fold to [0, pi/2]
-        x = np.degrees(a) / ANGLE_STEP_DEG
-        j0 = np.clip(np.floor(x).astype(np.int64), 0, int(round(90 / ANGLE_STEP_DEG)) - 1)
+        x = np.degrees(a) / self.angle_step_deg
+        j0 = np.clip(np.floor(x).astype(np.int64), 0, self.n_bins - 1)
         w = x - j0
         P = np.zeros(d.shape)
         dP = np.zeros(d.shape)
@@ -169,6 +238,250 @@ class EdgeSpread:
         val = np.where(d < -TABLE_HALF_PX, 0.0, np.where(d >= TABLE_HALF_PX, 1.0, val))
         der = np.where(np.abs(d) >= TABLE_HALF_PX, 0.0, der)
         return val, der
+
+
+# ---------------------------------------------------------------- the batched kernel
+#
+# Per point i and footprint pixel k: the unit mean M and its derivatives by the chain rule through
+# the tables -- dM/drho = P_d dd/drho + P_psi dpsi/drho, likewise for phi, and
+# dM/dlambda = L + P_d dd/dlambda (the circle's bend grows with the PSF's tangential variance) --
+# P_d from the cubic Hermite in d, P_psi the slope of the linear interpolation in psi (as a
+# central difference across a bin boundary gives), L linear in d.
+
+@numba.njit(cache=True, inline="always")
+def _hermite_row(P, dP, j, d, k0, inv_h):
+    x = d * inv_h + k0
+    i = int(math.floor(x))
+    if i < 0:
+        i = 0
+    if i > P.shape[1] - 2:
+        i = P.shape[1] - 2
+    t = x - i
+    h = 1.0 / inv_h
+    p0 = P[j, i]
+    p1 = P[j, i + 1]
+    m0 = dP[j, i] * h
+    m1 = dP[j, i + 1] * h
+    t2 = t * t
+    t3 = t2 * t
+    val = (2 * t3 - 3 * t2 + 1) * p0 + (t3 - 2 * t2 + t) * m0 + (-2 * t3 + 3 * t2) * p1 + (t3 - t2) * m1
+    der = ((6 * t2 - 6 * t) * p0 + (3 * t2 - 4 * t + 1) * m0 + (-6 * t2 + 6 * t) * p1
+           + (3 * t2 - 2 * t) * m1) * inv_h
+    return val, der, i, t
+
+
+@numba.njit(cache=True)
+def _means_kernel(kind, rho, phi, radius, sgn, offx, offy, use, P, dP, L, step_rad, half_px, k0, inv_h,
+                  sx2, sy2, vc, M, Jr, Jp, Jl):
+    """M, dM/drho, dM/dphi, lambda dM/dlambda at every (point, offset) where ``use``."""
+    n = rho.shape[0]
+    npx = offx.shape[0]
+    nb = P.shape[0] - 1
+    for i in range(n):
+        c = math.cos(phi[i])
+        s = math.sin(phi[i])
+        # a line's normal is the same at every pixel: its angle bin once per point
+        la = math.atan2(abs(s), abs(c))
+        lda = 1.0 if (s >= 0.0) == (c >= 0.0) else -1.0
+        lx = la / step_rad
+        lj = min(max(int(math.floor(lx)), 0), nb - 1)
+        lw = lx - lj
+        for k in range(npx):
+            if not use[i, k]:
+                continue
+            dx = offx[k]
+            dy = offy[k]
+            if kind[i] == 0:
+                d = dx * c + dy * s + rho[i]
+                d_r = 1.0
+                d_p = dy * c - dx * s
+                s_r = 0.0
+                s_p = 1.0
+                d_l = 0.0
+                j0 = lj
+                w = lw
+                da = lda
+            else:
+                g = sgn[i]
+                kk = g * radius[i] - rho[i]
+                vx = dx - kk * c
+                vy = dy - kk * s
+                r = math.sqrt(vx * vx + vy * vy)
+                if r < 1e-9:
+                    r = 1e-9
+                sn = vy / r
+                cs = vx / r
+                vt = sx2 * sn * sn + sy2 * cs * cs + vc
+                ct = 1.0 / 12.0 + vt
+                d = g * (radius[i] - r - ct / (2.0 * r))
+                r_r = (vx * c + vy * s) / r
+                r_p = kk * (vx * s - vy * c) / r
+                s_r = (vx * s - vy * c) / (r * r)
+                s_p = -kk * (vx * c + vy * s) / (r * r)
+                dd_r = g * (-1.0 + ct / (2.0 * r * r))
+                dd_s = -g * (2.0 * sn * cs * (sx2 - sy2)) / (2.0 * r)
+                d_r = dd_r * r_r + dd_s * s_r
+                d_p = dd_r * r_p + dd_s * s_p
+                d_l = -g * vt / r
+                a = math.atan2(abs(sn), abs(cs))
+                da = 1.0 if (sn >= 0.0) == (cs >= 0.0) else -1.0
+                x = a / step_rad
+                j0 = min(max(int(math.floor(x)), 0), nb - 1)
+                w = x - j0
+            if d <= -half_px or d >= half_px:
+                M[i, k] = 0.0 if d < 0 else 1.0
+                Jr[i, k] = 0.0
+                Jp[i, k] = 0.0
+                Jl[i, k] = 0.0
+                continue
+            v0, e0, ii, t = _hermite_row(P, dP, j0, d, k0, inv_h)
+            v1, e1, _, _ = _hermite_row(P, dP, j0 + 1, d, k0, inv_h)
+            l0 = L[j0, ii] * (1.0 - t) + L[j0, ii + 1] * t
+            l1 = L[j0 + 1, ii] * (1.0 - t) + L[j0 + 1, ii + 1] * t
+            pd = (1.0 - w) * e0 + w * e1
+            pa = (v1 - v0) / step_rad * da
+            M[i, k] = (1.0 - w) * v0 + w * v1
+            Jr[i, k] = pd * d_r + pa * s_r
+            Jp[i, k] = pd * d_p + pa * s_p
+            Jl[i, k] = (1.0 - w) * l0 + w * l1 + pd * d_l
+
+
+@numba.njit(cache=True)
+def _fisher_kernel(Jr, Jp, Jl, M, B, wgt, masks, npar, F):
+    """F[u, i] = sum_k masks[u, i, k] w J J^T over (rho, phi, A, B[, lambda]), J = (B Jr, B Jp, 1, M, B Jl)."""
+    nu_ = masks.shape[0]
+    n = M.shape[0]
+    npx = M.shape[1]
+    nq = npar * (npar + 1) // 2
+    for i in range(n):
+        jac = np.empty(5)
+        q = np.empty(15)
+        acc = np.zeros((nu_, 15))
+        for k in range(npx):
+            wk = wgt[i, k]
+            if wk == 0.0:
+                continue
+            jac[0] = B[i] * Jr[i, k]
+            jac[1] = B[i] * Jp[i, k]
+            jac[2] = 1.0
+            jac[3] = M[i, k]
+            jac[4] = B[i] * Jl[i, k]
+            t = 0
+            for a in range(npar):
+                wa = wk * jac[a]
+                for b in range(a + 1):
+                    q[t] = wa * jac[b]
+                    t += 1
+            for u in range(nu_):
+                if masks[u, i, k]:
+                    for t in range(nq):
+                        acc[u, t] += q[t]
+        for u in range(nu_):
+            t = 0
+            for a in range(npar):
+                for b in range(a + 1):
+                    F[u, i, a, b] = acc[u, t]
+                    F[u, i, b, a] = acc[u, t]
+                    t += 1
+
+
+@numba.njit(cache=True)
+def _rho_variance_kernel(F, drop_rel, out):
+    """(F^-1)_00 per stacked Fisher matrix (crb.bound_from_fisher's rule: a nuisance with information
+    below drop_rel F_00 is dropped), by Cholesky of the diagonally normalised matrix; NaN where it
+    is not positive definite (the caller falls back to the pseudo-inverse)."""
+    n = F.shape[0]
+    k = F.shape[1]
+    for i in range(n):
+        keep = np.empty(k, np.int64)
+        m = 0
+        f00 = F[i, 0, 0]
+        for a in range(k):
+            if a == 0 or F[i, a, a] >= drop_rel * f00:
+                keep[m] = a
+                m += 1
+        L = np.zeros((m, m))
+        d = np.empty(m)
+        for a in range(m):
+            d[a] = math.sqrt(max(F[i, keep[a], keep[a]], 1e-300))
+        ok = True
+        for a in range(m):
+            for b in range(a + 1):
+                v = F[i, keep[a], keep[b]] / (d[a] * d[b])
+                for c in range(b):
+                    v -= L[a, c] * L[b, c]
+                if a == b:
+                    if not v > 1e-12:
+                        ok = False
+                        break
+                    L[a, a] = math.sqrt(v)
+                else:
+                    L[a, b] = v / L[b, b]
+            if not ok:
+                break
+        if not ok:
+            out[i] = np.nan
+            continue
+        # (Fn^-1)_00 = |L^-1 e_0|^2: forward substitution of e_0
+        z = np.zeros(m)
+        z[0] = 1.0 / L[0, 0]
+        for a in range(1, m):
+            v = 0.0
+            for c in range(a):
+                v -= L[a, c] * z[c]
+            z[a] = v / L[a, a]
+        v = 0.0
+        for a in range(m):
+            v += z[a] * z[a]
+        out[i] = v / (d[0] * d[0])
+
+
+def rho_bound(F: np.ndarray, drop_rel: float = 1e-9) -> np.ndarray:
+    """``crb.bound_from_fisher`` for stacked (..., K, K) Fisher matrices, fast: Cholesky in numba, the
+    pseudo-inverse only where a matrix is not positive definite."""
+    F = np.asarray(F, float)
+    shape = F.shape[:-2]
+    Ff = np.ascontiguousarray(F.reshape(-1, F.shape[-2], F.shape[-1]))
+    v = np.empty(Ff.shape[0])
+    if Ff.shape[0]:
+        _rho_variance_kernel(Ff, drop_rel, v)
+    bad = ~np.isfinite(v)
+    out = np.sqrt(np.where(v > 0, v, np.inf))
+    if bad.any():
+        out[bad] = bound_from_fisher(Ff[bad], drop_rel)
+    return out.reshape(shape)
+
+
+def means_and_derivatives(spread: EdgeSpread, geometry: dict, offsets, use=None):
+    """(M, dM/drho, dM/dphi, lambda dM/dlambda), each (N, P), of the unit edge at pixel ``offsets``
+    (P, 2) = (dx, dy) from each point (``crb.edge_geometry``), where ``use`` (N, P) (default all):
+    one pass of the batched kernel over the tables of the angle bins the points need."""
+    off = np.ascontiguousarray(np.asarray(offsets, float).reshape(-1, 2))
+    n = geometry["rho"].size
+    npx = off.shape[0]
+    use = np.ones((n, npx), bool) if use is None else np.ascontiguousarray(use, bool)
+    bc = lambda v, t=float: np.ascontiguousarray(np.broadcast_to(np.asarray(v, t), (n,)))
+    kind, rho, phi = bc(geometry["kind"], np.int64), bc(geometry["rho"]), bc(geometry["phi"])
+    radius, sgn = bc(geometry["radius"]), bc(geometry["sgn"])
+    # the angle bins the points reach: lines at phi, circles all around
+    step = math.radians(spread.angle_step_deg)
+    if n and np.any(kind == 1):
+        bins = None
+    else:
+        a = np.arctan2(np.abs(np.sin(phi)), np.abs(np.cos(phi)))
+        j = np.clip(np.floor(a / step).astype(np.int64), 0, spread.n_bins - 1)
+        bins = np.concatenate([j, j + 1])
+    P, dP, L = spread.stack(bins)
+    o = spread.optics
+    lam2 = spread.scale ** 2
+    M = np.zeros((n, npx))
+    Jr, Jp, Jl = np.zeros_like(M), np.zeros_like(M), np.zeros_like(M)
+    if n and npx:
+        _means_kernel(kind, rho, phi, radius, sgn, off[:, 0].copy(), off[:, 1].copy(), use, P, dP, L, step,
+                      TABLE_HALF_PX, float(spread._k), 1.0 / GRID_STEP_PX, o.sigma_x_px ** 2 * lam2,
+                      o.sigma_y_px ** 2 * lam2, (o.defocus_px ** 2 / 4.0 + o.olpf_px ** 2 / 4.0) * lam2,
+                      M, Jr, Jp, Jl)
+    return M, Jr, Jp, Jl
 
 
 def unit_means(spread: EdgeSpread, geometry: dict, offsets, rho=None, phi=None) -> np.ndarray:
@@ -218,8 +531,8 @@ def jacobian(optics: Optics, geometry: dict, A, B, offsets, blur_unknown: bool =
                  - unit_means(spread, geometry, offsets, phi=phi - _H_PHI)) / (2 * _H_PHI),
             np.ones_like(M), M]
     if blur_unknown:
-        up = EdgeSpread(optics, spread.scale * (1 + _H_SCALE), spread.fft_len)
-        dn = EdgeSpread(optics, spread.scale * (1 - _H_SCALE), spread.fft_len)
+        up = EdgeSpread(optics, spread.scale * (1 + _H_SCALE), spread.fft_len, spread.angle_step_deg)
+        dn = EdgeSpread(optics, spread.scale * (1 - _H_SCALE), spread.fft_len, spread.angle_step_deg)
         cols.append(B * (unit_means(up, geometry, offsets) - unit_means(dn, geometry, offsets)) / (2 * _H_SCALE))
     return np.stack(cols, axis=-1), M
 
@@ -230,27 +543,54 @@ def footprint_bounds(optics: Optics, geometry: dict, A, B, masks: dict, noise_va
     """The per-point bound (px) of each footprint in ``masks`` (name -> (N, SIZE, SIZE) bool) under
     ``optics``: Gaussian noise ``noise_var`` (gray levels², scalar or per point) or ``variance_fn``
     (the pixel means (N, P) -> variances, e.g. the EMVA sensor model), plus ``extra_var``
-    (Monte-Carlo noise, scalar or (N, 1)).  ``blur_unknown``: the PSF's scale is a nuisance."""
+    (Monte-Carlo noise, scalar or (N, 1)).  ``blur_unknown``: the PSF's scale is a nuisance.
+    Masks that are equal share one Fisher computation."""
     if not masks:
         return {}
-    stack = np.stack([np.asarray(m, bool) for m in masks.values()])
+    names = list(masks)
+    unique, key_of = [], {}
+    seen = {}
+    for name in names:
+        m = np.ascontiguousarray(masks[name], bool)
+        key = (m.shape, m.tobytes())
+        if key not in seen:
+            seen[key] = len(unique)
+            unique.append(m)
+        key_of[name] = seen[key]
+    stack = np.stack(unique)
     union = stack.any(axis=(0, 1))
     off = offsets_of(union)
     ui = np.nonzero(union.ravel())[0]
-    J, M = jacobian(optics, geometry, A, B, off, blur_unknown, spread)
+    n = stack.shape[1]
+    mu = np.ascontiguousarray(stack.reshape(len(unique), n, -1)[:, :, ui])
+    use = mu.any(axis=0)
+    spread = spread or EdgeSpread(optics)
+    derivs = means_and_derivatives(spread, geometry, off, use)
+    bounds = bounds_from_derivatives(derivs, A, B, mu, noise_var, variance_fn, extra_var, background, blur_unknown)
+    return {name: bounds[key_of[name]] for name in names}
+
+
+def bounds_from_derivatives(derivs, A, B, masks_on_offsets: np.ndarray, noise_var=None, variance_fn=None,
+                            extra_var=0.0, background=0.0, blur_unknown: bool = True) -> list:
+    """The bounds (one (N,) array per mask) from ``means_and_derivatives``' output and masks
+    (U, N, P) over the same offsets."""
+    M, Jr, Jp, Jl = derivs
+    mu = np.ascontiguousarray(masks_on_offsets, bool)
     n = M.shape[0]
-    mean = np.asarray(A, float).reshape(-1, 1) + np.asarray(B, float).reshape(-1, 1) * M + background
+    use = mu.any(axis=0)
+    Av = np.broadcast_to(np.asarray(A, float).reshape(-1), (n,))[:, None]
+    Bv = np.ascontiguousarray(np.broadcast_to(np.asarray(B, float).reshape(-1), (n,)))
+    mean = Av + Bv[:, None] * M + background
     if variance_fn is not None:
         var = np.asarray(variance_fn(mean), float)
     else:
         var = np.broadcast_to(np.asarray(noise_var, float).reshape(-1, 1), M.shape)
-    w = 1.0 / (var + extra_var)
-    out = {}
-    for name, m in zip(masks, stack):
-        wm = w * m.reshape(n, -1)[:, ui]
-        F = np.einsum("np,npk,npl->nkl", wm, J, J)
-        out[name] = bound_from_fisher(F)
-    return out
+    w = np.ascontiguousarray(np.where(use, 1.0 / (var + extra_var), 0.0))
+    npar = 5 if blur_unknown else 4
+    F = np.zeros((mu.shape[0], n, npar, npar))
+    if n:
+        _fisher_kernel(Jr, Jp, Jl, M, Bv, w, mu, npar, F)
+    return list(rho_bound(F)) if n else [np.zeros(0) for _ in range(mu.shape[0])]
 
 
 def emva_variance(gain_dn_per_e: float, dark_noise_e: float, offset_dn: float = 0.0):

@@ -1,6 +1,8 @@
 """Small dense linear solves inside numba kernels (per-point normal equations)."""
 from __future__ import annotations
 
+import math
+
 import numba
 
 
@@ -31,4 +33,36 @@ def solve_small(m, n):
         for k in range(c + 1, n):
             acc -= m[c, k] * m[k, n]
         m[c, n] = acc / m[c, c]
+    return True
+
+
+@numba.njit(cache=True)
+def cholesky_solve(H, g, n, x):
+    """Solve H x = g for the leading n x n block of a symmetric positive-definite H by Cholesky, the
+    factor written over H's lower triangle; False (x undefined) if H is not positive definite.
+    (The per-point Levenberg-Marquardt step of ``locate.methods.patch_psf_fit``: a failed factor
+    tells the fit to raise its damping.)"""
+    for j in range(n):
+        v = H[j, j]
+        for k in range(j):
+            v -= H[j, k] * H[j, k]
+        if not v > 0.0:
+            return False
+        v = math.sqrt(v)
+        H[j, j] = v
+        for i in range(j + 1, n):
+            w = H[i, j]
+            for k in range(j):
+                w -= H[i, k] * H[j, k]
+            H[i, j] = w / v
+    for i in range(n):
+        w = g[i]
+        for k in range(i):
+            w -= H[i, k] * x[k]
+        x[i] = w / H[i, i]
+    for i in range(n - 1, -1, -1):
+        w = x[i]
+        for k in range(i + 1, n):
+            w -= H[k, i] * x[k]
+        x[i] = w / H[i, i]
     return True

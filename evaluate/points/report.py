@@ -13,7 +13,10 @@ of the candidates it refines), bias and RMSE on its *refined* points, RMSE on th
 a decline scored at the pixel centre.  Rankings, paired tests and the cell tables use the common
 subset; each table says which it uses.  Bias against the *optical edge* (the geometric outline
 moved by the displacement the camera model predicts, ``edgetruth.render.optical_edge``) is given
-beside the bias against the outline, with the optics' own displacement apart.
+beside the bias against the outline, with the optics' own displacement apart.  Each method's RMSE is
+also divided by its *exact per-point Cramér–Rao bound* (``edgetruth.evaluate.points.bound``: the
+camera's PSF, the outline, the shading, the sensor's noise, over the method's own footprint) on the
+same points; the old 11-pixel-row figure stays beside it as a named reference ("÷ row ref.").
 """
 from __future__ import annotations
 
@@ -38,8 +41,9 @@ def _label(m: str) -> str:
 
 
 def image_columns(table) -> tuple[np.ndarray, np.ndarray]:
-    """Per image: the approximate per-point bound (px) and the distance interval label."""
-    return (np.array([r.get("bound_px", np.nan) for r in table.images], float),
+    """Per image: the 11-pixel-row reference bound (px; ``bound_row_px``, ``bound_px`` in older files)
+    and the distance interval label."""
+    return (np.array([r.get("bound_row_px", r.get("bound_px", np.nan)) for r in table.images], float),
             np.array([r.get("interval", "") for r in table.images]))
 
 
@@ -87,29 +91,36 @@ def _rms(v: np.ndarray) -> float:
     return float(np.sqrt(np.mean(v ** 2))) if v.size else float("nan")
 
 
+def _ratio(rmse: float, bound_rms: float) -> float:
+    return rmse / bound_rms if np.isfinite(bound_rms) and bound_rms > 0 else float("nan")
+
+
 def point_stats(table, m: str, bound_of_image: np.ndarray, common: np.ndarray | None = None) -> dict:
     """Method ``m``'s figures: on all candidates (declines at the pixel centre: ``bias``, ``rmse`` with
-    an image-bootstrap CI, robust spread, RMSE ÷ bound), ``coverage``, on its refined points
-    (``bias_refined``, ``rmse_refined``, ``bias_optical``: against the optical edge), and on the
-    ``common`` subset (``rmse_common`` with CI, ``bias_common``, ``bias_common_optical``)."""
+    an image-bootstrap CI, robust spread), ``coverage``, on its refined points (``bias_refined``,
+    ``rmse_refined``, ``bias_optical``: against the optical edge; ``bound_rms``: the RMS of its exact
+    per-point bound there, ``rmse_over_bound`` = rmse_refined ÷ bound_rms; ``rmse_over_row_bound``:
+    the same over the 11-pixel-row reference of ``bound_of_image``), and on the ``common`` subset
+    (``rmse_common`` with CI, ``bias_common``, ``bias_common_optical``, ``rmse_common_over_bound``)."""
     e = table.errors[m]
     ok = np.isfinite(e)
     conv = np.asarray(table.converged[m], bool)
     common = ok.copy() if common is None else np.asarray(common, bool) & ok
     opt = table.optical("centroid")
+    bnd = table.bound(m) if hasattr(table, "bound") else np.full(len(e), np.nan)
     out = {"n": int(ok.sum()), "n_images": int(np.unique(table.image[ok]).size),
            "n_refined": int((ok & conv).sum()), "n_common": int(common.sum())}
     nan2 = (np.nan, np.nan)
     if not ok.any():
         return {**out, "bias": np.nan, "rmse": np.nan, "rmse_ci": nan2, "robust_sd": np.nan, "coverage": np.nan,
-                "rmse_over_bound": np.nan, "bound_rms": np.nan, "bias_refined": np.nan, "rmse_refined": np.nan,
-                "rmse_refined_ci": nan2, "bias_optical": np.nan, "rmse_common": np.nan, "rmse_common_ci": nan2,
-                "bias_common": np.nan, "bias_common_optical": np.nan, "optical_offset": np.nan}
+                "rmse_over_bound": np.nan, "bound_rms": np.nan, "bound_row_rms": np.nan,
+                "rmse_over_row_bound": np.nan, "rmse_common_over_bound": np.nan, "bias_refined": np.nan,
+                "rmse_refined": np.nan, "rmse_refined_ci": nan2, "bias_optical": np.nan, "rmse_common": np.nan,
+                "rmse_common_ci": nan2, "bias_common": np.nan, "bias_common_optical": np.nan,
+                "optical_offset": np.nan}
     ee = e[ok]
     n_img = len(table.images)
     sse, n = per_image_sums(table.image, e, n_img)
-    b = bound_of_image[table.image[ok]]
-    b_rms = float(np.sqrt(np.nanmean(b ** 2))) if np.isfinite(b).any() else float("nan")
     rm = _rms(ee)
     ref = ok & conv
     er, ec = e[ref], e[common]
@@ -117,11 +128,18 @@ def point_stats(table, m: str, bound_of_image: np.ndarray, common: np.ndarray | 
     sse_c, n_c = per_image_sums(table.image[common], ec, n_img)
     opt_r, opt_c = opt[ref], opt[common]
     has_opt = np.isfinite(opt_r).any()
+
+    def brms(v):
+        return float(np.sqrt(np.nanmean(v ** 2))) if np.isfinite(v).any() else float("nan")
+    b_row = brms(bound_of_image[table.image[ref]])
+    b_ref, b_com = brms(bnd[ref]), brms(bnd[common])
+    rr = _rms(er)
     return {**out, "bias": float(np.mean(ee)), "rmse": rm, "rmse_ci": cluster_rmse_ci(sse, n),
             "robust_sd": float(MAD_TO_SD * np.median(np.abs(ee - np.median(ee)))),
-            "coverage": float(np.mean(conv[ok])), "bound_rms": b_rms,
-            "rmse_over_bound": rm / b_rms if b_rms > 0 else float("nan"),
-            "bias_refined": float(np.mean(er)) if er.size else np.nan, "rmse_refined": _rms(er),
+            "coverage": float(np.mean(conv[ok])), "bound_rms": b_ref, "rmse_over_bound": _ratio(rr, b_ref),
+            "bound_row_rms": b_row, "rmse_over_row_bound": _ratio(rr, b_row),
+            "rmse_common_over_bound": _ratio(_rms(ec), b_com),
+            "bias_refined": float(np.mean(er)) if er.size else np.nan, "rmse_refined": rr,
             "rmse_refined_ci": cluster_rmse_ci(sse_r, n_r),
             "bias_optical": float(np.nanmean(er - opt_r)) if has_opt else np.nan,
             "rmse_common": _rms(ec), "rmse_common_ci": cluster_rmse_ci(sse_c, n_c),
@@ -271,7 +289,10 @@ def summary_rows(table, methods) -> list[dict]:
                             "n_images": s["n_images"], "bias_px": s["bias"], "rmse_px": s["rmse"],
                             "rmse_ci_lo_px": s["rmse_ci"][0], "rmse_ci_hi_px": s["rmse_ci"][1],
                             "robust_sd_px": s["robust_sd"], "coverage": s["coverage"], "bound_rms_px": s["bound_rms"],
-                            "rmse_over_bound": s["rmse_over_bound"], "n_refined": s["n_refined"],
+                            "rmse_over_bound": s["rmse_over_bound"],
+                            "rmse_common_over_bound": s["rmse_common_over_bound"],
+                            "bound_row_rms_px": s["bound_row_rms"], "rmse_over_row_bound": s["rmse_over_row_bound"],
+                            "n_refined": s["n_refined"],
                             "bias_refined_px": s["bias_refined"], "rmse_refined_px": s["rmse_refined"],
                             "n_common": s["n_common"], "rmse_common_px": s["rmse_common"],
                             "bias_common_px": s["bias_common"], "bias_optical_px": s["bias_optical"],
@@ -282,7 +303,8 @@ def summary_rows(table, methods) -> list[dict]:
 
 
 SUMMARY_FIELDS = ("cell", "level", "interval", "method", "n_points", "n_images", "bias_px", "rmse_px", "rmse_ci_lo_px",
-                  "rmse_ci_hi_px", "robust_sd_px", "coverage", "bound_rms_px", "rmse_over_bound", "n_refined",
+                  "rmse_ci_hi_px", "robust_sd_px", "coverage", "bound_rms_px", "rmse_over_bound",
+                  "rmse_common_over_bound", "bound_row_rms_px", "rmse_over_row_bound", "n_refined",
                   "bias_refined_px", "rmse_refined_px", "n_common", "rmse_common_px", "bias_common_px",
                   "bias_optical_px", "bias_common_optical_px", "optical_offset_px", "window5_share",
                   "window7_share", "window9_share", "window11_share")
@@ -336,8 +358,9 @@ def figures(table, methods, fig_dir: Path) -> dict:
             hi = np.array([s["rmse_common_ci"][1] for s in st])
             ax.errorbar(range(len(ticks)), y, yerr=[np.nan_to_num(y - lo), np.nan_to_num(hi - y)], marker="o",
                         capsize=3, label=_label(m))
-        b = [float(np.sqrt(np.nanmean(bound[mk] ** 2))) if mk.any() else np.nan for mk in masks]
-        ax.plot(range(len(ticks)), b, "k--", lw=1, label="per-point bound (approx.)")
+        b = [float(np.sqrt(np.nanmean(bound[mk] ** 2))) if mk.any() and np.isfinite(bound[mk]).any() else np.nan
+             for mk in masks]
+        ax.plot(range(len(ticks)), b, "k--", lw=1, label="11-pixel-row reference (approx., not a floor)")
         ax.set_xticks(range(len(ticks)), ticks)
         ax.set_xlabel(xlabel)
         ax.set_ylabel("per-point RMSE on the common subset (px), 95 % CI")
@@ -378,17 +401,24 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
          + ("bias vs optical edge: the refined points' mean error against the outline moved by the displacement "
             "the camera model predicts (edgetruth/render/optical_edge.py; its centroid), the optics' own share "
             "apart in Table E3.  " if has_opt else "")
-         + "bound: an *approximate* per-point CRB (an axis-aligned 11-pixel row, Gaussian-equivalent PSF ⊗ defocus, "
-         "noise at the edge's mid level; edgetruth/evaluate/points/scores.py), a reference rather than a strict "
-         "floor for oblique sides and 2-D methods; RMSE ÷ bound uses the common subset.", "",
+         + "RMSE ÷ bound: the RMSE on the method's refined points over the RMS of its *exact per-point "
+         "Cramér–Rao bound* there (edgetruth/evaluate/points/bound.py, docs/bound.md): for each point, the lowest "
+         "standard deviation any unbiased estimate of its distance to the outline can have, given exactly the pixels "
+         "the method reads (its declared footprint) -- the camera's PSF at the point's field height (Airy ⊗ "
+         "aberration ⊗ defocus disk ⊗ OLPF, box-integrated), the outline's orientation and curvature, the shading "
+         "on both sides, the sensor's signal-dependent noise, with the normal, both levels and the PSF's scale "
+         "unknown.  A ratio near 1 is a method at the limit; a ratio below ~0.97 would be a bug or a biased "
+         "estimator that shrinks its answer.  RMSE includes bias (the optics' and the method's), the bound only the "
+         "noise.  ÷ row ref.: the same RMSE over the old *approximate* figure (an axis-aligned 11-pixel row, "
+         "Gaussian-equivalent PSF; a reference only, not a floor for oblique sides or 2-D methods).", "",
          _table(["method", "coverage", "bias (refined)"] + (["bias vs optical edge"] if has_opt else [])
                 + ["RMSE (refined)", "RMSE (common subset)", "common 95 % CI", "RMSE (all, declines at pixel)",
-                   "robust SD", "RMSE ÷ bound"],
+                   "robust SD", "bound (px)", "RMSE ÷ bound", "÷ row ref."],
                 [[_label(m), _f(100 * st[m]["coverage"], 1) + " %", _f(st[m]["bias_refined"], 4)]
                  + ([_f(st[m]["bias_optical"], 4)] if has_opt else [])
                  + [_f(st[m]["rmse_refined"], 4), _f(st[m]["rmse_common"], 4), _ci(st[m]["rmse_common_ci"], 4),
-                    _f(st[m]["rmse"], 4), _f(st[m]["robust_sd"], 4),
-                    _f(st[m]["rmse_common"] / st[m]["bound_rms"] if st[m]["bound_rms"] > 0 else np.nan, 2)]
+                    _f(st[m]["rmse"], 4), _f(st[m]["robust_sd"], 4), _f(st[m]["bound_rms"], 4),
+                    _f(st[m]["rmse_over_bound"], 2), _f(st[m]["rmse_over_row_bound"], 2)]
                  for m in order])]
     if REFERENCE_METHOD in methods:
         comp = image_comparisons(base, order, mask=common)
@@ -434,8 +464,9 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
         lcomm = {lv: common_mask(sb, methods) for lv, sb in lsubs.items()}
         for m in order:
             body.append([_label(m)] + [(lambda s: f"{_f(s['rmse_common'], 4)} {_ci(s['rmse_common_ci'], 4)} "
-                                                  f"({_f(100 * s['coverage'], 1)} %; refined {_f(s['rmse_refined'], 4)}; "
-                                                  f"all {_f(s['rmse'], 4)})")(
+                                                  f"({_f(100 * s['coverage'], 1)} %; refined "
+                                                  f"{_f(s['rmse_refined'], 4)}, ÷ bound "
+                                                  f"{_f(s['rmse_over_bound'], 2)}; all {_f(s['rmse'], 4)})")(
                 point_stats(lsubs[lv], m, bound, lcomm[lv])) for lv in levels])
         if ft.key in seed_titles:
             head = f"Table E4{ft.key} — per-point RMSE (px) across the {seed_titles[ft.key]} (same pose slots)"
@@ -445,8 +476,9 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
         else:
             head = f"{ft.title} — per-point RMSE (px) across the levels (same pose slots)"
         L += ["", f"## {head}", "",
-              "Each cell: RMSE on the level's common subset [95 % CI] (coverage; RMSE on the refined points; on all "
-              "candidates, declines at the pixel centre).", "",
+              "Each cell: RMSE on the level's common subset [95 % CI] (coverage; RMSE on the refined points and its "
+              "ratio to the exact per-point bound there, as in Table E1; on all candidates, declines at the pixel "
+              "centre).", "",
               _table(["method"] + levels, body)]
         paired = ft.key != "group" and all(str(table.images[k].get("slot", "")) != ""
                                            for mk in lm.values() for k in np.flatnonzero(mk))

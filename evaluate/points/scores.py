@@ -26,13 +26,16 @@ at its place (``optical_offset``: the centroid; ``optical_offset_50``: the 50 % 
 tables give a method's bias against the optical edge, e = d_geometric − offset, and the optics'
 own displacement apart.  Older JSONs: NaN.
 
-The per-point bound (``point_bound_px``) is an *approximation*, stated as such in the report: the
-Cramér–Rao bound of an axis-aligned 11-pixel row across a pixel-integrated Gaussian edge
+The per-point bound (``bounds``, per method and point): the exact Cramér–Rao bound of
+``edgetruth.evaluate.points.bound`` -- the camera's PSF at the point's field height, the outline's
+orientation and curvature, the shading on both sides, the sensor's signal-dependent noise, over the
+method's declared footprint, the nuisances (normal, levels, PSF scale) estimated.  The old figure
+stays as a named reference only (``point_bound_px``, the image record's ``bound_row_px``): the
+bound of an axis-aligned 11-pixel row across a pixel-integrated Gaussian edge
 (``edgetruth.evaluate.crb.position_std_bound``, A, B, μ, σ unknown) whose σ is the Gaussian
 equivalent of the lens PSF and defocus disk at the target (Airy core 0.42 λN, aberration σ(h),
-disk radius R as R/2), with the contrast and the noise at the edge's mid level taken from the
-noise-free radiance and the EMVA model of the image's JSON.  Oblique sides, the non-Gaussian PSF
-and 2-D methods (which use more than one row) make it a reference, not a strict floor.
+disk radius R as R/2), contrast and noise at the edge's mid level; not a floor for oblique sides
+and 2-D methods.
 """
 from __future__ import annotations
 
@@ -53,13 +56,14 @@ class PointScores:
     """One image: its scored candidates and every method's signed errors on them (px)."""
 
     n_candidates: int  # boundary candidates before the on-edge and corner rules
-    bound_px: float  # approximate per-point bound (module docstring)
+    bound_px: float  # the 11-pixel-row reference figure of the image (module docstring), not a floor
     candidate_distance: np.ndarray  # (N,) truth at the candidate pixel centres
     errors: dict = field(default_factory=dict)  # label -> (N,) signed error, px
     converged: dict = field(default_factory=dict)  # label -> (N,) bool
     windows: dict = field(default_factory=dict)  # dynamic labels -> (N,) window size (samples)
     optical_offset: np.ndarray | None = None  # (N,) optical edge's centroid offset at the candidate (px)
     optical_offset_50: np.ndarray | None = None  # (N,) its 50 % level
+    bounds: dict = field(default_factory=dict)  # label -> (N,) exact per-point bound over its footprint (px)
 
 
 def candidate_optical_offsets(gt: dict, truth, x, y) -> tuple[np.ndarray, np.ndarray]:
@@ -110,7 +114,8 @@ def gaussian_equivalent_blur_px(gt: dict) -> float:
 
 
 def point_bound_px(gt: dict, radiance: np.ndarray, truth) -> float:
-    """Approximate per-point bound (px) of one rendered target image (module docstring)."""
+    """The 11-pixel-row reference figure (px) of one rendered target image (module docstring): an
+    approximation kept for comparison, not a floor."""
     from edgetruth.evaluate.crb import position_std_bound
 
     s = gt["sensor"]
@@ -150,8 +155,13 @@ def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict |
     x0, y0 = tc.offset
     oc, o50 = candidate_optical_offsets(gt, truth, sub.x + x0, sub.y + y0)
     out.optical_offset, out.optical_offset_50 = oc.astype(np.float32), o50.astype(np.float32)
+    masks, blur_known = {}, set()
     for label in methods:
         mid, kw = resolve(label, options)
+        if radiance is not None and len(sub):  # the bound's pixels: the method's declared footprint
+            masks[label] = locate.METHODS[mid].footprint_masks(sub, **kw)
+            if kw.get("psf_sigma_px") is not None:  # told the PSF: its scale is known
+                blur_known.add(label)
         if len(sub):
             pts = locate.refine(tc.crop, sub, mid, **kw)
             err = truth.signed_distance(pts.x + x0, pts.y + y0)
@@ -162,6 +172,13 @@ def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict |
             err, conv = np.zeros(0), np.zeros(0, bool)
         out.errors[label] = np.asarray(err, np.float32)
         out.converged[label] = conv
+    if radiance is not None and len(sub):
+        from edgetruth.evaluate.points.bound import point_bounds
+
+        b = point_bounds(gt, radiance, truth, sub.x + x0, sub.y + y0, masks, blur_known)
+        out.bounds = {m: np.asarray(v, np.float32) for m, v in b.items()}
+    else:
+        out.bounds = {m: np.full(len(sub), np.nan, np.float32) for m in methods}
     return out
 
 
@@ -180,6 +197,12 @@ class PointTable:
     windows: dict
     optical_offset: np.ndarray | None = None  # (N,) per point, px (NaN: the JSON had no optical edge)
     optical_offset_50: np.ndarray | None = None
+    bounds: dict = field(default_factory=dict)  # label -> (N,) exact per-point bound (px), NaN unknown
+
+    def bound(self, m: str) -> np.ndarray:
+        """Method ``m``'s exact per-point bound (px); NaN where unknown (older files)."""
+        v = self.bounds.get(m)
+        return np.full(len(self.image), np.nan) if v is None else np.asarray(v, float)
 
     def optical(self, which: str = "centroid") -> np.ndarray:
         """Per point: the optical edge's offset from the outline (px), NaN where unknown."""
@@ -196,7 +219,8 @@ class PointTable:
         return PointTable(self.images, self.image[keep], {m: v[keep] for m, v in self.errors.items()},
                           {m: v[keep] for m, v in self.converged.items()}, {m: v[keep] for m, v in self.windows.items()},
                           None if self.optical_offset is None else self.optical_offset[keep],
-                          None if self.optical_offset_50 is None else self.optical_offset_50[keep])
+                          None if self.optical_offset_50 is None else self.optical_offset_50[keep],
+                          {m: v[keep] for m, v in self.bounds.items()})
 
 
 def read_points(path) -> PointTable:
@@ -212,17 +236,19 @@ def read_points(path) -> PointTable:
                           {m: z[f"converged/{m}"] for m in names},
                           {m: z[f"window/{m}"] for m in names if f"window/{m}" in z.files},
                           z["optical_offset"].astype(float) if "optical_offset" in z.files else None,
-                          z["optical_offset_50"].astype(float) if "optical_offset_50" in z.files else None)
+                          z["optical_offset_50"].astype(float) if "optical_offset_50" in z.files else None,
+                          {m: z[f"bound/{m}"].astype(float) for m in names if f"bound/{m}" in z.files})
     except (OSError, ValueError, KeyError) as exc:
         raise InputError(f"{path}: not a readable {POINTS_FILE} ({exc}); re-run the evaluation") from None
 
 
 def write_points(path, table: "PointTable") -> None:
     """``render_points.npz``: ``image`` (per point: index into ``images_json``), ``error/<label>``
-    (float32 px), ``converged/<label>``, ``window/<label>`` (dynamic methods), ``optical_offset`` and
-    ``optical_offset_50`` (per point, the optical edge's offset, px; NaN without one), and ``images_json``
-    (one record per image: dataset, image, spec, group, slot, levels, off_base, target, interval,
-    true_distance_m, bound_px, n_candidates, n_scored)."""
+    (float32 px), ``converged/<label>``, ``window/<label>`` (dynamic methods), ``bound/<label>`` (the
+    exact per-point bound over the method's footprint, px), ``optical_offset`` and ``optical_offset_50``
+    (per point, the optical edge's offset, px; NaN without one), and ``images_json`` (one record per
+    image: dataset, image, spec, group, slot, levels, off_base, target, interval, true_distance_m,
+    bound_row_px (the 11-pixel-row reference), n_candidates, n_scored)."""
     import io
     import json
 
@@ -234,6 +260,8 @@ def write_points(path, table: "PointTable") -> None:
         arrays[f"converged/{m}"] = table.converged[m].astype(bool)
         if m in table.windows:
             arrays[f"window/{m}"] = table.windows[m].astype(np.int8)
+        if m in table.bounds:
+            arrays[f"bound/{m}"] = np.asarray(table.bounds[m], np.float32)
     for key in ("optical_offset", "optical_offset_50"):
         v = getattr(table, key)
         if v is not None:
@@ -245,7 +273,7 @@ def write_points(path, table: "PointTable") -> None:
 
 def table_from_scores(images: list[dict], scores: list[PointScores], methods: list[str]) -> PointTable:
     """One ``PointTable`` from per-image records and their scores (same order)."""
-    recs = [dict(r, bound_px=s.bound_px, n_candidates=s.n_candidates, n_scored=len(s.candidate_distance))
+    recs = [dict(r, bound_row_px=s.bound_px, n_candidates=s.n_candidates, n_scored=len(s.candidate_distance))
             for r, s in zip(images, scores)]
 
     def cat(get, dtype):
@@ -260,4 +288,6 @@ def table_from_scores(images: list[dict], scores: list[PointScores], methods: li
                       cat(lambda s: (s.optical_offset if s.optical_offset is not None
                                      else np.full(len(s.candidate_distance), np.nan)), float),
                       cat(lambda s: (s.optical_offset_50 if s.optical_offset_50 is not None
-                                     else np.full(len(s.candidate_distance), np.nan)), float))
+                                     else np.full(len(s.candidate_distance), np.nan)), float),
+                      {m: cat(lambda s: s.bounds.get(m, np.full(len(s.candidate_distance), np.nan)), float)
+                       for m in methods})

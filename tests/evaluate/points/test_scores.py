@@ -109,7 +109,8 @@ def _table(errors_by_method, n_img=12, per=40, seed=0):
     image = np.repeat(np.arange(n_img), per)
     errs = {m: rng.normal(0, sd, image.size) for m, sd in errors_by_method.items()}
     conv = {m: np.ones(image.size, bool) for m in errs}
-    return rp.PointTable(images, image, errs, conv, {})
+    bounds = {m: np.full(image.size, 0.01) for m in errs}  # the exact per-point bound of every point
+    return rp.PointTable(images, image, errs, conv, {}, bounds=bounds)
 
 
 def test_image_paired_comparison_finds_a_real_difference_and_not_a_null_one():
@@ -121,6 +122,7 @@ def test_image_paired_comparison_finds_a_real_difference_and_not_a_null_one():
     assert not comp["same"]["significant"]
     s = rpr.point_stats(t, "worse", np.array([r["bound_px"] for r in t.images]))
     assert s["rmse"] == pytest.approx(0.04, rel=0.1) and s["rmse_over_bound"] == pytest.approx(4.0, rel=0.1)
+    assert s["rmse_over_row_bound"] == pytest.approx(s["rmse_over_bound"])  # the reference: 0.01 px per image too
     lo, hi = s["rmse_ci"]
     assert lo < s["rmse"] < hi and hi - lo < 0.01  # 12 images x 40 points: a narrow interval around it
 
@@ -132,3 +134,4 @@ def test_points_file_round_trip(tmp_path):
     back = rp.read_points(tmp_path / rp.POINTS_FILE)
     assert back.images == t.images and np.array_equal(back.image, t.image)
     assert np.allclose(back.errors["b"], t.errors["b"], atol=1e-7) and np.all(back.windows["a"] == 7)
+    assert np.allclose(back.bounds["a"], 0.01) and set(back.bounds) == {"a", "b"}
