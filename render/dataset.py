@@ -72,6 +72,30 @@ def job_pose(job: Job, camera: Camera, outline_local: np.ndarray) -> Pose:
                      "move it further away or use a smaller board")
 
 
+_PAIRED_VIEW: dict = {}
+
+
+def paired_view_outline(spec: Spec, size_m: float) -> np.ndarray:
+    """Board points (N, 3) the view check of every paired design cell uses: the union of every paired
+    target cell's view points (its shapes' outlines and the square that bounds a preset's circle), so a
+    slot draws one pose whatever shapes a cell shows.  Cells that all show the same shapes get the same
+    points as each alone (the union only repeats them): the poses they drew before stay."""
+    key = (spec.identity_sha256, float(size_m))
+    if key not in _PAIRED_VIEW:
+        pts = [view_outline_local(g.target, size_m, paired=True) for g in spec.groups
+               if g.paired and g.kind == "target"]
+        _PAIRED_VIEW[key] = np.unique(np.concatenate(pts), axis=0)
+    return _PAIRED_VIEW[key]
+
+
+def target_pose(spec: Spec, job: Job, camera: Camera) -> Pose:
+    """The pose of a target job: a paired design cell checks the view with every cell's shapes
+    (``paired_view_outline``), any other job with its own."""
+    size_m = spec.target_size_m
+    pts = paired_view_outline(spec, size_m) if job.slot is not None else view_outline_local(job.target, size_m)
+    return job_pose(job, camera, pts)
+
+
 def versions(variant: str) -> dict:
     import cv2
     import drjit
@@ -99,8 +123,8 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
     e_render = job.unit_irradiance_w_m2 if job.unit_irradiance_w_m2 is not None else job.irradiance_w_m2
     if job.kind == "target":
         size_m = spec.target_size_m
-        # paired cells share the pose whatever the target: the view check uses the square (it bounds the circle)
-        pose = job_pose(job, camera, view_outline_local(job.target, size_m, paired=job.slot is not None))
+        # paired cells share the pose whatever the target: the view check uses every cell's shapes
+        pose = target_pose(spec, job, camera)
         rig = get_rig("target", camera, settings, size_m, crop)
         le = rig.set_state(job.target, pose, e_render, job.light_position_m)
         gt = target_ground_truth(camera, pose, job.target, size_m, exposure_s=sensor.exposure_s)

@@ -98,15 +98,18 @@ class OutlineEdge:
     bright board, as the synthetic edges are > 0 on their bright side."""
 
     polyline_px: np.ndarray  # (N, 2) closed, OpenCV pixel coordinates
-    shape: str  # "square" | "circle"
-    corners_px: np.ndarray | None = None  # (4, 2) distorted corners of a square
+    shape: str  # "square" | "circle" (a catalogue shape: "rectangle", "ellipse", "polygon", ...)
+    corners_px: np.ndarray | None = None  # (n, 2) distorted corners of a square (any polygon: its vertices)
     kind: str = "outline"
 
     @classmethod
     def from_ground_truth(cls, gt: dict) -> "OutlineEdge":
+        """Shape 0's outline.  Corners: the JSON's ``outline.distorted_px`` where its kind is ``corners``
+        (a square preset: its 4 corners, as before; a catalogue polygon: every vertex)."""
         o = gt["outline"]
         shape = gt["target"]["shape"]
-        corners = np.asarray(o["distorted_px"], float)[:4] if shape == "square" else None
+        corners = np.asarray(o["distorted_px"], float) if o.get("kind", "corners" if shape == "square" else
+                                                                "points") == "corners" else None
         return cls(np.asarray(o["polyline_distorted_px"], float), shape, corners)
 
     def signed_distance(self, x, y) -> np.ndarray:

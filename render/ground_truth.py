@@ -156,6 +156,11 @@ def squares_ground_truth(camera: Camera, pose: Pose, board: SquareBoard) -> dict
     }
 
 
+def _board_corners() -> np.ndarray:
+    hx, hy = BOARD_HALF_SIZE_M
+    return np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+
+
 def outline_in_view(camera: Camera, pts_cam: np.ndarray, margin_px: float) -> bool:
     """All points in front of the camera and inside the image with ``margin_px`` to spare."""
     from edgetruth.conventions import inside_image
@@ -182,21 +187,38 @@ def view_outline_local(target, size_m: float, paired: bool = False) -> np.ndarra
 
 def shape_outline_truth(camera: Camera, pose: Pose, scene, k: int) -> list[dict]:
     """Every outline of shape ``k`` of ``scene``: its exact distorted curve (dense polyline, parameters,
-    chord error), its corners, and the parts of it that later shapes leave visible."""
-    from edgetruth.render.shapes import visible_intervals
-
+    chord error), its corners, and the parts of it that later shapes and clutter leave visible."""
     shape = scene.shapes[k]
     standoff = (k + 1) * TARGET_STANDOFF_M
-    occluders = list(scene.shapes[k + 1:])
+    occluders = list(scene.shapes[k + 1:]) + raised_covers(pose, scene, standoff)
+    return outline_truth(camera, pose, shape.outlines(), standoff, occluders)
+
+
+
+def raised_covers(pose: Pose, scene, source_height_m: float) -> list:
+    """The clutter items that can hide points ``source_height_m`` in front of the board (as occluders)."""
+    from edgetruth.render.shapes import RaisedCover
+
+    eye = pose.rotation.T @ (-pose.translation_m)  # the camera centre in the board frame
+    return [RaisedCover(c, tuple(eye), source_height_m) for c in getattr(scene, "clutter", ())
+            if c.raised_m > source_height_m]
+
+
+def outline_truth(camera: Camera, pose: Pose, outlines, standoff: float, occluders: list) -> list[dict]:
+    """Per outline (at ``standoff`` in front of the board): its exact distorted curve, the parts no occluder
+    hides, their polylines and ends, and its corners."""
+    from edgetruth.render.shapes import visible_intervals
+
     out = []
-    for o in shape.outlines():
+    for o in outlines:
         curve = OutlineCurve.of(camera, pose, o, standoff)
         t = curve.parameters()
         vis = visible_intervals(o, occluders)
         pieces = []
+        tt = np.concatenate([t, t + 1.0])  # the full polyline's parameters, unwrapped: corners included
         for t0, t1 in vis:
-            n = max(2, int(np.ceil((t1 - t0) * len(t))) + 1)
-            pieces.append(curve.points(np.linspace(t0, t1, n)).tolist())
+            inner = tt[(tt > t0 + 1e-12) & (tt < t1 - 1e-12)]
+            pieces.append(curve.points(np.concatenate([[t0], inner, [t1]])).tolist())
         ends = [e for iv in vis for e in iv] if vis != [[0.0, 1.0]] else []
         d = {"name": o.name, "curve": o.kind,
              "polyline_distorted_px": curve.points(t).tolist(), "polyline_parameter": t.tolist(),
@@ -214,6 +236,26 @@ def shape_outline_truth(camera: Camera, pose: Pose, scene, k: int) -> list[dict]
             d["conic_board_m"] = dict(zip(("cx", "cy", "a", "b", "theta_rad"), o.conic))
         out.append(d)
     return out
+
+
+def texture_placement(camera: Camera, pose: Pose, corners_xy, z_m: float, material) -> dict:
+    """Where a printed texture lies: its image's four corners on the board (board frame, at z = ``z_m``) and
+    in the image (distorted and undistorted px)."""
+    from pathlib import Path
+
+    from edgetruth.render.materials import texture_levels
+
+    h, w = texture_levels(material.texture, material.texture_sha256).shape
+    xy = np.asarray(corners_xy, float)
+    cam = pose.to_camera(np.column_stack([xy, np.full(len(xy), z_m)]))
+    return {"file": Path(material.texture).name, "sha256": material.texture_sha256, "size_px": [w, h],
+            "filter": "nearest", "corners_board_m": xy.tolist(), **{f"corners_{k}": v for k, v in
+                                                                   _project_both(camera, cam).items()},
+            "order": "the image's top-left, top-right, bottom-right, bottom-left corners (the outer corners of its "
+                     "corner pixels)",
+            "meaning": "texel (row i, column j) of the W x H image is printed on the quad between the corners at "
+                       "bilinear parameters u in [j, j + 1] / W (top-left -> top-right), v in [i, i + 1] / H "
+                       "(top-left -> bottom-left), with reflectance albedo x its gray level / full scale"}
 
 
 def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.0) -> dict:
@@ -237,8 +279,9 @@ def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.
         kind, order = "points", "angle 2*pi*k/n from the conic's turned +x axis towards +y"
     pts_cam = pose.to_camera(np.column_stack([corners_xy, np.full(len(corners_xy), -standoff)]))
     m = p.material
-    size = {"rectangle": p.width_m, "circle": p.diameter_m, "ring": p.outer_diameter_m,
-            "ellipse": max(p.axes_m)}.get(p.type, float(2 * np.max(np.linalg.norm(corners_xy - p.offset_m, axis=1))))
+    size = {"rectangle": p.width_m, "circle": p.diameter_m, "ring": p.outer_diameter_m, "ellipse": max(p.axes_m),
+            "grid": (p.cols - 1) * p.pitch_m[0] + p.element_size_m}.get(
+        p.type, float(2 * np.max(np.linalg.norm(corners_xy - p.offset_m, axis=1))))
     extra = {}
     if camera.moving:
         extra["motion"] = motion_ground_truth(camera, exposure_s, pts_cam, centre_cam)
@@ -247,12 +290,15 @@ def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.
                    "type": p.type, "material": m.label or m.type, "material_params": m.to_dict(),
                    "size_m": size,
                    "size_meaning": {"rectangle": "width", "circle": "diameter", "ring": "outer diameter",
-                                    "ellipse": "longer axis"}.get(p.type, "largest extent"),
+                                    "ellipse": "longer axis", "grid": "width along its x (outer element edges)"
+                                    }.get(p.type, "largest extent"),
                    "reflectance": m.albedo if m.type != "roughconductor" else None, "standoff_m": standoff,
                    "offset_m": list(p.offset_m), "rotation_deg": p.rotation_deg,
                    **({"ggx_alpha": m.alpha, "ior": m.eta} if m.type == "roughplastic" else {})},
         "board": {"material": scene.board.label or scene.board.type, "material_params": scene.board.to_dict(),
-                  "reflectance": scene.board.albedo, "half_size_m": list(BOARD_HALF_SIZE_M)},
+                  "reflectance": scene.board.albedo, "half_size_m": list(BOARD_HALF_SIZE_M),
+                  **({"texture": texture_placement(camera, pose, _board_corners(), 0.0, scene.board)}
+                     if scene.board.texture else {})},
         "true_distance_m": float(centre_cam[0, 2]),
         "true_range_m": float(np.linalg.norm(centre_cam)),
         "centre": _project_both(camera, centre_cam),
@@ -266,66 +312,192 @@ def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.
         "shapes": [{"index": k, **s.to_dict(), "standoff_m": (k + 1) * TARGET_STANDOFF_M,
                     "centre": _project_both(camera, pose.to_camera(
                         np.array([[s.offset_m[0], s.offset_m[1], -(k + 1) * TARGET_STANDOFF_M]]))),
-                    "outlines": shape_outline_truth(camera, pose, scene, k)} for k, s in enumerate(scene.shapes)],
+                    "outlines": shape_outline_truth(camera, pose, scene, k),
+                    **({"texture": texture_placement(camera, pose, s.outlines()[0].vertices,
+                                                     -(k + 1) * TARGET_STANDOFF_M, s.material)}
+                       if s.material.texture else {})} for k, s in enumerate(scene.shapes)],
         "shapes_meaning": "shape k lies (k + 1) x 10 um in front of the board and covers shapes 0..k-1 (a ring covers "
                           "its whole outer disk: its hole shows the board); per outline: the exact distorted curve "
                           "(edgetruth.render.outline.OutlineCurve.of), visible_intervals [t0, t1] of its parameter "
                           "not covered by later shapes (t1 > 1 wraps), their polylines, and the points where a "
                           "covering shape cuts it (corners of the visible region)",
         "defocus_radius_px": float(camera.defocus_radius_px(centre_cam[0, 2])),
+        **({"clutter": clutter_truth(camera, pose, scene)} if getattr(scene, "clutter", ()) else {}),
         **extra,
     }
 
 
+def clutter_truth(camera: Camera, pose: Pose, scene) -> list[dict]:
+    """Per clutter item: its outlines (exact distorted curves, the parts no nearer item hides) and, per
+    light, its shadow on the board: exact for point and spot lights (parallel planes: the outline scaled by
+    D / (D - h) about the light's foot), an area light's from its centre (the penumbra widens it by about
+    side x h / (D - h) on each side)."""
+    from edgetruth.render.shapes import shadow_outline
+
+    out = []
+    for c, item in enumerate(scene.clutter):
+        occ = raised_covers(pose, scene, item.raised_m)
+        d = {"index": c, **item.to_dict(),
+             "outlines": outline_truth(camera, pose, item.shape.outlines(), item.raised_m, occ), "shadows": []}
+        for i, lt in enumerate(scene.lights):
+            lb = pose.rotation.T @ (np.asarray(lt.position_m, float) - pose.translation_m)  # board frame
+            sh = [shadow_outline(o, item.raised_m, lb) for o in item.shape.outlines()]
+            if any(s is None for s in sh):
+                d["shadows"].append({"light": i, "cast": False})
+                continue
+            dist = -float(lb[2])
+            # what hides the shadow's edge in the image: the shapes on the board and every clutter item
+            hide = list(scene.shapes) + raised_covers(pose, scene, 0.0)
+            rec = {"light": i, "cast": True, "exact": lt.type != "area",
+                   "light_board_m": lb.tolist(), "scale": dist / (dist - item.raised_m),
+                   "outlines": outline_truth(camera, pose, sh, 0.0, hide)}
+            if lt.type == "area":
+                rec["penumbra_half_width_m"] = lt.size_m * item.raised_m / (dist - item.raised_m) / 2
+            d["shadows"].append(rec)
+        out.append(d)
+    return out
+
+
 class SceneOutline:
-    """Every visible edge of a ``TargetScene`` image, read from its ground truth (``shapes``): the parts of
-    each shape's outlines that no later shape covers.  ``signed_distance(x, y)``: px to the nearest visible
-    edge, > 0 on its board side (outside a shape, inside a ring's hole); ``edge_index`` says which outline
-    ((shape, outline) pairs in ``outlines``) it is.  Distances come from the dense polylines (chords within
-    ``polyline_chord_error_px`` of the exact curves)."""
+    """Every visible edge of a ``TargetScene`` image, read from its ground truth (``shapes``, ``clutter``):
+    the parts of each shape's outlines that no later shape and no clutter hides, and the clutter's own
+    outlines (clutter item c is layer ``len(shapes) + c`` in ``outlines``, ``edge_shape`` and ``shape_at``).
+
+    - ``signed_distance(x, y)``: px to the nearest visible edge, > 0 on that outline's board side (outside
+      its shape, inside a ring's hole);
+    - ``edge_index(x, y)``: which outline that is (an index into ``outlines``, (shape index, outline name)
+      pairs); ``edge_shape(x, y)``: its shape index;
+    - ``corner_distance(x, y)``: px to the nearest corner of the visible edges (``corners_px``: the visible
+      polygon corners and the points where a covering shape cuts an outline);
+    - ``shape_at(x, y)``: which shape the image shows at the point (-1: the board, a ring's hole included).
+
+    Distances come from the dense polylines (chords within ``polyline_chord_error_px`` <= 1e-3 px of the
+    exact curves): the nearest of the segments next to the ``K_NEAREST`` nearest polyline vertices."""
+
+    K_NEAREST = 8  # vertices whose segments are measured: far more than the 2 needed at <= 2 px spacing
 
     def __init__(self, gt: dict):
         self.outlines, self._full, self._pieces, self._flip = [], [], [], []
-        for s in gt["shapes"]:
+        corners = []
+        n = len(gt["shapes"])
+        # clutter item c is layer n + c, above every shape; nearer items (higher) hide further ones
+        layers = [(s, int(s["index"])) for s in gt["shapes"]] + \
+            [(c, n + int(c["index"])) for c in gt.get("clutter", [])]
+        self._top_first = [n + int(c["index"]) for c in sorted(gt.get("clutter", []), key=lambda c: -c["raised_m"])] \
+            + list(range(n - 1, -1, -1))
+        for s, layer in layers:
             for o in s["outlines"]:
-                self.outlines.append((s["index"], o["name"]))
+                self.outlines.append((layer, o["name"]))
                 self._full.append(np.asarray(o["polyline_distorted_px"], float))
-                self._pieces.append([np.asarray(p, float) for p in o["visible_polylines_distorted_px"]])
+                self._pieces.append([np.asarray(p, float).reshape(-1, 2) for p in o["visible_polylines_distorted_px"]])
                 self._flip.append(o["name"] == "inner")  # a ring's hole: the board is inside
+                if "corners_distorted_px" in o:
+                    corners += [c for c, v in zip(o["corners_distorted_px"], o["corners_visible"]) if v]
+                corners += list(o.get("occlusion_points_distorted_px", []))
+        self.corners_px = np.asarray(corners, float).reshape(-1, 2)
+        self.n_shapes = n
+        # every visible piece as segments a -> b, with the outline each belongs to
+        a, b, owner = [], [], []
+        for i, pieces in enumerate(self._pieces):
+            for p in pieces:
+                if len(p) >= 2:
+                    a.append(p[:-1])
+                    b.append(p[1:])
+                    owner.append(np.full(len(p) - 1, i))
+        if a:
+            self._a, self._b, self._owner = np.concatenate(a), np.concatenate(b), np.concatenate(owner)
+        else:
+            self._a = self._b = np.zeros((0, 2))
+            self._owner = np.zeros(0, int)
 
     @classmethod
     def from_ground_truth(cls, gt: dict) -> "SceneOutline":
         return cls(gt)
 
-    @staticmethod
-    def _open_distance(poly: np.ndarray, q: np.ndarray) -> np.ndarray:
-        a, b = poly[:-1], poly[1:]
-        best = np.full(len(q), np.inf)
-        for k in range(0, len(a), 256):  # segments in blocks: memory ~ points x 256
-            aa, dd = a[k:k + 256][None], (b[k:k + 256] - a[k:k + 256])[None]
-            u = np.clip(np.sum((q[:, None] - aa) * dd, axis=2) / np.maximum(np.sum(dd * dd, axis=2), 1e-300), 0, 1)
-            dist = np.linalg.norm(q[:, None] - (aa + u[..., None] * dd), axis=2)
-            best = np.minimum(best, dist.min(axis=1))
-        return best
-
-    def edge_index(self, x, y) -> np.ndarray:
-        return self._nearest(x, y)[1]
+    @property
+    def shape(self) -> str:
+        return "scene"
 
     def _nearest(self, x, y):
+        """(distance px, outline index, query points (N, 2)) to the nearest visible segment."""
+        from scipy.spatial import cKDTree
+
         q = np.column_stack([np.ravel(x), np.ravel(y)]).astype(float)
-        dist = np.full((len(self.outlines), len(q)), np.inf)
-        for i, pieces in enumerate(self._pieces):
-            for p in pieces:
-                dist[i] = np.minimum(dist[i], self._open_distance(p, q))
-        return dist, np.argmin(dist, axis=0), q
+        m = len(self._a)
+        if not m or not len(q):
+            return np.full(len(q), np.inf), np.full(len(q), -1), q
+        # segment k starts at vertex k; a vertex near q has its own segment (k) and the one ending at it
+        # (k - 1 where segment k - 1 ends where k starts; else k is a piece's first vertex)
+        k = min(self.K_NEAREST, m)
+        tree = cKDTree(self._a)
+        best, seg = np.empty(len(q)), np.empty(len(q), dtype=int)
+        for s0 in range(0, len(q), 65536):  # blocks: memory ~ 65536 x 2k segments
+            qq = q[s0:s0 + 65536]
+            idx = np.asarray(tree.query(qq, k=k)[1]).reshape(len(qq), k)
+            cand = np.concatenate([idx, np.maximum(idx - 1, 0)], axis=1)
+            a, b = self._a[cand], self._b[cand]  # (n, 2k, 2)
+            d = b - a
+            u = np.clip(np.sum((qq[:, None] - a) * d, axis=2) / np.maximum(np.sum(d * d, axis=2), 1e-300), 0.0, 1.0)
+            dist = np.linalg.norm(qq[:, None] - (a + u[..., None] * d), axis=2)
+            j = np.argmin(dist, axis=1)
+            r = np.arange(len(qq))
+            best[s0:s0 + len(qq)], seg[s0:s0 + len(qq)] = dist[r, j], cand[r, j]
+        return best, self._owner[seg], q
+
+    def edge_index(self, x, y) -> np.ndarray:
+        """Index into ``outlines`` of the nearest visible edge of each point (-1: the scene shows none)."""
+        return self._nearest(x, y)[1].reshape(np.shape(x))
+
+    def edge_shape(self, x, y) -> np.ndarray:
+        """Shape index of the nearest visible edge of each point."""
+        i = self._nearest(x, y)[1]
+        shp = np.array([s for s, _ in self.outlines] + [-1])
+        return shp[i].reshape(np.shape(x))
 
     def signed_distance(self, x, y) -> np.ndarray:
+        """px to the nearest visible edge, > 0 on its board side."""
         from edgetruth.render.edge_truth import closed_polyline_signed_distance
 
         dist, idx, q = self._nearest(x, y)
-        out = np.empty(len(q))
-        for i in np.unique(idx):
+        out = np.array(dist)
+        for i in np.unique(idx[idx >= 0]):
             sel = idx == i
             sign = np.sign(closed_polyline_signed_distance(self._full[i], q[sel, 0], q[sel, 1]))
-            out[sel] = (-sign if self._flip[i] else sign) * dist[i, sel]
+            sign[sign == 0] = 1.0
+            out[sel] = (-sign if self._flip[i] else sign) * dist[sel]
         return out.reshape(np.shape(x))
+
+    def corner_distance(self, x, y) -> np.ndarray:
+        """px to the nearest corner of the visible edges (inf where there is none: e.g. uncovered conics)."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        shape = np.broadcast(x, y).shape
+        if not len(self.corners_px):
+            return np.full(shape, np.inf)
+        from scipy.spatial import cKDTree
+
+        q = np.column_stack([np.ravel(np.broadcast_to(x, shape)), np.ravel(np.broadcast_to(y, shape))])
+        return cKDTree(self.corners_px).query(q)[0].reshape(shape)
+
+    def shape_at(self, x, y) -> np.ndarray:
+        """Index of the shape the image shows at each point (the topmost shape whose outer outline -- a
+        grid: any element's -- holds it), -1 on the board (a ring's hole shows the board)."""
+        from matplotlib.path import Path as _Path
+
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        shape = np.broadcast(x, y).shape
+        q = np.column_stack([np.ravel(np.broadcast_to(x, shape)), np.ravel(np.broadcast_to(y, shape))])
+        out = np.full(len(q), -1)
+        todo = np.ones(len(q), bool)
+        for k in self._top_first:
+            mine = [i for i, (s, _) in enumerate(self.outlines) if s == k]
+            outer = [i for i in mine if not self._flip[i]]
+            inner = [i for i in mine if self._flip[i]]
+            inside = np.zeros(len(q), bool)
+            for i in outer:  # a grid: any of its elements
+                inside[todo] |= _Path(self._full[i]).contains_points(q[todo])
+            hole = np.zeros(len(q), bool)
+            if inner and inside.any():
+                hole[inside] = _Path(self._full[inner[0]]).contains_points(q[inside])
+            out[inside & ~hole] = k
+            todo &= ~inside  # the shape (or its hole, showing the board) hides everything below
+        return out.reshape(shape)

@@ -110,6 +110,9 @@ def light_radiance_for(irradiance_w_m2: float, pose: Pose, light_pos: np.ndarray
 class _Rig:
     """Common part: one loaded scene, one camera, parameter updates."""
 
+    #: ``mi.load_dict``'s optimize: merge equal nodes and the meshes that share a BSDF (see ``SceneRig``)
+    _load_optimize = True
+
     def __init__(self, camera: Camera, settings: RenderSettings, crop=None, window=None):
         import mitsuba as mi
 
@@ -127,7 +130,9 @@ class _Rig:
                            "sensor": sensor_dict(camera, sampler, crop, exposure_s=settings.exposure_s,
                                                  window=window)}
         self.scene_dict.update(self._shapes())
-        self.scene = mi.load_dict(self.scene_dict)
+        # ``optimize`` is passed only when off: older Mitsuba 3 releases lack the argument (and never merge)
+        self.scene = mi.load_dict(self.scene_dict) if self._load_optimize else mi.load_dict(self.scene_dict,
+                                                                                            optimize=False)
         self.params = mi.traverse(self.scene)
         self.sensor = self.scene.sensors()[0]  # the Python LensSensor (``set_window``)
         self._last: dict = {}  # the transform last set per parameter key
@@ -284,6 +289,10 @@ class SceneRig(_Rig):
     ``(k + 1) x TARGET_STANDOFF_M`` in front of the board; its lights and an optional constant ambient
     emitter.  Materials and the set of lights are fixed per loaded scene; poses and powers are updated."""
 
+    #: no merging: the loader would fuse shapes of one material (two rectangles, a grid's squares) into one
+    #: mesh, whose per-shape ``to_world`` keys ``set_state`` needs would then be gone
+    _load_optimize = False
+
     def __init__(self, camera: Camera, settings: RenderSettings, scene, crop=None, window=None):
         self.target_scene = scene
         super().__init__(camera, settings, crop, window)
@@ -296,8 +305,9 @@ class SceneRig(_Rig):
         d: dict = {}
         for i, lt in enumerate(sc.lights):
             # distinct placeholder values: the loader merges equal dicts into one object, whose value
-            # ``traverse`` would then list (and ``set_state`` set) under one light's key only
-            unit = {"type": "uniform", "value": 1.0 + i}
+            # ``traverse`` would then list (and ``set_state`` set) under one key only; above 1, so that no
+            # material's uniform value (all in [0, 1], e.g. a conductor's specular_reflectance) equals them
+            unit = {"type": "uniform", "value": 1000.0 + i}
             if lt.type == "area":
                 d[f"light{i}"] = {"type": "rectangle", "to_world": T, "emitter": {"type": "area", "radiance": unit}}
             elif lt.type == "point":
@@ -306,33 +316,41 @@ class SceneRig(_Rig):
                 d[f"light{i}"] = {"type": "spot", "to_world": T, "intensity": unit, "cutoff_angle": lt.cutoff_deg,
                                   "beam_width": lt.beam_deg}
         if sc.ambient > 0:
-            d["ambient"] = {"type": "constant", "radiance": {"type": "uniform", "value": 0.5}}
+            d["ambient"] = {"type": "constant", "radiance": {"type": "uniform", "value": 999.5}}  # as above
         d["board"] = {"type": "rectangle", "to_world": self._T(_rect_local(*BOARD_HALF_SIZE_M, 0.0)),
                       "bsdf": sc.board.to_bsdf()}
         self._locals, self._meshes = {}, {}
-        for k, shape in enumerate(sc.shapes):
-            z = -(k + 1) * TARGET_STANDOFF_M
+        items = [(f"shape{k}", shape, -(k + 1) * TARGET_STANDOFF_M) for k, shape in enumerate(sc.shapes)]
+        items += [(f"clutter{c}", item.shape, -item.raised_m) for c, item in enumerate(sc.clutter)]
+        for key, shape, z in items:
             outs = shape.outlines()
             o = outs[0]
-            if o.kind == "ellipse":
+            if shape.type == "grid":  # each element a Mitsuba rectangle or disk: exact, like the single shapes
+                h = shape.element_size_m / 2
+                for e, oe in enumerate(outs):
+                    ex, ey = oe.conic[:2] if oe.kind == "ellipse" else np.mean(np.asarray(oe.vertices), axis=0)
+                    self._locals[f"{key}_{e}"] = _shape_local(ex, ey, h, h, np.radians(shape.rotation_deg), z)
+                    d[f"{key}_{e}"] = {"type": "rectangle" if oe.kind == "polygon" else "disk", "to_world": T,
+                                          "bsdf": shape.material.to_bsdf()}
+            elif o.kind == "ellipse":
                 cx, cy, a, b, th = o.conic
-                self._locals[f"shape{k}"] = _shape_local(cx, cy, a, b, th, z)
-                d[f"shape{k}"] = {"type": "disk", "to_world": T, "bsdf": shape.material.to_bsdf()}
+                self._locals[key] = _shape_local(cx, cy, a, b, th, z)
+                d[key] = {"type": "disk", "to_world": T, "bsdf": shape.material.to_bsdf()}
                 if shape.type == "ring":  # the hole: the board's material, half a stand-off in front
                     cx, cy, a, b, th = outs[1].conic
-                    self._locals[f"shape{k}_hole"] = _shape_local(cx, cy, a, b, th, z - 0.5 * TARGET_STANDOFF_M)
-                    d[f"shape{k}_hole"] = {"type": "disk", "to_world": T, "bsdf": sc.board.to_bsdf()}
+                    self._locals[f"{key}_hole"] = _shape_local(cx, cy, a, b, th, z - 0.5 * TARGET_STANDOFF_M)
+                    d[f"{key}_hole"] = {"type": "disk", "to_world": T, "bsdf": sc.board.to_bsdf()}
             elif shape.type == "rectangle":
                 w, h = shape.width_m / 2, shape.height_m / 2
-                self._locals[f"shape{k}"] = _shape_local(*shape.offset_m, w, h, np.radians(shape.rotation_deg), z)
-                d[f"shape{k}"] = {"type": "rectangle", "to_world": T, "bsdf": shape.material.to_bsdf()}
+                self._locals[key] = _shape_local(*shape.offset_m, w, h, np.radians(shape.rotation_deg), z)
+                d[key] = {"type": "rectangle", "to_world": T, "bsdf": shape.material.to_bsdf()}
             else:
                 v = np.asarray(o.vertices, float)
                 tris = triangulate(v)[:, ::-1]  # reversed: the face normal points to the camera (as the checker)
                 verts = np.column_stack([v, np.full(len(v), z)])
-                mesh, vtype = _make_mesh(self.mi, f"shape{k}", verts, tris, shape.material.to_bsdf())
-                self._meshes[f"shape{k}"] = (verts, vtype)
-                d[f"shape{k}"] = mesh
+                mesh, vtype = _make_mesh(self.mi, key, verts, tris, shape.material.to_bsdf())
+                self._meshes[key] = (verts, vtype)
+                d[key] = mesh
         return d
 
     def set_state(self, scene, pose: Pose, irradiance_w_m2: float, light_position_m=None) -> float:
@@ -389,6 +407,8 @@ class SceneRig(_Rig):
                           "board shadows them); each light gives share x irradiance_w_m2 at its aim point; "
                           "target_outline_irradiance_w_m2: the range on shape 0's outline, its non-uniformity "
                           "100 (max - min) / mean"}
+        if sc.clutter:  # the irradiance above ignores them: where they shade the board is clutter[].shadows
+            out["meaning"] += "; clutter is not counted (its shadows: the truth's clutter[].shadows)"
         if sc.ambient > 0:
             out["ambient"] = {"type": "constant environment", "radiance_w_m2_sr": amb / np.pi,
                               "irradiance_w_m2": amb, "share": sc.ambient}

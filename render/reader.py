@@ -77,11 +77,24 @@ class Sample:
 
     @property
     def outline(self):
-        """The target's exact distorted outline (``OutlineEdge``): ``signed_distance(x, y)`` in px,
-        > 0 outside on the bright board, as a synthetic image's ``truth``; None for a checkerboard."""
+        """The exact distorted truth of every visible edge of a target image; None for a checkerboard.
+
+        One outline (a preset T1-T4, or a scene of one shape with one outline): ``OutlineEdge``, shape 0's
+        outline.  Several (shapes that cover one another, a ring's two edges): ``SceneOutline``
+        (``edgetruth.render.ground_truth``), the visible parts of every outline.  Both give
+        ``signed_distance(x, y)`` in px (> 0 outside, on the bright board) and ``corner_distance(x, y)``;
+        ``SceneOutline`` also ``edge_index`` / ``edge_shape`` (which outline / shape is nearest) and
+        ``shape_at`` (which shape the point shows)."""
         from edgetruth.render.edge_truth import OutlineEdge
 
-        return OutlineEdge.from_ground_truth(self.truth) if self.kind == "target" else None
+        if self.kind != "target":
+            return None
+        gt = self.truth
+        if sum(len(s.get("outlines", ())) for s in gt.get("shapes", []) + gt.get("clutter", [])) > 1:
+            from edgetruth.render.ground_truth import SceneOutline
+
+            return SceneOutline.from_ground_truth(gt)
+        return OutlineEdge.from_ground_truth(gt)
 
     @property
     def optical_outline(self):

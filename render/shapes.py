@@ -24,14 +24,19 @@ from edgetruth.render.lights import Light
 from edgetruth.render.materials import BOARD_MATERIAL, Material
 from edgetruth.render.schema import Key, parse_table
 
-SHAPE_TYPES = ("rectangle", "circle", "ellipse", "ring", "polygon")
+SHAPE_TYPES = ("rectangle", "circle", "ellipse", "ring", "polygon", "grid")
+GRID_ELEMENTS = ("square", "circle")
+MAX_GRID_ELEMENTS = 10000
 MAX_SHAPES = 1000
 MAX_VERTICES = 1000
 #: samples per outline when finding where later shapes cover it (the ends are then bisected to 1e-13)
 VISIBILITY_SAMPLES = 4096
 
 _SIZE_KEYS = {"rectangle": ("width_m", "height_m"), "circle": ("diameter_m",), "ellipse": ("axes_m",),
-              "ring": ("outer_diameter_m", "inner_diameter_m"), "polygon": ("vertices_m",)}
+              "ring": ("outer_diameter_m", "inner_diameter_m"), "polygon": ("vertices_m",),
+              "grid": ("element_size_m", "pitch_m")}
+#: a grid's own keys besides its sizes (refused on other types)
+_GRID_KEYS = ("rows", "cols", "element")
 
 
 def _rot(theta_rad: float) -> np.ndarray:
@@ -80,6 +85,19 @@ class Shape:
     inner_diameter_m: float = 0.065
     vertices_m: tuple = ()
     material: Material = field(default_factory=Material)
+    # grid: rows x cols elements (squares of side / circles of diameter element_size_m), centres pitch_m apart
+    rows: int = 1
+    cols: int = 1
+    pitch_m: tuple = (0.02, 0.02)
+    element: str = "square"
+    element_size_m: float = 0.01
+
+    def grid_centres(self) -> np.ndarray:
+        """(rows x cols, 2) board-frame element centres of a grid, row-major from the top-left element of
+        the unturned grid (centred on ``offset_m``)."""
+        r, c = np.meshgrid(np.arange(self.rows) - (self.rows - 1) / 2, np.arange(self.cols) - (self.cols - 1) / 2,
+                           indexing="ij")
+        return self._place(np.column_stack([c.ravel() * self.pitch_m[0], r.ravel() * self.pitch_m[1]]))
 
     def _place(self, xy: np.ndarray) -> np.ndarray:
         return np.asarray(xy, float) @ _rot(math.radians(self.rotation_deg)).T + np.asarray(self.offset_m)
@@ -87,6 +105,17 @@ class Shape:
     def outlines(self) -> list[Outline]:
         th = math.radians(self.rotation_deg)
         cx, cy = self.offset_m
+        if self.type == "grid":  # one outline per element, named r<row>c<col>
+            h = self.element_size_m / 2
+            sq = np.array([[-h, -h], [h, -h], [h, h], [-h, h]]) @ _rot(th).T  # TL, TR, BR, BL, turned
+            out = []
+            for i, (ex, ey) in enumerate(self.grid_centres()):
+                name = f"r{i // self.cols}c{i % self.cols}"
+                if self.element == "square":
+                    out.append(Outline(name, "polygon", vertices=tuple(map(tuple, sq + [ex, ey]))))
+                else:
+                    out.append(Outline(name, "ellipse", conic=(float(ex), float(ey), h, h, th)))
+            return out
         if self.type == "rectangle":
             w, h = self.width_m / 2, self.height_m / 2
             v = self._place([[-w, -h], [w, -h], [w, h], [-w, h]])  # TL, TR, BR, BL of the unturned shape
@@ -106,6 +135,12 @@ class Shape:
         """Which board points (N, 2) this shape hides from view (a ring: its whole outer disk, the hole
         showing the board)."""
         xy = np.atleast_2d(np.asarray(xy, float))
+        if self.type == "grid":
+            out = np.zeros(len(xy), dtype=bool)
+            for e in self.outlines():
+                out |= Shape("polygon", vertices_m=e.vertices).covers(xy) if e.kind == "polygon" else \
+                    Shape("circle", offset_m=e.conic[:2], diameter_m=2 * e.conic[2]).covers(xy)
+            return out
         o = self.outlines()[0]
         if o.kind == "ellipse":
             cx, cy, a, b, th = o.conic
@@ -114,7 +149,10 @@ class Shape:
         return point_in_polygon(np.asarray(o.vertices, float), xy)
 
     def sample_points(self, n: int = 64) -> np.ndarray:
-        """(M, 2) points on the outer outline (corners included): for view checks."""
+        """(M, 2) points on the outer outline (corners included; a grid: every element's): for view checks."""
+        if self.type == "grid":
+            return np.concatenate([np.asarray(e.vertices, float) if e.kind == "polygon" else
+                                   e.local_xy(np.arange(16) / 16) for e in self.outlines()])
         o = self.outlines()[0]
         if o.kind == "polygon":
             return np.asarray(o.vertices, float)
@@ -125,6 +163,8 @@ class Shape:
         for k in _SIZE_KEYS[self.type]:
             v = getattr(self, k)
             d[k] = [list(p) for p in v] if k == "vertices_m" else (list(v) if isinstance(v, tuple) else v)
+        if self.type == "grid":
+            d.update(rows=self.rows, cols=self.cols, element=self.element)
         d["material"] = self.material.to_dict()
         return d
 
@@ -242,8 +282,9 @@ def visible_intervals(outline: Outline, occluders: list[Shape], n: int = VISIBIL
 
 # --- spec keys ------------------------------------------------------------------------------------
 SHAPE_KEYS = [
-    Key("type", "str", "rectangle", "", "rectangle, circle, ellipse, ring (annulus; its hole shows the board) or "
-        "polygon", choices=SHAPE_TYPES),
+    Key("type", "str", "rectangle", "", "rectangle, circle, ellipse, ring (annulus; its hole shows the board), "
+        "polygon or grid (rows x cols squares or circles, each element its own outline in the truth)",
+        choices=SHAPE_TYPES),
     Key("offset_m", "vec2", (0.0, 0.0), "m", "the shape's centre (polygon: its vertices' origin) on the board, "
         "board frame (x right, y down from the board centre)", -100.0, 100.0),
     Key("rotation_deg", "float", 0.0, "deg", "turn about the board's normal, from +x towards +y", -360.0, 360.0),
@@ -256,6 +297,15 @@ SHAPE_KEYS = [
     Key("inner_diameter_m", "float", None, "m", "ring: hole diameter (required, < outer_diameter_m)", 1e-5, 100.0),
     Key("vertices_m", "points2", None, "m", "polygon: [[x, y], ...] corners in order around a simple polygon, "
         "in the shape's frame (turned by rotation_deg, moved by offset_m)", -100.0, 100.0),
+    Key("rows", "int", 1, "", "grid: rows of elements", 1, 1000),
+    Key("cols", "int", 1, "", "grid: columns of elements", 1, 1000),
+    Key("element", "str", "square", "", "grid: its elements, squares or circles (as on Zhang's board)",
+        choices=GRID_ELEMENTS),
+    Key("element_size_m", "float", None, "m", "grid: an element's side (square) or diameter (circle) (required)",
+        1e-5, 100.0),
+    Key("pitch_m", "vec2", None, "m", "grid: [x, y] spacing of the element centres along the grid's (turned) "
+        "axes, each > element_size_m (required); elements row-major from the top-left, outlines r<row>c<col>",
+        1e-5, 100.0),
     Key("material", "table", {}, "", "the shape's material {type, albedo, alpha, eta, specular_reflectance, "
         "label} (default: black matte, albedo 0.04)"),
 ]
@@ -266,6 +316,8 @@ def shape_from_dict(d: dict, size_m: float, where: str, base_material: Material 
     v = parse_table(d, SHAPE_KEYS, where)
     typ = v["type"]
     wrong = sorted(k for k in d if k.endswith("_m") and k not in ("offset_m",) and k not in _SIZE_KEYS[typ])
+    if typ != "grid":
+        wrong += sorted(k for k in _GRID_KEYS if k in d)
     if wrong:
         raise InputError(f"{where}: {', '.join(wrong)} does not apply to type = {typ!r} (its size: "
                          f"{', '.join(_SIZE_KEYS[typ])}); remove it")
@@ -274,6 +326,16 @@ def shape_from_dict(d: dict, size_m: float, where: str, base_material: Material 
         kw.update(width_m=v["width_m"] or size_m, height_m=v["height_m"] or size_m)
     elif typ == "circle":
         kw.update(diameter_m=v["diameter_m"] or size_m)
+    elif typ == "grid":
+        if v["element_size_m"] is None or v["pitch_m"] is None:
+            raise InputError(f"{where}: a grid needs element_size_m and pitch_m = [x, y]; add them")
+        if min(v["pitch_m"]) <= v["element_size_m"]:
+            raise InputError(f"{where}: pitch_m = {list(v['pitch_m'])} must exceed element_size_m = "
+                             f"{v['element_size_m']:g} m (elements must not touch); widen the pitch")
+        if v["rows"] * v["cols"] > MAX_GRID_ELEMENTS:
+            raise InputError(f"{where}: rows x cols = {v['rows'] * v['cols']} elements; at most {MAX_GRID_ELEMENTS}")
+        kw.update(rows=v["rows"], cols=v["cols"], element=v["element"], element_size_m=v["element_size_m"],
+                  pitch_m=v["pitch_m"])
     elif typ == "ellipse":
         if v["axes_m"] is None:
             raise InputError(f"{where}: an ellipse needs axes_m = [diameter along x, along y]; add it")
@@ -295,6 +357,80 @@ def shape_from_dict(d: dict, size_m: float, where: str, base_material: Material 
     return Shape(**kw)
 
 
+# --- clutter: raised planar shapes in front of the board ------------------------------------------
+CLUTTER_TYPES = ("rectangle", "circle", "ellipse", "polygon", "grid")  # a ring's hole would need to be see-through
+MIN_CLUTTER_HEIGHT_M = 1e-3
+
+
+@dataclass(frozen=True)
+class Clutter:
+    """A catalogue shape held ``raised_m`` in front of the board, parallel to it (no visible support): it
+    hides what lies behind it along the camera's rays and casts a shadow on the board."""
+
+    shape: Shape
+    raised_m: float
+
+    def to_dict(self) -> dict:
+        return {**self.shape.to_dict(), "raised_m": self.raised_m}
+
+
+@dataclass(frozen=True)
+class RaisedCover:
+    """What a ``Clutter`` item hides, seen from ``eye_board_m`` (the camera centre in the board frame), of
+    points ``source_height_m`` in front of the board: the ray from the eye to such a point crosses the
+    item's plane inside the item."""
+
+    clutter: Clutter
+    eye_board_m: tuple
+    source_height_m: float
+
+    def covers(self, xy: np.ndarray) -> np.ndarray:
+        xy = np.atleast_2d(np.asarray(xy, float))
+        if self.clutter.raised_m <= self.source_height_m:
+            return np.zeros(len(xy), dtype=bool)
+        e = np.asarray(self.eye_board_m, float)
+        t = (-self.clutter.raised_m - e[2]) / (-self.source_height_m - e[2])  # board frame: z = -height
+        return self.clutter.shape.covers(e[:2] + t * (xy - e[:2]))
+
+
+def shadow_outline(o: Outline, height_m: float, light_board_m) -> Outline | None:
+    """The shadow on the board (z = 0) of outline ``o`` held ``height_m`` in front of it, cast by a point
+    light at ``light_board_m`` (board frame, z < 0 in front): parallel planes, so the central projection is
+    a scaling by D / (D - h) about the light's foot (D: the light's height).  None if the light is not
+    further from the board than the outline."""
+    fx, fy, fz = (float(c) for c in light_board_m)
+    d = -fz
+    if d <= height_m:
+        return None
+    k = d / (d - height_m)
+    if o.kind == "polygon":
+        v = np.asarray(o.vertices, float)
+        return Outline(o.name, "polygon", vertices=tuple(map(tuple, [fx, fy] + k * (v - [fx, fy]))))
+    cx, cy, a, b, th = o.conic
+    return Outline(o.name, "ellipse", conic=(fx + k * (cx - fx), fy + k * (cy - fy), k * a, k * b, th))
+
+
+def clutter_from_list(items: list, size_m: float, where: str) -> tuple:
+    out = []
+    for i, d in enumerate(items):
+        w = f"{where}[{i}]"
+        if not isinstance(d, dict):
+            raise InputError(f"{w}: must be a table {{type, ..., raised_m}}")
+        if "raised_m" not in d:
+            raise InputError(f"{w}: raised_m missing: how far in front of the board the item stands; add it")
+        h = d["raised_m"]
+        if isinstance(h, bool) or not isinstance(h, (int, float)) or not MIN_CLUTTER_HEIGHT_M <= h <= 10.0:
+            raise InputError(f"{w}: raised_m = {h!r}: give a number of metres in [{MIN_CLUTTER_HEIGHT_M:g}, 10]")
+        shape = shape_from_dict({k: v for k, v in d.items() if k != "raised_m"}, size_m, w)
+        if shape.type not in CLUTTER_TYPES:
+            raise InputError(f"{w}: type = {shape.type!r} cannot stand as clutter (its hole would show the "
+                             f"board's material); use one of {', '.join(CLUTTER_TYPES)}")
+        if shape.material.texture:
+            raise InputError(f"{w}: texture: clutter is not printed; remove it")
+        out.append(Clutter(shape, float(h)))
+    return tuple(out)
+
+
 # --- the scene of a target group ------------------------------------------------------------------
 @dataclass(frozen=True)
 class TargetScene:
@@ -305,6 +441,7 @@ class TargetScene:
     board: Material = BOARD_MATERIAL
     lights: tuple = (Light(),)
     ambient: float = 0.0  # constant environment: irradiance on the open board, x the group's irradiance_w_m2
+    clutter: tuple = ()  # ``Clutter`` items in front of the board
 
     @property
     def primary(self) -> Shape:
@@ -318,8 +455,11 @@ class TargetScene:
         return np.concatenate([s.sample_points() for s in self.shapes])
 
     def resolved(self) -> dict:
-        return {"id": self.id, "shapes": [s.to_dict() for s in self.shapes], "board": self.board.to_dict(),
-                "lights": [lt.to_dict() for lt in self.lights], "ambient": self.ambient}
+        out = {"id": self.id, "shapes": [s.to_dict() for s in self.shapes], "board": self.board.to_dict(),
+               "lights": [lt.to_dict() for lt in self.lights], "ambient": self.ambient}
+        if self.clutter:  # only when set: a scene without clutter keeps its identity
+            out["clutter"] = [c.to_dict() for c in self.clutter]
+        return out
 
 
 def _load_presets() -> dict:
@@ -358,11 +498,13 @@ def legacy_targets() -> dict:
     return out
 
 
-SCENE_GROUP_KEYS = ("shapes", "target_material", "board_material", "lights", "ambient")
+SCENE_GROUP_KEYS = ("shapes", "target_material", "board_material", "lights", "ambient", "clutter")
 
 
-def scene_from_group(g: dict, raw: dict, size_m: float, light_position_m, where: str) -> TargetScene | None:
-    """The group's ``TargetScene`` when it sets any scene key (else None: the fixed preset scene)."""
+def scene_from_group(g: dict, raw: dict, size_m: float, light_position_m, where: str,
+                     base_dir=None) -> TargetScene | None:
+    """The group's ``TargetScene`` when it sets any scene key (else None: the fixed preset scene).
+    ``base_dir``: where relative texture paths start (the spec's folder)."""
     if not any(k in raw for k in SCENE_GROUP_KEYS):
         return None
     from edgetruth.render.lights import lights_from_list
@@ -384,6 +526,16 @@ def scene_from_group(g: dict, raw: dict, size_m: float, light_position_m, where:
                                                                           f"{where} target_material"))
     board = BOARD_MATERIAL.merged(g["board_material"], f"{where} board_material") if "board_material" in raw \
         else BOARD_MATERIAL
+    from edgetruth.render.materials import with_texture_file
+
+    board = with_texture_file(board, base_dir, f"{where} board_material")
+    for i, sh in enumerate(shapes):
+        if sh.material.texture:
+            w = f"{where} {'shapes[%d]' % i if raw.get('shapes') is not None else 'target_material'} material"
+            if sh.type != "rectangle":
+                raise InputError(f"{w}: texture prints on a rectangle shape or the board only (this shape is a "
+                                 f"{sh.type}); remove it or use a rectangle")
+            shapes[i] = replace(sh, material=with_texture_file(sh.material, base_dir, w))
     if "lights" in raw:
         if "light_position_m" in raw:
             raise InputError(f"{where}: lights and light_position_m: light_position_m moves the default light; "
@@ -391,5 +543,7 @@ def scene_from_group(g: dict, raw: dict, size_m: float, light_position_m, where:
         lights = lights_from_list(g["lights"], f"{where} lights")
     else:
         lights = (Light(position_m=tuple(light_position_m)),)
-    return TargetScene(id=sid, shapes=tuple(shapes), board=board, lights=lights, ambient=float(g.get("ambient", 0.0)))
+    clutter = clutter_from_list(g["clutter"], size_m, f"{where} clutter") if raw.get("clutter") is not None else ()
+    return TargetScene(id=sid, shapes=tuple(shapes), board=board, lights=lights, ambient=float(g.get("ambient", 0.0)),
+                       clutter=clutter)
 

@@ -59,6 +59,10 @@ SPEC_KEYS = [
     Key("edge_spp", "int", RenderSettings.edge_spp, "samples/px", "samples per pixel near a target's outline "
         "(within the PSF, defocus and motion reach; the rest of the frame uses spp; a power of two, of four for multijitter and stratified); 0 = spp "
         "everywhere", 0, MAX_SPP),
+    Key("edge_mode", "str", RenderSettings.edge_mode, "", "the edge band: path = path-traced at edge_spp (the "
+        "reference); analytic = the board and the target's material rendered without an edge at edge_spp and "
+        "composited with the exact lens-weighted coverage (no Monte-Carlo noise from the edge; preset targets, "
+        "static camera; docs/optics.md)", choices=("path", "analytic")),
     Key("checkerboard_spp", "int", 0, "samples/px", "samples per pixel of the checkerboard images (their corners "
         "are edges, and boards have no edge band; a power of two, of four for multijitter and stratified); "
         "0 = spp", 0, MAX_SPP),
@@ -109,6 +113,10 @@ GROUP_KEYS = [
         "0.8)"),
     Key("lights", "tables", None, "", "kind = target: the lights [{type, position_m, aim_board_m, size_m, share, "
         "cutoff_deg, beam_deg}, ...] (\"Lights\" below), replacing the default square area light"),
+    Key("clutter", "tables", None, "", "kind = target: planar shapes held in front of the board, parallel to it "
+        "[{type (rectangle, circle, ellipse, polygon or grid), offset_m, rotation_deg, size keys, material, "
+        "raised_m (how far in front of the board, >= 0.001 m)}, ...]: they hide what lies behind them and cast "
+        "shadows on the board; the truth gives their outlines and, per light, their shadows' outlines"),
     Key("ambient", "float", 0.0, "", "kind = target: a constant environment light giving ambient x "
         "irradiance_w_m2 on the open board (adds Monte-Carlo noise: it is sampled over the sphere)", 0.0, 100.0),
 ]
@@ -569,7 +577,7 @@ def load_spec(name_or_path: str | Path) -> Spec:
         camera = replace(base_camera, **cam_over) if cam_over else base_camera
         scene = None
         if g["kind"] == "target":
-            scene = scene_from_group(g, raw, s["target_size_m"], g["light_position_m"], where)
+            scene = scene_from_group(g, raw, s["target_size_m"], g["light_position_m"], where, base_dir=path.parent)
         else:
             given = [k for k in SCENE_GROUP_KEYS if k in raw]
             if given:
@@ -606,9 +614,15 @@ def load_spec(name_or_path: str | Path) -> Spec:
                             unit_irradiance_w_m2=unit_e, poses=poses, light_position_m=light))
         first += n
     _check_sample_counts(s, f"{src} [spec]")
+    if s["edge_mode"] == "analytic":  # edgetruth.render.edge_band.render_analytic_band's scope
+        for g in groups:
+            if g.kind == "target" and (g.camera.moving or not isinstance(g.target, str)):
+                raise InputError(f"{src} group {g.name!r}: edge_mode = \"analytic\" covers preset targets (T1..T4) "
+                                 "and a static camera; set edge_mode = \"path\" for this spec")
     return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
                 camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"],
                                                                          edge_spp=s["edge_spp"],
-                                                                         checkerboard_spp=s["checkerboard_spp"]),
+                                                                         checkerboard_spp=s["checkerboard_spp"],
+                                                                         edge_mode=s["edge_mode"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
                 text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares)

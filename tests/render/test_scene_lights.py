@@ -157,3 +157,25 @@ def test_presets_render_bit_for_bit_as_the_fixed_scene(fast_variant, preset):
     rig._active.params["light0.emitter.radiance.value"] = le
     rig._active.params.update()
     assert np.array_equal(rig.render(5), fixed)
+
+
+def test_light_and_ambient_placeholders_never_merge_with_a_material(fast_variant):
+    """Mitsuba's loader merges equal dicts into one object: a light's or the ambient's placeholder equal to a
+    conductor's uniform reflectance (1.0, 0.5) once made ``set_state`` miss the light's key (KeyError) or set
+    the metal's reflectance to the light's emission."""
+    import mitsuba as mi
+
+    from edgetruth.render.mitsuba_scene import RenderSettings, TargetRig
+
+    mi.set_variant(fast_variant)
+    metal1 = Shape("circle", offset_m=(-0.05, 0.0), diameter_m=0.03, material=Material("roughconductor", alpha=0.2))
+    metal05 = Shape("circle", offset_m=(0.05, 0.0), diameter_m=0.03,
+                    material=Material("roughconductor", alpha=0.2, specular_reflectance=0.5))
+    scene = TargetScene("custom", (metal1, metal05), lights=(Light("area"), Light("point", share=0.5)), ambient=0.2)
+    rig = TargetRig(CAMERA, RenderSettings(spp=1, sampler="multijitter"))
+    le = rig.set_state(scene, POSE, E_W_M2)
+    p = rig._scene_rigs[scene].params
+    assert p["light0.emitter.radiance.value"][0] == pytest.approx(le, rel=1e-6)
+    assert p["ambient.radiance.value"][0] == pytest.approx(0.2 * E_W_M2 / math.pi, rel=1e-6)
+    assert p["shape0.bsdf.specular_reflectance.value"][0] == 1.0
+    assert p["shape1.bsdf.specular_reflectance.value"][0] == 0.5
