@@ -134,7 +134,7 @@ def run_bench(spec_name: str = "quick") -> list[str]:
     lines += patch_cost_lines(patches)
     million = {w: million_image_run_tmp(w) for w in (1, 2)}
     lines += million_image_lines(million)
-    scale = spec.camera_scale ** 2  # pixels of a full-resolution frame per pixel of this binned spec
+    scale = FULL_FRAME[0] * FULL_FRAME[1] / _pixels(spec)  # full-resolution pixels per pixel of this spec
     frames = {"variant": best, "samples_per_s": rates.get(best, float("nan")), "cores": _cores(),
               "overhead_s": (wall - inside) / max(n, 1) * scale, "bytes": frame_bytes * scale}
     frames["compact_us"] = compaction_us_per_entry()

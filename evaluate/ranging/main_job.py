@@ -24,6 +24,53 @@ STUDIES = {
 }
 
 
+def warm_kernels(methods=None, thresholds=None) -> None:
+    """Call every method once on a small analytic image: numba compiles the kernels it has not cached
+    yet and writes them to its on-disk cache (``edgetruth.locate.jit``).  A method that fails here
+    (a plug-in this process does not know) is skipped: the warm-up only saves time."""
+    from edgetruth import locate
+    from edgetruth.evaluate import method_order as mo
+    from edgetruth.render.synthetic import synthetic_image
+
+    options = mo.study_options(thresholds)
+    s = synthetic_image("ideal", 0, split="unit")
+    cand = locate.candidates(s.image)
+    for m in methods or mo.ordered(None):
+        try:
+            mid, kw = mo.resolve(m, options)
+            locate.refine(s.image, cand, mid, **kw)
+        except Exception:  # noqa: BLE001 -- the stage that runs the method reports its failure
+            continue
+
+
+def start_kernel_warmup(methods=None, thresholds=None):
+    """``warm_kernels`` in a background process, started before the renders: on a fresh clone (no numba
+    cache) the kernels' compilation (~90 s of one core, measured) then overlaps the rendering instead
+    of running afterwards in every worker of the synthetic study at once.  With a warm cache it only
+    loads them (a few seconds of one core beside the renders).  Returns the process (or None)."""
+    import atexit
+    import subprocess
+    import sys
+
+    code = ("import sys; from edgetruth.evaluate.ranging.main_job import warm_kernels; "
+            "warm_kernels(sys.argv[2:] or None, sys.argv[1] or None)")
+    try:
+        proc = subprocess.Popen([sys.executable, "-c", code, str(thresholds or ""), *(methods or [])],
+                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:
+        return None
+    atexit.register(lambda: proc.poll() is None and proc.kill())  # a run that stops early leaves none behind
+    return proc
+
+
+def finish_kernel_warmup(proc) -> float:
+    """Wait for ``start_kernel_warmup``'s process; returns the seconds waited."""
+    t = time.perf_counter()
+    if proc is not None:
+        proc.wait()
+    return time.perf_counter() - t
+
+
 def select_jobs(spec, limit: int | None, kind: str) -> list[int]:
     """Indices of the jobs of ``kind`` to render: all, or ``limit`` per group spread over distance."""
     out = []
@@ -70,11 +117,12 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
                       progress: bool = True, names: dict | None = None, backend: str = "local",
                       workers: int | None = 1, address: str | None = None, header: dict | None = None,
                       synthetic_report: Path | None = None, title: str = "evaluation report",
-                      camera_thresholds=None) -> Path:
+                      camera_thresholds=None, windows_beside_full: bool = False) -> Path:
     """Range every target image of ``datasets`` with every method, score every method's points
     against the exact outline, and write ``report.md`` into ``out``.  ``camera_thresholds``: a file
     of thresholds calibrated for the camera (``calibrate-thresholds --dataset``); the dynamic methods
-    then also run with them (labels ``*_camera``)."""
+    then also run with them (labels ``*_camera``).  ``windows_beside_full``: the report sets the dynamic
+    methods' window shares beside the full study's (the quick run's report)."""
     from edgetruth import locate
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.ranging.images import run_ranging
@@ -103,7 +151,8 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
             f"2P {tuple(ct['2p'])}, 4P {tuple(ct['4p'])} (from {Path(camera_thresholds).name}: calibrated on renders "
             "disjoint from these, `edgetruth calibrate-thresholds --dataset`)")
     return write_report(out, result["rows"], result["methods"], calibration, result["examples"], head,
-                        str(synthetic_report) if synthetic_report else None, title=title, points=result["points"])
+                        str(synthetic_report) if synthetic_report else None, title=title, points=result["points"],
+                        windows_beside_full=windows_beside_full)
 
 
 def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int | None = None,
@@ -140,6 +189,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     t0 = time.perf_counter()
     timing: dict = {}
     console.say(f"run: study {study!r} -> {out}")
+    warmup = start_kernel_warmup(methods, thresholds)  # numba compiles beside the renders, not after them
 
     # 1. render
     render_dir = out / "render"
@@ -160,8 +210,11 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
         target_sets.insert(0, (thr_spec, select_jobs(thr_spec, limit, "target")))
     stats: dict = {}
     for spec, only in target_sets:
+        # one worker process per core (one Dr.Jit thread each): a render's single-threaded parts (the edge
+        # band's small tiles, ground truth, sensor, encoding, hashing) overlap the other worker's render
+        # instead of leaving a core idle; the files are the same bytes as in-process (tests/cli/test_backends.py)
         render_spec(spec, render_dir / spec.name, variant=variant, progress=progress, only=only, timings=stats,
-                    announce=lambda s: (variants.append(s), console.say(s)))
+                    announce=lambda s: (variants.append(s), console.say(s)), workers=workers)
     timing["render_s"] = time.perf_counter() - t
     reuse_line = render_reuse_line(target_sets, stats)
     if reuse_line:
@@ -177,6 +230,9 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
                 f"({e.get('fx_rel_pct', float('nan')):+.3f} % vs truth), principal point error "
                 f"({e.get('cx_px', float('nan')):+.2f}, {e.get('cy_px', float('nan')):+.2f}) px")
     timing["calibrate_s"] = time.perf_counter() - t
+
+    # the kernels are cached from here on: the stages below (and their workers) load them
+    timing["kernel_wait_s"] = finish_kernel_warmup(warmup)
 
     # 2b. entropy thresholds for this camera, from the disjoint threshold renders' per-point truth
     if thr_spec is not None:
@@ -227,7 +283,8 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
         header["synthetic study"] = "FAILED (see the console)"
     report = evaluate_datasets(datasets, cal, out, methods=methods, thresholds=thresholds, progress=progress,
                                names=names, workers=workers, header=header, synthetic_report=synthetic_report,
-                               title=f"run report (study {study})", camera_thresholds=camera_thresholds)
+                               title=f"run report (study {study})", camera_thresholds=camera_thresholds,
+                               windows_beside_full=study == "quick")
     timing["ranging_s"] = time.perf_counter() - t
     console.say(f"run: report {report} ({time.perf_counter() - t0:.1f} s in all: "
                 + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + ")")

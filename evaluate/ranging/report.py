@@ -401,7 +401,7 @@ def figures(rows, methods, examples, fig_dir: Path, groups: bool = True) -> dict
 # --- the report ---------------------------------------------------------------------------
 def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), header: dict | None = None,
                  synthetic_report: str | None = None, title: str = "ranging report", points=None,
-                 reference: str | None = None, sections=()) -> Path:
+                 reference: str | None = None, sections=(), windows_beside_full: bool = False) -> Path:
     """Write ``report.md`` (+ ``figures/``, ``ranging_summary.json``) and return its path.
 
     ``reference``: None for renders (errors against their exact truth).  For real photos, the words
@@ -409,7 +409,8 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     says there is no render truth (no model floor, no size error l_hat - l_true, no per-point
     tables), shows distances outside 50-300 cm in their own columns, and replaces Tables 16-17's
     design levels by one table over the rows' own ``group`` (the CSV's).  ``sections``: Markdown
-    lines placed after the calibration (a photo set's table of photos)."""
+    lines placed after the calibration (a photo set's table of photos).  ``windows_beside_full``: add the
+    dynamic methods' window shares beside the full study's (``window_shares.beside_section``; the quick run)."""
     from edgetruth.fileio import atomic_write_text
 
     out_dir = Path(out_dir)
@@ -534,6 +535,10 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
         from edgetruth.evaluate.points.report import report_section
 
         L += report_section(points, [m for m in methods if m in points.errors], out_dir)
+        if windows_beside_full and (out_dir / "render_points_summary.csv").is_file():
+            from edgetruth.evaluate.ranging.window_shares import beside_section
+
+            L += beside_section(out_dir / "render_points_summary.csv")
     L += ["", "## Figures", ""]
     for k, p in figs.items():
         rel = Path(p).relative_to(out_dir)

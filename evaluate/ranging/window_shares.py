@@ -5,6 +5,10 @@ boundary candidates, ``dynamic_erf_4p`` with the shipped thresholds), without ca
 undistortion: the window depends on the edge's blur, which the lens model sets.
 
     python -m edgetruth.evaluate.ranging.window_shares runs/study [more datasets...] [--group G1_T1]
+
+``beside_section``: the report's table of a run's window shares (its ``render_points_summary.csv``)
+beside the full study's (``FULL_STUDY_SHARES``), which `edgetruth run` (the quick study) prints so
+that the minutes-long run can be read against the hour-long one.
 """
 from __future__ import annotations
 
@@ -13,6 +17,44 @@ import sys
 import numpy as np
 
 WINDOWS = (5, 7, 9, 11)
+
+#: The full study's window shares on its scored points (5, 7, 9, 11 samples, n points), per design cell
+#: (base = G1_T1; G1 and T1 are the base cell) and dynamic method (``_camera``: the thresholds calibrated
+#: for the camera on the disjoint ``thresholds`` renders).  Stated from the committed results: the
+#: ``interval == all`` rows of docs/results/ranging_full/render_points_summary.csv (`edgetruth run --study
+#: full`, 50 pose slots x 7 cells at 1280x1024; tests/evaluate/ranging/test_window_shares_beside.py checks
+#: these digits against that file).  A wheel has no docs/: hence the constants.
+FULL_STUDY_SOURCE = "docs/results/ranging_full (`edgetruth run --study full`: 50 pose slots x 7 cells, 1280x1024)"
+FULL_STUDY_SHARES = {
+    ("base", "dynamic_erf_2p"): (0.9081, 0.0919, 0.0000, 0.0000, 29280),
+    ("base", "dynamic_erf_2p_camera"): (0.0000, 0.9997, 0.0000, 0.0003, 29280),
+    ("base", "dynamic_erf_4p"): (0.9659, 0.0341, 0.0000, 0.0000, 29280),
+    ("base", "dynamic_erf_4p_camera"): (0.0001, 0.0021, 0.0041, 0.9937, 29280),
+    ("G2", "dynamic_erf_2p"): (0.8736, 0.1261, 0.0003, 0.0000, 29280),
+    ("G2", "dynamic_erf_2p_camera"): (0.0000, 0.9964, 0.0000, 0.0036, 29280),
+    ("G2", "dynamic_erf_4p"): (0.9335, 0.0656, 0.0008, 0.0000, 29280),
+    ("G2", "dynamic_erf_4p_camera"): (0.0002, 0.0013, 0.0024, 0.9961, 29280),
+    ("G3", "dynamic_erf_2p"): (0.7914, 0.2045, 0.0041, 0.0000, 29280),
+    ("G3", "dynamic_erf_2p_camera"): (0.0000, 0.9798, 0.0000, 0.0202, 29280),
+    ("G3", "dynamic_erf_4p"): (0.8791, 0.1137, 0.0071, 0.0000, 29280),
+    ("G3", "dynamic_erf_4p_camera"): (0.0001, 0.0007, 0.0006, 0.9985, 29280),
+    ("G4", "dynamic_erf_2p"): (0.5713, 0.4022, 0.0259, 0.0006, 29280),
+    ("G4", "dynamic_erf_2p_camera"): (0.0000, 0.9293, 0.0000, 0.0707, 29280),
+    ("G4", "dynamic_erf_4p"): (0.7286, 0.2332, 0.0371, 0.0012, 29280),
+    ("G4", "dynamic_erf_4p_camera"): (0.0001, 0.0003, 0.0003, 0.9992, 29280),
+    ("T2", "dynamic_erf_2p"): (0.9100, 0.0900, 0.0000, 0.0000, 28418),
+    ("T2", "dynamic_erf_2p_camera"): (0.0000, 1.0000, 0.0000, 0.0000, 28418),
+    ("T2", "dynamic_erf_4p"): (0.9735, 0.0265, 0.0000, 0.0000, 28418),
+    ("T2", "dynamic_erf_4p_camera"): (0.0000, 0.0003, 0.0017, 0.9979, 28418),
+    ("T3", "dynamic_erf_2p"): (0.8431, 0.1557, 0.0012, 0.0000, 29280),
+    ("T3", "dynamic_erf_2p_camera"): (0.0000, 0.9913, 0.0000, 0.0087, 29280),
+    ("T3", "dynamic_erf_4p"): (0.9104, 0.0870, 0.0026, 0.0000, 29280),
+    ("T3", "dynamic_erf_4p_camera"): (0.0000, 0.0003, 0.0008, 0.9989, 29280),
+    ("T4", "dynamic_erf_2p"): (0.8571, 0.1426, 0.0004, 0.0000, 29123),
+    ("T4", "dynamic_erf_2p_camera"): (0.0000, 0.9974, 0.0000, 0.0026, 29123),
+    ("T4", "dynamic_erf_4p"): (0.9359, 0.0636, 0.0005, 0.0000, 29123),
+    ("T4", "dynamic_erf_4p_camera"): (0.0001, 0.0005, 0.0014, 0.9980, 29123),
+}
 
 
 def image_window_counts(image: np.ndarray, method: str = "dynamic_erf_4p") -> dict[int, int]:
@@ -51,6 +93,49 @@ def window_shares(dataset_dirs, method: str = "dynamic_erf_4p", groups=None) -> 
         return {k: v / m for k, v in c.items()}
     return {"total": shares(total), "by_interval": {k: shares(v) for k, v in sorted(by_interval.items())},
             "n_points": n, "n_images": n_images, "method": method}
+
+
+def summary_shares(path) -> dict:
+    """{(cell, method): (share5, share7, share9, share11, n_points)} of a ``render_points_summary.csv``
+    (its ``interval == all`` rows with window shares; cell: ``base`` or a level such as ``G2``)."""
+    import csv
+
+    out = {}
+    with open(path, newline="") as fh:
+        for r in csv.DictReader(fh):
+            if r.get("interval") != "all" or not r.get("window5_share"):
+                continue
+            cell = "base" if r["cell"] == "base" else r["level"]
+            out[(cell, r["method"])] = tuple(float(r[f"window{w}_share"]) for w in WINDOWS) + (int(r["n_points"]),)
+    return out
+
+
+def beside_section(summary_csv, reference: dict | None = None, source: str = FULL_STUDY_SOURCE,
+                   label: str = "this run") -> list[str]:
+    """Markdown: the window shares of ``summary_csv`` beside ``reference`` (default: the full study's), per
+    dynamic method and design cell both have; [] when they share none."""
+    from edgetruth.evaluate.method_order import label as method_label
+
+    ref = FULL_STUDY_SHARES if reference is None else reference
+    mine = summary_shares(summary_csv)
+    keys = [k for k in ref if k in mine]  # the reference's order: base, G2-G4, T2-T4, per method
+    if not keys:
+        return []
+    keys.sort(key=lambda k: (k[1], list(dict.fromkeys(c for c, _ in ref)).index(k[0])))
+    pct = lambda v: f"{100 * v:.1f} %"  # noqa: E731
+    body = ["| method | cell | " + " | ".join(f"{w} ({label})" for w in WINDOWS) + " | "
+            + " | ".join(f"{w} (full study)" for w in WINDOWS) + f" | points ({label} / full study) |",
+            "|" + "---|" * (3 + 2 * len(WINDOWS))]
+    for cell, m in keys:
+        a, b = mine[(cell, m)], ref[(cell, m)]
+        body.append(f"| {method_label(m)} | {'base (G1_T1)' if cell == 'base' else cell} | "
+                    + " | ".join(pct(v) for v in a[:4]) + " | " + " | ".join(pct(v) for v in b[:4])
+                    + f" | {a[4]:,} / {b[4]:,} |")
+    return ["", f"## Window shares: {label} beside the full study", "",
+            f"The dynamic methods' windows on the scored points of {label}, per design cell, beside the full "
+            f"study's ({source}).  The quick camera keeps the study camera's optics in pixels (the same PSF, "
+            "MTF50 and defocus disk in px: docs/optics.md, \"The quick camera\"), so the shares should agree to "
+            "within the sampling of fewer, smaller targets.", ""] + body
 
 
 def main(argv: list[str]) -> int:  # pragma: no cover - a thin printer

@@ -32,9 +32,12 @@ from edgetruth.evaluate.points.matching import MATCH_RADIUS_PX, on_edge
 from edgetruth.evaluate.stats import summary, wilcoxon_paired
 from edgetruth.render.synthetic import DEFAULT_SHAPE, SCENARIOS, synthetic_image
 
+#: throughput_rounds: interleaved rounds of the time-per-point measurement (``batch_throughput``, in the
+#: driver after the blocks); 3 in the quick preset (`make run`: ~1/4 of its synthetic stage at 7 rounds),
+#: 7 in the full one.  Only the timing column's medians depend on it, never an error figure.
 PRESETS = {
-    "quick": {"images_per_scenario": 24},
-    "full": {"images_per_scenario": 200},
+    "quick": {"images_per_scenario": 24, "throughput_rounds": 3},
+    "full": {"images_per_scenario": 200, "throughput_rounds": 7},
 }
 DELTAS = (-0.10, -0.08, -0.05, -0.02, 0.0, 0.02, 0.05, 0.08, 0.10)
 BLOCK = 25
@@ -168,9 +171,10 @@ def _load_block(path: Path, methods) -> dict | None:
 
 def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAPE, progress=True,
             backend: str = "local", workers: int = 1, address: str | None = None,
-            options: dict | None = None, thresholds=None, throughput: bool = False) -> StudyData:
+            options: dict | None = None, thresholds=None, throughput: bool | int = False) -> StudyData:
     """The study's per-point data (from the cache, computing missing blocks); ``throughput``: also
-    measure every method's batch throughput (``refine_bench.batch_throughput``) in this process."""
+    measure every method's batch throughput (``refine_bench.batch_throughput``) in this process (an
+    int: over that many interleaved rounds; True: the default 7)."""
     from edgetruth import console
     from edgetruth.backends import make_backend
     from edgetruth.fileio import read_json, write_json
@@ -219,7 +223,8 @@ def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAP
     if throughput:
         from edgetruth.evaluate.refine_bench import REFERENCE, batch_throughput
 
-        rates, ratios = batch_throughput(methods, options, reference=REFERENCE)
+        rounds = 7 if throughput is True else int(throughput)
+        rates, ratios = batch_throughput(methods, options, repeats=rounds, reference=REFERENCE)
     return StudyData(
         methods=methods, scenario=scen, image=image,
         errors={m: cat(f"err__{m}") for m in methods}, converged=conv,
@@ -511,7 +516,8 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
         "",
         f"edgetruth {__version__}, commit {source_commit()[:12]}; study time {elapsed_s:.0f} s. "
         "Times per point are batch throughput (`edgetruth.evaluate.refine_bench.batch_throughput`: one refinement "
-        "call over the candidates of a 1280×1024 mosaic of blurred noisy discs, median of 7 interleaved rounds, all "
+        "call over the candidates of a 1280×1024 mosaic of blurred noisy discs, median of "
+        f"{PRESETS.get(preset, {}).get('throughput_rounds', 7)} interleaved rounds, all "
         "cores), as in `make bench`, measured in one run so that ratios compare like with like; on a shared machine "
         "the ratios (last table) are steadier than the absolute figures.",
         "",
@@ -628,6 +634,6 @@ def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: 
     out_dir = make_output_dir(out_dir)
     t0 = time.perf_counter()
     d = collect(out_dir, n_per, methods, progress=progress, backend=backend, workers=workers, address=address,
-                options=options, thresholds=thresholds, throughput=True)
+                options=options, thresholds=thresholds, throughput=PRESETS[preset]["throughput_rounds"])
     t = build_tables(d)
     return write_report(out_dir, d, t, preset, n_per, time.perf_counter() - t0)

@@ -1,4 +1,5 @@
-"""``edgetruth bench``: the performance figures (refinement throughput, rendering speed)."""
+"""``edgetruth bench``: the performance figures (refinement throughput, rendering speed), and with
+``--against REV`` this working tree timed side by side with a baseline commit."""
 from __future__ import annotations
 
 
@@ -8,23 +9,68 @@ def register(sub) -> None:
     p = sub.add_parser("bench", help="print performance figures (medians, ratios from one run)",
                        description="Start-up costs (edgetruth --version, import edgetruth.locate, edgetruth locate "
                                    "on 100 images in one call), refinement throughput per method on a 1280x1024 "
-                                   "mosaic, and rendering speed per Mitsuba variant (what `make bench` runs).")
-    p.add_argument("--only", choices=["startup", "locate", "render"], default=None, help="run one part only")
-    p.add_argument("--repeats", type=positive_int, default=7, help="timed repeats per figure (medians)")
+                                   "mosaic, and rendering speed per Mitsuba variant (what `make bench` runs).  "
+                                   "With --against REV: the baseline commit REV checked out beside this working "
+                                   "tree (a temporary git worktree) and both timed in one run, alternating: the "
+                                   "main job `edgetruth run` per stage (cold caches, as a fresh clone) and the "
+                                   "full study's rendering per image; medians and ratios baseline / working.")
+    p.add_argument("--only", choices=["startup", "locate", "render", "run"], default=None,
+                   help="run one part only (run: with --against only, the main job)")
+    p.add_argument("--repeats", type=positive_int, default=None,
+                   help="timed repeats per figure (medians; default 7, with --against 1)")
+    p.add_argument("--against", metavar="REV", default=None,
+                   help="time this working tree against commit REV side by side (e.g. 70b0339, the issue-19 "
+                        "baseline); needs a git checkout")
+    p.add_argument("--limit", metavar="N", type=positive_int, default=None,
+                   help="--against: pass --limit N to both main jobs (N target images per group)")
+    p.add_argument("--skip-synthetic", action="store_true",
+                   help="--against: pass --skip-synthetic to both main jobs")
+    p.add_argument("--study-images", metavar="N", type=positive_int, default=3,
+                   help="--against: full-study images rendered per side (default 3: near, middle, far)")
+    p.add_argument("--json", metavar="FILE", default=None, help="--against: write every measurement to FILE")
     p.set_defaults(handler=run)
 
 
 def run(args) -> int:
+    from edgetruth.errors import InputError
+
+    if args.against is not None:
+        return run_against(args)
+    if args.only == "run":
+        raise InputError("--only run: the main job is timed with --against REV only (e.g. --against 70b0339)")
+    repeats = args.repeats or 7
     if args.only in (None, "startup"):
         from edgetruth.cli.startup_bench import run_bench as startup_bench
 
-        print("\n".join(startup_bench(repeats=args.repeats)), flush=True)
+        print("\n".join(startup_bench(repeats=repeats)), flush=True)
     if args.only in (None, "locate"):
         from edgetruth.evaluate.refine_bench import run_bench
 
-        print("\n".join(run_bench(repeats=args.repeats)), flush=True)
+        print("\n".join(run_bench(repeats=repeats)), flush=True)
     if args.only in (None, "render"):
         from edgetruth.render.bench import run_bench as render_bench
 
         print("\n".join(render_bench()), flush=True)
+    return 0
+
+
+def run_against(args) -> int:
+    import json
+
+    from edgetruth.cli.commands.bench_against import run_against as against
+    from edgetruth.errors import InputError
+
+    if args.only not in (None, "run", "render"):
+        raise InputError(f"--only {args.only} with --against: choose run or render (or leave --only out for both)")
+    parts = ("run", "render") if args.only is None else (args.only,)
+    run_args = (["--limit", str(args.limit)] if args.limit else []) + (["--skip-synthetic"] if args.skip_synthetic
+                                                                       else [])
+    res = against(args.against, repeats=args.repeats or 1, run_args=run_args, study_images=args.study_images,
+                  parts=parts, say=lambda s: print(s, flush=True))
+    print("\n".join(res["lines"]), flush=True)
+    if args.json:
+        from edgetruth.fileio import atomic_write_text
+
+        atomic_write_text(args.json, json.dumps({k: v for k, v in res.items() if k != "lines"}, indent=1,
+                                                default=str) + "\n")
     return 0

@@ -40,7 +40,7 @@ def register(subparsers) -> None:
                         "methods with as well (default: calibrate them on the study's threshold renders)")
     p.add_argument("--variant", default=None, help="Mitsuba variant (default: best that works here)")
     p.add_argument("-j", "--workers", type=positive_int, default=None, metavar="N",
-                   help="worker processes for the evaluation and the synthetic study (default: the cores)")
+                   help="worker processes for the renders, the evaluation and the synthetic study (default: the cores)")
     p.add_argument("--skip-synthetic", action="store_true", help="do not run the synthetic study's quick preset")
     add_plugin_option(p)
     add_progress_option(p)

@@ -69,9 +69,21 @@ def test_quick_run_end_to_end(tmp_path, fast_variant):
     assert thr["provenance"]["data"]["specs"] == ["thresholds_quick"]
     assert any(r["method"] == "dynamic_erf_4p_camera" and r["status"] == "ok" for r in rows)
     assert "Table E1" in text and "(camera τ)" in text and "render reuse" in text
+    assert "## Window shares: this run beside the full study" in text  # the quick run against the full study
     from edgetruth.evaluate.points.scores import read_points
 
     pts = read_points(out / "render_points.npz")
     assert len(pts.images) == len(ok) and "dynamic_erf_4p_camera" in pts.windows
     for link in re.findall(r"\]\(([^)]+)\)", text):  # every link of the report resolves
         assert (out / link).exists(), link
+
+
+def test_kernel_warmup_runs_in_the_background_and_skips_unknown_methods():
+    """The run starts the kernels' compilation beside its renders (a fresh clone has no numba cache);
+    a method this process cannot run (a plug-in's) is skipped, never an error."""
+    from edgetruth.evaluate.ranging.main_job import finish_kernel_warmup, start_kernel_warmup, warm_kernels
+
+    warm_kernels(["canny_pixel", "no_such_method"])  # in-process: returns
+    proc = start_kernel_warmup(["canny_pixel", "no_such_method"])
+    assert proc is not None
+    assert finish_kernel_warmup(proc) >= 0.0 and proc.returncode == 0
