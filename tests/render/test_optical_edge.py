@@ -127,8 +127,10 @@ CASES = {  # (camera change, pose, side parameter)
 
 # In focus the rendered edge sits 0.005-0.009 px inward with the default PSF on (on axis and at h ~0.5)
 # (0.002-0.003 px without it): not in the derivation (which predicts 0 in focus); open, see docs/optics.md.
-_OPEN = pytest.mark.xfail(reason="in-focus inward shift (0.005-0.009 px) with the PSF on: not derived yet",
-                          strict=False)
+# Not run by default (run=False): a non-strict xfail can neither fail nor pass the suite, so its two 2048-spp
+# render pairs (2/7 of this test's time) bought nothing in CI; `pytest --runxfail` runs them (docs/optics.md).
+_OPEN = pytest.mark.xfail(reason="in-focus inward shift (0.005-0.009 px) with the PSF on: not derived yet "
+                                 "(not run: pytest --runxfail runs it)", strict=False, run=False)
 
 
 @pytest.mark.slow
