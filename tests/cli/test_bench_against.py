@@ -71,11 +71,15 @@ def test_unknown_revision_is_a_one_line_input_error(capsys, tmp_path, monkeypatc
 
 
 @pytest.mark.slow
-def test_against_head_renders_one_study_image_per_side(fast_variant, capsys):
-    """HEAD against itself: both sides render the same image; the worktree is gone afterwards."""
+def test_against_head_renders_one_image_per_side(fast_variant, capsys, tmp_path):
+    """HEAD against itself: both sides render the same image (of a tiny spec: the path is the study's,
+    its cost is not the point); the worktree is gone afterwards."""
+    from edgetruth.render.testing import write_tiny_spec
+
     root = ba.repo_root()
     before = subprocess.run(["git", "-C", str(root), "worktree", "list"], capture_output=True, text=True).stdout
-    res = ba.run_against("HEAD", parts=("render",), study_images=1, say=lambda s: None)
+    spec = write_tiny_spec(tmp_path, spp=4)
+    res = ba.run_against("HEAD", parts=("render",), study_images=1, say=lambda s: None, spec=str(spec))
     b, w = res["render"]["baseline"][0], res["render"]["working"][0]
     assert b["names"] == w["names"] and b["s_per_image"] > 0 and w["s_per_image"] > 0
     assert any(line.strip().startswith("s_per_image") for line in res["lines"])

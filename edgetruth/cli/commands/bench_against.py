@@ -67,8 +67,10 @@ import json, sys, time
 t0 = time.perf_counter()
 from edgetruth.render.driver import render_spec
 from edgetruth.render.spec import load_spec
-spec = load_spec("study")
-jobs = sorted((j for j in spec.jobs if j.group == "G1_T1"), key=lambda j: j.distance_cm)
+spec = load_spec(sys.argv[3])
+names = [g.name for g in spec.groups if g.kind == "target"]
+group = "G1_T1" if "G1_T1" in names else names[0]  # the study's base cell
+jobs = sorted((j for j in spec.jobs if j.group == group), key=lambda j: j.distance_cm)
 n = int(sys.argv[2])
 pick = [jobs[round(k * (len(jobs) - 1) / max(1, n - 1))] for k in range(n)]
 t = {}
@@ -165,9 +167,11 @@ def main_job_once(tree: Path, scratch: Path, run_args: list[str]) -> dict:
     return res
 
 
-def study_render_once(tree: Path, scratch: Path, n_images: int) -> dict:
+def study_render_once(tree: Path, scratch: Path, n_images: int, spec: str = "study") -> dict:
+    """``n_images`` of ``spec``'s base cell (G1_T1, else its first target group), nearest to farthest."""
     env = side_env(tree, scratch)
-    wall, text = _run([sys.executable, "-c", _RENDER_SNIPPET, str(scratch / "study"), str(n_images)], env, scratch)
+    wall, text = _run([sys.executable, "-c", _RENDER_SNIPPET, str(scratch / "study"), str(n_images), str(spec)], env,
+                      scratch)
     line = [ln for ln in text.splitlines() if ln.startswith(_JSON_TAG)][-1]
     res = json.loads(line[len(_JSON_TAG):])
     if not str(Path(res["code"]).resolve()).startswith(str(Path(tree).resolve())):
@@ -198,7 +202,7 @@ def table_lines(title: str, base: list[dict], work: list[dict], keys: list[str])
 
 
 def run_against(rev: str, repeats: int = 1, run_args: list[str] | None = None, study_images: int = 3,
-                parts=("run", "render"), keep: Path | None = None, say=print) -> dict:
+                parts=("run", "render"), keep: Path | None = None, say=print, spec: str = "study") -> dict:
     """Time the working tree against ``rev`` (see the module's docstring); returns every measurement."""
     root = repo_root()
     run_args = list(run_args or [])
@@ -231,7 +235,7 @@ def run_against(rev: str, repeats: int = 1, run_args: list[str] | None = None, s
                         say(f"bench --against: run #{k + 1} {side}: {r['total_s']:.1f} s in all ("
                             + ", ".join(f"{a} {b:.1f}" for a, b in r.items() if a not in ("total_s", "wall_s")) + ")")
                     else:
-                        r = study_render_once(sides[side], scratch, study_images)
+                        r = study_render_once(sides[side], scratch, study_images, spec)
                         say(f"bench --against: study render #{k + 1} {side}: {r['s_per_image']:.2f} s/image "
                             f"({', '.join(r['names'])})")
                     res[part][side].append(r)
