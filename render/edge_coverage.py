@@ -274,6 +274,25 @@ def _coverage_kernel(px, py, row, lo, lam, node_pts, node_w, seg_ptr, seg_idx, o
     return out
 
 
+@njit(cache=True, parallel=True)
+def _inside_polyline(poly, x, y):
+    """Points (x, y) px inside the closed polyline ``poly`` (N, 2): even-odd crossings of the ray to
+    +x, each chord half-open in y (a ray through a vertex counts it once)."""
+    n = poly.shape[0]
+    out = np.zeros(x.shape[0], np.bool_)
+    for p in prange(x.shape[0]):
+        inside = False
+        for k in range(n):
+            k1 = k + 1 if k + 1 < n else 0
+            ya, yb = poly[k, 1], poly[k1, 1]
+            if (ya <= y[p]) != (yb <= y[p]):
+                xc = poly[k, 0] + (y[p] - ya) * (poly[k1, 0] - poly[k, 0]) / (yb - ya)
+                if xc > x[p]:
+                    inside = not inside
+        out[p] = inside
+    return out
+
+
 def outline_curve(camera, pose, target: str, size_m: float):
     """The exact outline (``OutlineCurve``) of target ``target`` (T1..T4) at ``pose``."""
     from edgetruth.render.outline import OutlineCurve
@@ -314,16 +333,20 @@ def pixel_coverage(camera, curve, x_px, y_px, n_r: int | None = None, n_phi: int
     c_depth = 1.0 / cam_pts[:, 2] - 1.0 / zf
     defocus_px = float(np.max(np.abs(c_depth))) * camera.fx_px * r_m if r_m > 0 else 0.0
     reach = tab.half_width_px * math.sqrt(2.0) + defocus_px * 1.01 + 1e-6
-    d = closed_polyline_signed_distance(pin_px, xs, ys)
-    out = (d < 0).astype(float)
-    near = np.abs(d) <= reach + 0.5
+    # |d| only: its sign comes from the nearest chord, which is ambiguous off a corner (both chords
+    # nearest at the shared vertex; on the extension of a side that chord's cross product is ~0 and
+    # says "inside" for points just across its line).  Outside the kernel's reach, c is the exact
+    # point-in-polygon test of the pixel centre.
+    d = np.abs(closed_polyline_signed_distance(pin_px, xs, ys))
+    out = _inside_polyline(np.ascontiguousarray(pin_px, dtype=np.float64), xs, ys).astype(float)
+    near = d <= reach + 0.5
     nodes = aperture_nodes(defocus_px, n_r, n_phi, smooth=tab.half_width_px > 0.5)
     # (pixels, [(table, aperture rule), ...]): the coverage is linear in the kernel
     parts = [(near, [(tab, nodes)])]
     if len(nodes[0]) > len(FAR_RULE[0]) and n_r is None:
         from edgetruth.render.psf import psf_params
 
-        far = near & (np.abs(d) > defocus_px + FAR_MARGIN_PX)
+        far = near & (d > defocus_px + FAR_MARGIN_PX)
         split = split_tables(psf_params(camera))
         parts = [(near & ~far, [(tab, nodes)] if split is None else [(split[0], nodes), (split[1], TAIL_RULE)]),
                  (far, [(tab, FAR_RULE)])]
