@@ -78,6 +78,7 @@ def closed_polyline_signed_distance(poly: np.ndarray, x, y) -> np.ndarray:
     area2 = np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1) * poly[:, 1])
     orient = 1.0 if area2 > 0 else -1.0  # > 0: counter-clockwise in (x right, y down) pixel axes
     best = np.full(len(q), np.inf)
+    lever = np.zeros(len(q))  # |distance to the chord's line| of the chord that gave the sign
     sign = np.ones(len(q))
     for j0 in (i - 2, i - 1, i, i + 1):
         a, b = poly[j0 % n], poly[(j0 + 1) % n]
@@ -85,9 +86,16 @@ def closed_polyline_signed_distance(poly: np.ndarray, x, y) -> np.ndarray:
         u = np.clip(((q - a) * d).sum(1) / np.maximum((d * d).sum(1), 1e-300), 0.0, 1.0)
         dist = np.linalg.norm(q - (a + u[:, None] * d), axis=1)
         cross = d[:, 0] * (q - a)[:, 1] - d[:, 1] * (q - a)[:, 0]
-        take = dist < best
-        best[take] = dist[take]
-        sign[take] = np.where(cross * orient > 0, -1.0, 1.0)[take]
+        line = np.abs(cross) / np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+        # Off a vertex both chords that meet there are nearest (at the vertex): the sign comes from
+        # the one whose line the point is farther from.  The other's line may pass on the wrong side
+        # of the point (on the extension of a side beyond an acute corner it does), whereas a
+        # point farthest from a line lies on the side of it the vertex's normal cone says.
+        tie = np.abs(dist - best) <= 1e-12 * np.maximum(1.0, best)
+        signed = (dist < best) & ~tie | tie & (line > lever)
+        lever[signed] = line[signed]
+        sign[signed] = np.where(cross * orient > 0, -1.0, 1.0)[signed]
+        best = np.minimum(best, dist)  # the distance exactly as before: the smallest of the four
     return (sign * best).reshape(np.shape(x))
 
 
