@@ -183,13 +183,21 @@ def render_analytic_band(radiance: np.ndarray, frame: tuple[int, int, int, int],
             "fractional": int(np.count_nonzero((c > 0) & (c < 1)))}
 
 
+def scene_outlines(gt: dict) -> list[np.ndarray]:
+    """Every outline of a scene's shapes and clutter items beyond shape 0's (``gt["outline"]``): their edges
+    need the band as much (empty for a preset target)."""
+    items = list(gt.get("shapes", ())) + list(gt.get("clutter", ()))
+    return [np.asarray(o["polyline_distorted_px"], float) for item in items for o in item.get("outlines", ())
+            if len(o.get("polyline_distorted_px", ())) >= 2]
+
+
 def render_edge_band(radiance, camera, settings, job, pose, gt, crop, irradiance_w_m2) -> dict | None:
     """Re-render the pixels near the target's outline at ``settings.edge_spp`` (in place; the tiles'
     seeds come from ``job.render_seed``); returns the JSON's ``edge_band`` block plus ``render_s``
     (None, and nothing rendered, when ``edge_spp`` is 0)."""
     if settings.edge_spp <= 0:
         return None
-    outlines = [np.asarray(gt["outline"]["polyline_distorted_px"])]
+    outlines = [np.asarray(gt["outline"]["polyline_distorted_px"])] + scene_outlines(gt)
     motion_px = 0.0
     if "motion" in gt:
         start, end = (np.asarray(gt["motion"][k]) for k in ("outline_start_distorted_px", "outline_end_distorted_px"))

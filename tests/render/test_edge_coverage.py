@@ -415,3 +415,25 @@ def test_analytic_band_noise_is_below_a_quarter_of_the_dark_noise(fast_variant, 
     print(f"{distance_m} m: " + "; ".join(f"|d| {lo:g}-{hi:g} px {mc:.2f} e-" for (lo, hi), (mc, _) in noise.items()))
     for band, (mc, _) in noise.items():
         assert mc <= SensorModel().dark_noise_e / 4, band
+
+
+def test_the_edge_band_covers_every_shape_and_clutter_outline():
+    """A scene's band takes every shape's and clutter item's outline, not only shape 0's (``gt["outline"]``)."""
+    from edgetruth.render.edge_band import band_tiles, scene_outlines
+
+    def ring(cx, cy, r):
+        a = np.linspace(0, 2 * np.pi, 200, endpoint=False)
+        return np.column_stack([cx + r * np.cos(a), cy + r * np.sin(a)]).tolist()
+
+    gt = {"outline": {"polyline_distorted_px": ring(100, 100, 20)},
+          "shapes": [{"outlines": [{"polyline_distorted_px": ring(100, 100, 20)}]},
+                     {"outlines": [{"polyline_distorted_px": ring(400, 300, 30)},
+                                   {"polyline_distorted_px": ring(400, 300, 10)}]}],
+          "clutter": [{"outlines": [{"polyline_distorted_px": ring(600, 100, 15)}], "shadows": []}]}
+    extra = scene_outlines(gt)
+    assert len(extra) == 4
+    tiles = set(band_tiles([np.asarray(gt["outline"]["polyline_distorted_px"])] + extra, (0, 0, 640, 480), 4.0))
+    for cx, cy, r in ((100, 100, 20), (400, 300, 30), (400, 300, 10), (600, 100, 15)):
+        x, y = cx + r, cy  # a pixel on that outline lies in a band tile
+        assert (x // 16 * 16, y // 16 * 16) in tiles
+    assert scene_outlines({"outline": gt["outline"]}) == []  # a preset target: nothing added
