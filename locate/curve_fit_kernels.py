@@ -62,7 +62,7 @@ from edgetruth.locate.erf_kernels import _chol4
 from edgetruth.locate.normal_cdf import cdf_pdf
 from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
 from edgetruth.locate.profiles import bilinear
-from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
+from edgetruth.jit import njit, prange  # numba, imported when a kernel is first called
 
 ERF = 0
 ARCTAN = 1

@@ -29,7 +29,7 @@ _LN_M = math.log(PROFILE_LEN - 1)
 S_MIN = 0.05  # blur scale floor (px): below it the model is a step, mu is undetermined within a pixel
 
 from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW  # noqa: E402
-from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
+from edgetruth.jit import njit, prange  # numba, imported when a kernel is first called
 
 
 @njit(cache=True, inline="always")

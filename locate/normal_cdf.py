@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from edgetruth.locate.jit import before_compile, njit  # numba, imported when a kernel is first called
+from edgetruth.jit import before_compile, njit  # numba, imported when a kernel is first called
 
 WIDTH = 0.25
 DEGREE = 8

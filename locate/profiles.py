@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from edgetruth.locate.candidates import PROFILE_HALF
-from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
+from edgetruth.jit import njit, prange  # numba, imported when a kernel is first called
 
 
 @njit(cache=True, inline="always")

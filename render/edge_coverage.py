@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from edgetruth.locate.jit import njit, prange
+from edgetruth.jit import njit, prange
 
 CHORD_TOLERANCE_PX = 1e-4  # curves: polyline spacing keeps the chords within this of the curve
 

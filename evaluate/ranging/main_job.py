@@ -26,7 +26,7 @@ STUDIES = {
 
 def warm_kernels(methods=None, thresholds=None) -> None:
     """Call every method once on a small analytic image: numba compiles the kernels it has not cached
-    yet and writes them to its on-disk cache (``edgetruth.locate.jit``).  A method that fails here
+    yet and writes them to its on-disk cache (``edgetruth.jit``).  A method that fails here
     (a plug-in this process does not know) is skipped: the warm-up only saves time."""
     from edgetruth import locate
     from edgetruth.evaluate import method_order as mo

@@ -55,7 +55,7 @@ import numpy as np
 from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
-from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
+from edgetruth.jit import njit, prange  # numba, imported when a kernel is first called
 
 #: IPOL's tolerance in ``greater(a, b)``: a - b must exceed 1000 * DBL_EPSILON.
 GREATER_TOL = 1000.0 * np.finfo(np.float64).eps

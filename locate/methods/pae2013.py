@@ -81,7 +81,7 @@ from edgetruth.errors import InputError
 from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
-from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
+from edgetruth.jit import njit, prange  # numba, imported when a kernel is first called
 
 VARIANTS = ("floating", "smoothed", "basic")
 ALIASES = {"first_order": "basic"}

@@ -52,7 +52,7 @@ from edgetruth.errors import InputError
 from edgetruth.locate import erf_kernels as K
 from edgetruth.locate import footprints as FP
 from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
-from edgetruth.locate.jit import before_compile, njit, prange
+from edgetruth.jit import before_compile, njit, prange
 from edgetruth.locate.profiles import bilinear
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement

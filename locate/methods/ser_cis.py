@@ -72,7 +72,7 @@ from edgetruth.locate.profiles import bilinear
 from edgetruth.locate import footprints as FP
 from edgetruth.locate.registry import register
 from edgetruth.locate.result import Refinement
-from edgetruth.locate.jit import njit, prange  # numba, imported when a kernel is first called
+from edgetruth.jit import njit, prange  # numba, imported when a kernel is first called
 
 PROFILE_HALF = 5
 H_MIN = 4

@@ -52,7 +52,7 @@ def test_methods_listing_needs_no_numba(tmp_path):
 def test_first_call_compiles_and_puts_the_dispatcher_in_place():
     from edgetruth import locate
     from edgetruth.locate import erf_kernels as K
-    from edgetruth.locate import jit
+    from edgetruth import jit
 
     img = np.full((32, 32), 50.0)
     img[:, 16:] = 150.0
@@ -67,7 +67,7 @@ def test_first_call_compiles_and_puts_the_dispatcher_in_place():
 
 
 def test_a_lazy_kernel_behaves_like_numba_njit():
-    from edgetruth.locate import jit
+    from edgetruth import jit
 
     @jit.njit(cache=False)
     def inner(x):
@@ -87,7 +87,7 @@ def test_a_lazy_kernel_behaves_like_numba_njit():
 
 
 def test_cache_folder_rules(monkeypatch, tmp_path):
-    from edgetruth.locate import jit
+    from edgetruth import jit
 
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.setattr(jit, "_writable", lambda p: True)
@@ -114,7 +114,7 @@ def test_cache_folder_rules(monkeypatch, tmp_path):
 
 def test_unwritable_everything_compiles_in_memory_with_one_line(tmp_path):
     """No writable cache folder anywhere: the kernels still run (cache off), and stderr says so once."""
-    code = ("from edgetruth.locate import jit\n"
+    code = ("from edgetruth import jit\n"
             "jit._writable = lambda p: False\n"
             "import numpy as np\nfrom edgetruth import locate\n"
             "img = np.full((32, 32), 50.0); img[:, 16:] = 150.0\n"
