@@ -12,13 +12,7 @@ from edgetruth.render.outline import OutlineCurve
 from edgetruth.render.pose import Pose
 from edgetruth.render.shapes import Shape, TargetScene
 
-PINHOLE = Camera(width_px=320, height_px=240, pitch_um=20.0, focal_length_mm=8.0, f_number=0.0,
-                 focus_distance_m=0.8)  # fx = 400 px, no distortion
-DISTORTED = Camera(width_px=320, height_px=240, pitch_um=20.0, focal_length_mm=8.0, f_number=0.0,
-                   focus_distance_m=0.8, distortion=(-0.25, 0.12, 1e-3, -8e-4, 0.0))
-FRONTAL = Pose(0.8, 0.0, 0.0, 0.0, 0.0, 0.0)
-TILTED = Pose(0.8, 0.02, -0.01, 12.0, -8.0, 20.0)
-Z_M = 10e-6
+from tests.support.scenes import DISTORTED, FRONTAL, PINHOLE, TILTED, Z_M  # noqa: E402
 H, R = 0.05, 0.02  # the square's half side, the disk's radius (the disk sits on the square's right side)
 RING = (-0.1, 0.0, 0.03, 0.015)  # centre x, y, outer and inner radius (m)
 # chord error of the circles' polylines (<= 1e-3 px, recorded) plus rounding

@@ -13,13 +13,7 @@ from edgetruth.render.outline import OutlineCurve
 from edgetruth.render.pose import Pose
 from edgetruth.render.shapes import Shape, TargetScene, visible_intervals
 
-PINHOLE = Camera(width_px=320, height_px=240, pitch_um=20.0, focal_length_mm=8.0, f_number=0.0,
-                 focus_distance_m=0.8)  # fx = 400 px, no distortion
-DISTORTED = Camera(width_px=320, height_px=240, pitch_um=20.0, focal_length_mm=8.0, f_number=0.0,
-                   focus_distance_m=0.8, distortion=(-0.25, 0.12, 1e-3, -8e-4, 0.0))
-FRONTAL = Pose(0.8, 0.0, 0.0, 0.0, 0.0, 0.0)
-TILTED = Pose(0.8, 0.02, -0.01, 12.0, -8.0, 20.0)
-Z_M = 10e-6
+from tests.support.scenes import DISTORTED, FRONTAL, PINHOLE, TILTED, Z_M  # noqa: E402
 
 
 def _points_near(curve, rng, n=400, spread_px=3.0):
@@ -176,14 +170,7 @@ def test_presets_are_the_fixed_targets():
     assert TARGETS["T2"] == {"shape": "circle", "material": "black_matte", "reflectance": 0.04}
 
 
-SPEC = """
-[spec]
-name = "x"
-camera_scale = 16
-[[group]]
-name = "g"
-{extra}
-"""
+from tests.support.scenes import GROUP_SPEC as SPEC  # noqa: E402
 
 
 @pytest.mark.parametrize("extra, needle", [

@@ -79,14 +79,7 @@ def test_board_texture_placement_and_identity(tmp_path):
     assert "texture" not in Material("diffuse", 0.8).to_dict()  # plain materials keep their description
 
 
-SPEC = """
-[spec]
-name = "x"
-camera_scale = 16
-[[group]]
-name = "g"
-{extra}
-"""
+from tests.support.scenes import GROUP_SPEC as SPEC  # noqa: E402
 
 
 @pytest.mark.parametrize("extra, make, needle", [

@@ -1,0 +1,24 @@
+"""Cameras, poses and a spec template shared by the own-scene tests (tests/render/test_shapes_truth.py,
+test_scene_outline.py, test_texture.py)."""
+from __future__ import annotations
+
+from edgetruth.render.camera import Camera
+from edgetruth.render.pose import Pose
+
+PINHOLE = Camera(width_px=320, height_px=240, pitch_um=20.0, focal_length_mm=8.0, f_number=0.0,
+                 focus_distance_m=0.8)  # fx = 400 px, no distortion
+DISTORTED = Camera(width_px=320, height_px=240, pitch_um=20.0, focal_length_mm=8.0, f_number=0.0,
+                   focus_distance_m=0.8, distortion=(-0.25, 0.12, 1e-3, -8e-4, 0.0))
+FRONTAL = Pose(0.8, 0.0, 0.0, 0.0, 0.0, 0.0)
+TILTED = Pose(0.8, 0.02, -0.01, 12.0, -8.0, 20.0)
+Z_M = 10e-6  # shape 0's stand-off from the board
+
+#: a one-group spec; ``{extra}`` holds the group's own keys
+GROUP_SPEC = """
+[spec]
+name = "x"
+camera_scale = 16
+[[group]]
+name = "g"
+{extra}
+"""
