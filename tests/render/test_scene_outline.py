@@ -6,13 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from edgetruth.render.camera import Camera
 from edgetruth.render.ground_truth import SceneOutline, scene_ground_truth, target_ground_truth
 from edgetruth.render.outline import OutlineCurve
-from edgetruth.render.pose import Pose
 from edgetruth.render.shapes import Shape, TargetScene
 
-from tests.support.scenes import DISTORTED, FRONTAL, PINHOLE, TILTED, Z_M  # noqa: E402
+from tests.support.scenes import DISTORTED, FRONTAL, PINHOLE, TILTED, Z_M
 H, R = 0.05, 0.02  # the square's half side, the disk's radius (the disk sits on the square's right side)
 RING = (-0.1, 0.0, 0.03, 0.015)  # centre x, y, outer and inner radius (m)
 # chord error of the circles' polylines (<= 1e-3 px, recorded) plus rounding

@@ -8,12 +8,10 @@ import numpy as np
 import pytest
 
 from edgetruth.errors import InputError
-from edgetruth.render.camera import Camera
 from edgetruth.render.outline import OutlineCurve
-from edgetruth.render.pose import Pose
 from edgetruth.render.shapes import Shape, TargetScene, visible_intervals
 
-from tests.support.scenes import DISTORTED, FRONTAL, PINHOLE, TILTED, Z_M  # noqa: E402
+from tests.support.scenes import DISTORTED, FRONTAL, PINHOLE, TILTED, Z_M
 
 
 def _points_near(curve, rng, n=400, spread_px=3.0):
@@ -170,7 +168,7 @@ def test_presets_are_the_fixed_targets():
     assert TARGETS["T2"] == {"shape": "circle", "material": "black_matte", "reflectance": 0.04}
 
 
-from tests.support.scenes import GROUP_SPEC as SPEC  # noqa: E402
+from tests.support.scenes import GROUP_SPEC as SPEC
 
 
 @pytest.mark.parametrize("extra, needle", [

@@ -79,7 +79,7 @@ def test_board_texture_placement_and_identity(tmp_path):
     assert "texture" not in Material("diffuse", 0.8).to_dict()  # plain materials keep their description
 
 
-from tests.support.scenes import GROUP_SPEC as SPEC  # noqa: E402
+from tests.support.scenes import GROUP_SPEC as SPEC
 
 
 @pytest.mark.parametrize("extra, make, needle", [
