@@ -1,7 +1,7 @@
 """Numba kernels that are compiled when first called: importing ``edgetruth.locate`` (or
 ``edgetruth.render``) does not import numba.
 
-Every kernel of ``edgetruth.locate`` and ``edgetruth.render.edge_coverage`` is declared with ``@njit(...)`` from this module (the options
+Every kernel of ``edgetruth.locate`` and ``edgetruth.render.scene.edge_coverage`` is declared with ``@njit(...)`` from this module (the options
 are ``numba.njit``'s) and loops with ``prange`` from this module.  Until a kernel is first called
 (or an attribute of it is read), nothing is imported or compiled: the name holds a placeholder.
 Its first call imports numba, turns that kernel and every kernel it reaches (through the names of

@@ -43,8 +43,7 @@ import numpy as np
 from scipy.special import ndtr
 
 from edgetruth.evaluate.crb import bound_from_fisher
-from edgetruth.render import mtf
-
+from edgetruth.render.optics import mtf
 GRID_STEP_PX = 1.0 / 64.0
 FFT_LEN = 1 << 16  # x 1/64 px = ±512 px period: the Airy ESF tail beyond it is < 1e-3 of the contrast
 TABLE_HALF_PX = 16.0

@@ -229,9 +229,9 @@ def calibrate(views: list[tuple[str, np.ndarray]], pattern_size: tuple[int, int]
 
 
 def calibrate_dataset(out_dir: str | Path, names: list[str] | None = None, progress: bool = False) -> Calibration:
-    """Calibrate from every checkerboard image of a rendered dataset (``edgetruth.render.dataset`` layout)."""
+    """Calibrate from every checkerboard image of a rendered dataset (``edgetruth.render.dataset.image`` layout)."""
     from edgetruth import console
-    from edgetruth.render.reader import open_dataset
+    from edgetruth.render.dataset.reader import open_dataset
 
     ds = open_dataset(out_dir)
     boards = [s for s in ds.checkerboards() if names is None or s.name in set(names)]

@@ -19,7 +19,7 @@ from scipy.special import ndtr
 from edgetruth import locate
 from edgetruth.locate import erf_kernels as K
 from edgetruth.render.edge_truth import CircleEdge
-from edgetruth.render.synthetic import render_edge_image
+from edgetruth.render.synthetic.scenarios import render_edge_image
 
 BENCH_SHAPE = (1024, 1280)
 

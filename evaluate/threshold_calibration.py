@@ -1,7 +1,7 @@
 """Calibrate the dynamic window's entropy thresholds tau1 <= tau2 <= tau3 (BRIEF §2).
 
 Data: the ``calibration`` split of the synthetic scenarios (seeds disjoint
-from every test split by construction, see ``edgetruth.render.synthetic``),
+from every test split by construction, see ``edgetruth.render.synthetic.scenarios``),
 or rendered target images of a camera (``calibrate_renders``: the per-point
 truth of ``edgetruth.evaluate.points.scores`` on the raw images; the file
 records every image's seeds, and ``check_disjoint`` refuses to evaluate
@@ -31,7 +31,7 @@ from edgetruth.errors import InputError
 from edgetruth.resources import source_commit
 from edgetruth.evaluate.points.matching import MATCH_RADIUS_PX, on_edge
 from edgetruth.locate.methods.erf import WINDOWS
-from edgetruth.render.synthetic import SCENARIOS, DEFAULT_SHAPE, synthetic_image
+from edgetruth.render.synthetic.scenarios import SCENARIOS, DEFAULT_SHAPE, synthetic_image
 
 
 @dataclass
@@ -76,7 +76,7 @@ def collect_renders(dataset_dirs, progress=None, names=None) -> tuple[WindowErro
     the scoring rule of ``edgetruth.evaluate.points.scores``); also each image's seeds and spec."""
     from edgetruth.evaluate.points.scores import scored_candidates
     from edgetruth.render.edge_truth import OutlineEdge
-    from edgetruth.render.reader import open_dataset
+    from edgetruth.render.dataset.reader import open_dataset
 
     ent, sc, used = [], [], []
     errs = {"2p": [], "4p": []}
@@ -198,7 +198,7 @@ def calibrate(images_per_scenario: int = 100, step: float = 0.01, shape=DEFAULT_
                 "image_shape": list(shape),
                 "seeds": "numpy SeedSequence([1, scenario_index, image_index]); test splits use [2, ...]",
                 "on_edge_points": int(data.entropy.size),
-                "generator": "edgetruth.render.synthetic.synthetic_image (lines and circles alternate)",
+                "generator": "edgetruth.render.synthetic.scenarios.synthetic_image (lines and circles alternate)",
             },
             "objective": "minimise RMSE (px) of the dynamic-window ERF positions over all on-edge candidates "
                          "(|candidate distance to the true edge| <= 1.5 px), all scenarios pooled",
@@ -224,7 +224,7 @@ def calibrate_renders(dataset_dirs, step: float = 0.01, progress=None, names=Non
     """Thresholds for the camera of rendered datasets, from their per-point truth (JSON-ready record);
     ``names``: only these images (default: every target image)."""
     from edgetruth.evaluate.points.scores import CORNER_EXCLUSION_PX
-    from edgetruth.render.reader import open_dataset
+    from edgetruth.render.dataset.reader import open_dataset
 
     data, used = collect_renders(dataset_dirs, progress, None if names is None else set(names))
     cams = {}

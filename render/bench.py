@@ -21,15 +21,15 @@ import tempfile
 import time
 from pathlib import Path
 
-from edgetruth.render.edge_band import TILE_PX
+from edgetruth.render.scene.edge_band import TILE_PX
 
 BENCH_WINDOW = (96, 80)  # px; the other variants (scalar: one Python call per sample) render only this
 
 
 def _window_throughput(variant: str, spec) -> tuple[float, float]:
     """(seconds per window, samples per second) for one target image window on ``variant``."""
-    from edgetruth.render.dataset import get_rig, job_pose
-    from edgetruth.render.ground_truth import target_outline_local
+    from edgetruth.render.dataset.image import get_rig, job_pose
+    from edgetruth.render.scene.ground_truth import target_outline_local
     from edgetruth.render.variants import choose_variant
 
     choose_variant(variant, announce=lambda s: None)
@@ -60,12 +60,12 @@ def psf_cost_lines(distance_m: float = 1.0) -> list[str]:
     """Seconds for one full-resolution T1 image of the default camera with and without its PSF."""
     from dataclasses import replace
 
-    from edgetruth.render.camera import load_camera
-    from edgetruth.render.edge_band import band_tiles, band_width_px, render_band, tile_rig
-    from edgetruth.render.mitsuba_scene import TargetRig
-    from edgetruth.render.outline import OutlineCurve
-    from edgetruth.render.pose import Pose
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.optics.camera import load_camera
+    from edgetruth.render.scene.edge_band import band_tiles, band_width_px, render_band, tile_rig
+    from edgetruth.render.scene.mitsuba_scene import TargetRig
+    from edgetruth.render.scene.outline import OutlineCurve
+    from edgetruth.render.scene.pose import Pose
+    from edgetruth.render.dataset.spec import load_spec
 
     settings = load_spec("study").render  # the shipped full-resolution settings
     pose = Pose(distance_m, 0.02, -0.01, 2.0, -1.5)
@@ -95,8 +95,8 @@ def psf_cost_lines(distance_m: float = 1.0) -> list[str]:
 def run_bench(spec_name: str = "quick") -> list[str]:
     """Printable lines: quick-spec images/s and wall/render ratio on the best variant; per-variant
     throughput; the dataset-scale figures and the capacity plan computed from them."""
-    from edgetruth.render.driver import render_spec
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.dataset.driver import render_spec
+    from edgetruth.render.dataset.spec import load_spec
     from edgetruth.render.variants import ORDER, choose_variant, probe
 
     spec = load_spec(spec_name)
@@ -147,7 +147,7 @@ def compaction_us_per_entry(n: int = 100_000) -> float:
     """Microseconds per entry to compact a journal of ``n`` entries into an empty manifest."""
     import json
 
-    from edgetruth.render.journal import JOURNAL, JOURNAL_FORMAT, MANIFEST, compact, new_header, write_manifest
+    from edgetruth.render.dataset.journal import JOURNAL, JOURNAL_FORMAT, MANIFEST, compact, new_header, write_manifest
 
     with tempfile.TemporaryDirectory(prefix="bench-compact-", dir=_scratch_dir()) as tmp:
         d, key = Path(tmp), "ab" * 32
@@ -214,7 +214,7 @@ def patch_cost(n_images: int, tmp: Path) -> dict:
     """Render an ``n_images`` spec of tiny patches (40x32 px, 1 spp) in this process (one worker);
     returns ms per image (wall, everything from the call to the compacted manifest) and per stage,
     bytes per image (files, manifest entry) and the cost of a resume that finds everything done."""
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.testing import write_patch_spec
 
     spec = write_patch_spec(tmp, n_images, name=f"patches{n_images}")

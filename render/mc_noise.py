@@ -19,12 +19,12 @@ BANDS_PX = ((0.0, 1.0), (1.0, 3.0), (3.0, 5.0), (5.0, 10.0), (10.0, 20.0), (20.0
 def edge_mc_noise(camera, settings, distance_m: float, sensor=None, irradiance_w_m2: float = 1.2,
                   roll_deg: float = 7.0, seeds=(11, 12)) -> dict:
     """{band: (MC noise e-, sensor temporal noise e-)} for |d| bands around a T1 square's outline."""
-    from edgetruth.render.edge_band import (ANALYTIC_TILE_PX, band_tiles, band_width_px, render_analytic_band,
+    from edgetruth.render.scene.edge_band import (ANALYTIC_TILE_PX, band_tiles, band_width_px, render_analytic_band,
                                            render_band, tile_rig)
-    from edgetruth.render.mitsuba_scene import TargetRig
-    from edgetruth.render.outline import OutlineCurve
-    from edgetruth.render.pose import Pose
-    from edgetruth.render.sensor import SensorModel
+    from edgetruth.render.scene.mitsuba_scene import TargetRig
+    from edgetruth.render.scene.outline import OutlineCurve
+    from edgetruth.render.scene.pose import Pose
+    from edgetruth.render.sensor.linear_model import SensorModel
 
     sensor = sensor or SensorModel()
     pose = Pose(distance_m, 0.02, -0.01, 2.0, -1.5, roll_deg=roll_deg)
@@ -67,9 +67,9 @@ def convergence_table(distances_m=(1.0, 1.5), edge_spps=(256, 1024, 2304, 4096),
                       sampler: str = "multijitter") -> list[str]:
     """Lines: MC noise per |d| band for each edge_spp (frame at ``spp``), and the spp extrapolated
     (power law through the two largest) to reach a quarter of the dark noise."""
-    from edgetruth.render.camera import load_camera
-    from edgetruth.render.mitsuba_scene import RenderSettings
-    from edgetruth.render.sensor import SensorModel
+    from edgetruth.render.optics.camera import load_camera
+    from edgetruth.render.scene.mitsuba_scene import RenderSettings
+    from edgetruth.render.sensor.linear_model import SensorModel
 
     camera = camera or load_camera()
     target = SensorModel().dark_noise_e / 4
@@ -97,11 +97,11 @@ def band_cost(camera, distance_m: float, path_spp: int = 4096, analytic_spp: int
     {"path_s", "analytic_render_s", "analytic_coverage_s", "tiles", "fractional_pixels"}."""
     import time
 
-    from edgetruth.render.edge_band import (ANALYTIC_TILE_PX, band_tiles, band_width_px, render_analytic_band,
+    from edgetruth.render.scene.edge_band import (ANALYTIC_TILE_PX, band_tiles, band_width_px, render_analytic_band,
                                            render_band, tile_rig)
-    from edgetruth.render.mitsuba_scene import RenderSettings
-    from edgetruth.render.outline import OutlineCurve
-    from edgetruth.render.pose import Pose
+    from edgetruth.render.scene.mitsuba_scene import RenderSettings
+    from edgetruth.render.scene.outline import OutlineCurve
+    from edgetruth.render.scene.pose import Pose
 
     pose = Pose(distance_m, 0.02, -0.01, 2.0, -1.5, roll_deg=roll_deg)
     poly = OutlineCurve(camera, pose, "square", 0.13).polyline()
@@ -132,9 +132,9 @@ def analytic_table(distances_m=(0.5, 1.5, 2.5), camera=None, spp: int = 64, edge
                    path_spp: int = 4096, path_noise: bool = True) -> list[str]:
     """Lines: MC noise per |d| band of the analytic band (shading at each of ``edge_spps``) and of the
     path-traced one at ``path_spp``, and the band's cost per image in both modes."""
-    from edgetruth.render.camera import load_camera
-    from edgetruth.render.edge_band import ANALYTIC_TILE_PX
-    from edgetruth.render.mitsuba_scene import RenderSettings
+    from edgetruth.render.optics.camera import load_camera
+    from edgetruth.render.scene.edge_band import ANALYTIC_TILE_PX
+    from edgetruth.render.scene.mitsuba_scene import RenderSettings
 
     camera = camera or load_camera()
     lines = []

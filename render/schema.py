@@ -5,7 +5,7 @@ declared next to the typed object it fills.  ``parse_table`` checks a parsed TOM
 table against its keys in one pass (unknown keys, types, ranges, choices) and
 returns the values with defaults filled in; every problem is one ``InputError``
 naming the file, the table, the key and the fix.  ``docs/spec.md`` is generated
-from the same tables (``edgetruth.render.spec_doc``), so the documentation cannot
+from the same tables (``edgetruth.render.dataset.spec_doc``), so the documentation cannot
 drift from what the loader accepts.
 """
 from __future__ import annotations

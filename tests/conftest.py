@@ -24,7 +24,7 @@ def fast_variant() -> str:
 @pytest.fixture(scope="session")
 def tiny_dataset(tmp_path_factory) -> tuple[Path, Path]:
     """(spec path, dataset dir) of the 3-image tiny spec, rendered in-process; copy before changing."""
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.testing import write_tiny_spec
 
     root = tmp_path_factory.mktemp("tiny")

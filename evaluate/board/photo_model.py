@@ -230,7 +230,7 @@ def overshoot_pct(t: np.ndarray, esf: np.ndarray) -> tuple[float, float]:
 def blur(image: np.ndarray, lines: BoardLines) -> dict:
     """Per orientation: median ERF σ (stored and sRGB-decoded values), relative fit residuals, e-SFR MTF50 and
     overshoot of the pooled ESF (module docstring)."""
-    from edgetruth.render.pipeline import srgb_decode
+    from edgetruth.render.sensor.pipeline import srgb_decode
 
     smp = side_samples(image, lines)
     enc = fit_erf_batch(smp.d, smp.v)
@@ -350,7 +350,7 @@ def region_noise(image: np.ndarray, labels: np.ndarray) -> dict:
 
 def srgb_slope(encoded_8bit: float) -> float:
     """d(linear) / d(stored value) of the sRGB curve at an 8-bit stored value."""
-    from edgetruth.render.pipeline import srgb_decode
+    from edgetruth.render.sensor.pipeline import srgb_decode
 
     e = float(encoded_8bit)
     h = 0.5
@@ -364,7 +364,7 @@ def noise(image: np.ndarray, lines: BoardLines) -> dict:
     for k in ("black", "white"):
         r = out[k]
         if np.isfinite(r["mean"]):
-            from edgetruth.render.pipeline import srgb_decode
+            from edgetruth.render.sensor.pipeline import srgb_decode
 
             r["mean_linear"] = float(srgb_decode(r["mean"] / 255.0))
             r["sd_linear"] = r["sd"] * srgb_slope(r["mean"])
@@ -434,9 +434,9 @@ def esf_model(t: np.ndarray, camera, sigma_ab_um: float, defocus_px: float, blac
     the pixel-integrated ESF along one axis from the analytic OTF (pixel box, ``camera``'s diffraction, a
     Gaussian aberration ``sigma_ab_um``, a defocus disk), between linear levels ``black`` and ``white`` (fractions
     of full scale), through the sRGB curve, ``gain``, and an unsharp mask of ``amount`` and ``sigma_s`` (px) on the
-    pixel grid (the renderer's pipeline, ``edgetruth.render.pipeline``)."""
-    from edgetruth.render import mtf
-    from edgetruth.render.pipeline import srgb_encode
+    pixel grid (the renderer's pipeline, ``edgetruth.render.sensor.pipeline``)."""
+    from edgetruth.render.optics import mtf
+    from edgetruth.render.sensor.pipeline import srgb_encode
 
     p = camera.pitch_um
     cutoff = mtf.diffraction_cutoff_cy_px(p, camera.diffraction_wavelength_nm, camera.f_number)
@@ -526,7 +526,7 @@ def derive_twin(measurements: list[dict], camera, defocus_px: list[float], base_
       and white (``base_black``, ``base_white``) to the photo's; a clipped white (more than ``CLIPPED_SHARE`` of
       its pixels at its largest value) is first carried to its level before the clip (``clipped_white``).
     """
-    from edgetruth.render.pipeline import srgb_decode
+    from edgetruth.render.sensor.pipeline import srgb_decode
 
     per = []
     clean = [m for m in measurements if m["levels"] >= PALETTE_LEVELS]

@@ -72,7 +72,7 @@ def check_images(images, n_total: int) -> list[int]:
 
 def twin_spec(spec_name: str, spp: int | None):
     """The shipped twin spec, at ``spp`` samples per pixel when given (checked like a spec's)."""
-    from edgetruth.render.spec import _check_sample_counts, load_spec
+    from edgetruth.render.dataset.spec import _check_sample_counts, load_spec
 
     spec = load_spec(spec_name)
     if spp is None or spp == spec.render.spp:
@@ -175,8 +175,8 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     from edgetruth.evaluate.board.study import compute_board_study, write_board_run
     from edgetruth.evaluate.run_dir import prepare_run_dir
     from edgetruth.image_io import read_gray
-    from edgetruth.render.driver import check_variant_name, render_spec
-    from edgetruth.render.reader import open_dataset
+    from edgetruth.render.dataset.driver import check_variant_name, render_spec
+    from edgetruth.render.dataset.reader import open_dataset
 
     t0 = time.perf_counter()
     spec_name = check_set(set_name)

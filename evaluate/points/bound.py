@@ -42,8 +42,7 @@ _CACHE_SIZE = 12
 def optics_at(gt: dict, field_h: float):
     """``bound_psf.Optics`` of the image's camera at field height ``field_h`` (JSON keys only)."""
     from edgetruth.evaluate.bound_psf import Optics
-    from edgetruth.render import mtf
-
+    from edgetruth.render.optics import mtf
     cam = gt["camera"]
     psf = cam.get("optics", {}).get("psf", {})
     p = float(cam["pitch_um"])

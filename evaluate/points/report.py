@@ -12,7 +12,7 @@ of the candidates it refines), bias and RMSE on its *refined* points, RMSE on th
 (the candidates every compared method refines, in the same cell), and RMSE on *all* candidates with
 a decline scored at the pixel centre.  Rankings, paired tests and the cell tables use the common
 subset; each table says which it uses.  Bias against the *optical edge* (the geometric outline
-moved by the displacement the camera model predicts, ``edgetruth.render.optical_edge``) is given
+moved by the displacement the camera model predicts, ``edgetruth.render.optics.optical_edge``) is given
 beside the bias against the outline, with the optics' own displacement apart.  Each method's RMSE is
 also divided by its *exact per-point Cramér–Rao bound* (``edgetruth.evaluate.points.bound``: the
 camera's PSF, the outline, the shading, the sensor's noise, over the method's own footprint) on the
@@ -399,7 +399,7 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
          "at the pixel centre (what a user keeping every point gets).  CI: 95 % bootstrap over images (a cluster "
          "bootstrap: an image's points share its pose and noise).  robust SD = 1.4826·MAD (all candidates).  "
          + ("bias vs optical edge: the refined points' mean error against the outline moved by the displacement "
-            "the camera model predicts (edgetruth/render/optical_edge.py; its centroid), the optics' own share "
+            "the camera model predicts (render/optics/optical_edge.py; its centroid), the optics' own share "
             "apart in Table E3.  " if has_opt else "")
          + "RMSE ÷ bound: the RMSE on the method's refined points over the RMS of its *exact per-point "
          "Cramér–Rao bound* there (edgetruth/evaluate/points/bound.py, docs/bound.md): for each point, the lowest "

@@ -20,7 +20,7 @@ the method refines, on the common subset every compared method refines, and on a
 the declines scored at the pixel centre.
 
 The optical edge: where the ground truth JSON carries ``outline.optical_edge``
-(``edgetruth.render.optical_edge``: the displacement of the image edge from the geometric outline
+(``edgetruth.render.optics.optical_edge``: the displacement of the image edge from the geometric outline
 that the camera model predicts, per polyline point), each scored candidate also records the offset
 at its place (``optical_offset``: the centroid; ``optical_offset_50``: the 50 % level), so that the
 tables give a method's bias against the optical edge, e = d_geometric − offset, and the optics'
@@ -69,7 +69,7 @@ class PointScores:
 def candidate_optical_offsets(gt: dict, truth, x, y) -> tuple[np.ndarray, np.ndarray]:
     """(centroid, 50 % level) offsets of the optical edge at image points, from the JSON's
     ``outline.optical_edge`` (NaN where the JSON has none)."""
-    from edgetruth.render.optical_edge import nearest_offsets
+    from edgetruth.render.optics.optical_edge import nearest_offsets
 
     oe = gt.get("outline", {}).get("optical_edge")
     x, y = np.asarray(x, float), np.asarray(y, float)

@@ -284,7 +284,7 @@ def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: b
     every method and score every method's points on the raw image against the exact outline
     (``edgetruth.evaluate.points.scores``); None for a checkerboard.  Runs in worker processes."""
     from edgetruth.evaluate.points.scores import score_image
-    from edgetruth.render.reader import open_dataset
+    from edgetruth.render.dataset.reader import open_dataset
 
     s = open_dataset(dataset)[name]
     gt = s.truth
@@ -328,7 +328,7 @@ def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | N
     from edgetruth import console, locate
     from edgetruth.backends import make_backend
     from edgetruth.locate import plugins
-    from edgetruth.render.reader import open_dataset
+    from edgetruth.render.dataset.reader import open_dataset
 
     methods = list(methods or locate.METHODS)
     out_dir = Path(out_dir)

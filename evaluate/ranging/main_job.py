@@ -30,7 +30,7 @@ def warm_kernels(methods=None, thresholds=None) -> None:
     (a plug-in this process does not know) is skipped: the warm-up only saves time."""
     from edgetruth import locate
     from edgetruth.evaluate import method_order as mo
-    from edgetruth.render.synthetic import synthetic_image
+    from edgetruth.render.synthetic.scenarios import synthetic_image
 
     options = mo.study_options(thresholds)
     s = synthetic_image("ideal", 0, split="unit")
@@ -128,7 +128,7 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
     from edgetruth.evaluate.ranging.images import run_ranging
     from edgetruth.evaluate.ranging.report import write_report
     from edgetruth.evaluate.threshold_calibration import check_disjoint
-    from edgetruth.render.reader import open_dataset
+    from edgetruth.render.dataset.reader import open_dataset
 
     options = mo.study_options(thresholds, camera_thresholds)
     tau = mo.thresholds_in_use(thresholds)
@@ -163,8 +163,8 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     from edgetruth.backends import default_workers
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.calibration import calibrate_dataset
-    from edgetruth.render.driver import check_variant_name, render_spec
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.dataset.driver import check_variant_name, render_spec
+    from edgetruth.render.dataset.spec import load_spec
     from edgetruth.resources import default_runs_dir
 
     if study not in STUDIES:

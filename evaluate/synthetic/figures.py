@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from edgetruth.evaluate import method_order as mo  # noqa: E402
-from edgetruth.render.synthetic import SCENARIOS  # noqa: E402
+from edgetruth.render.synthetic.scenarios import SCENARIOS  # noqa: E402
 
 WINDOWS = (5, 7, 9, 11)
 

@@ -30,7 +30,7 @@ from edgetruth.evaluate import crb
 from edgetruth.evaluate import stats as st
 from edgetruth.evaluate.points.matching import MATCH_RADIUS_PX, on_edge
 from edgetruth.evaluate.stats import summary, wilcoxon_paired
-from edgetruth.render.synthetic import DEFAULT_SHAPE, SCENARIOS, synthetic_image
+from edgetruth.render.synthetic.scenarios import DEFAULT_SHAPE, SCENARIOS, synthetic_image
 
 #: throughput_rounds: interleaved rounds of the time-per-point measurement (``batch_throughput``, in the
 #: driver after the blocks); 3 in the quick preset (`make run`: ~1/4 of its synthetic stage at 7 rounds),

@@ -78,7 +78,7 @@ def test_backend_ray_without_ray_says_how_to_install(tmp_path, capsys, monkeypat
 
 
 def test_local_pool_and_in_process_give_identical_datasets(tmp_path):
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.dataset.driver import render_spec
 
     spec = write_tiny_spec(tmp_path, spp=4)
     render_spec(spec, tmp_path / "serial", progress=False, announce=lambda s: None, workers=1)
@@ -88,7 +88,7 @@ def test_local_pool_and_in_process_give_identical_datasets(tmp_path):
 
 def test_ray_and_local_backends_give_identical_manifests(tmp_path):
     ray = pytest.importorskip("ray", reason="ray is not installed: pip install 'edgetruth[cluster]'")
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.dataset.driver import render_spec
 
     spec = write_tiny_spec(tmp_path, spp=4)
     t0 = time.perf_counter()

@@ -325,7 +325,7 @@ def test_render_bad_spec_values(case, sub, expect, env, tmp_path, capsys):
 
 @pytest.mark.parametrize("case, sub, expect", SPEC_CASES, ids=[c[0] for c in SPEC_CASES])
 def test_load_spec_raises_one_line_value_error(case, sub, expect, tiny_dataset, tmp_path):
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.dataset.spec import load_spec
 
     spec = _spec_variant(tiny_dataset[0], tmp_path, case, *sub)
     with pytest.raises(ValueError) as info:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from edgetruth.render.reader import load_manifest
+from edgetruth.render.dataset.reader import load_manifest
 from edgetruth.render.testing import write_tiny_spec
 
 N_KILLS = 6
@@ -102,7 +102,7 @@ def _inodes(out: Path) -> dict[str, int]:
 
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.dataset.driver import render_spec
 
     root = tmp_path_factory.mktemp("killref")
     spec = _spec(root)
@@ -173,7 +173,7 @@ def test_sigkill_at_random_moments_then_resume_is_byte_identical(tmp_path, refer
 #  - "unlink": manifest.json replaced, the (now merged) journal not yet deleted.
 _KILL_AT = {
     "entries": """
-from edgetruth.render import journal as _j
+from edgetruth.render.dataset import journal as _j
 _orig, _n = _j._entry_line, [0]
 def _line(*a):
     _n[0] += 1

@@ -170,7 +170,7 @@ def test_two_node_render_survives_losing_a_node_and_matches_a_local_run(tmp_path
     pytest.importorskip("ray", reason="ray is not installed: pip install 'edgetruth[test]'")
     if not Path(sys.executable).with_name("ray").exists():
         pytest.skip("the `ray` command is not installed next to this Python")
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.dataset.driver import render_spec
 
     spec = write_patch_spec(tmp_path, N_IMAGES, name="cluster")
     t0 = time.perf_counter()

@@ -66,7 +66,7 @@ def _spec_with_camera(tmp_path, camera: str) -> Path:
 
 
 def test_a_camera_file_without_toml_says_what_is_wrong(tmp_path):
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.dataset.spec import load_spec
 
     (tmp_path / "cam.txt").write_text((tmp_path / "x").name)
     spec = _spec_with_camera(tmp_path, "cam.txt")
@@ -77,7 +77,7 @@ def test_a_camera_file_without_toml_says_what_is_wrong(tmp_path):
 
 
 def test_a_camera_folder_says_it_is_a_folder(tmp_path):
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.dataset.spec import load_spec
 
     (tmp_path / "cams").mkdir()
     with pytest.raises(InputError) as info:
@@ -87,7 +87,7 @@ def test_a_camera_folder_says_it_is_a_folder(tmp_path):
 
 
 def test_an_unknown_camera_name_is_still_not_found(tmp_path):
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.dataset.spec import load_spec
 
     with pytest.raises(InputError, match="not found; shipped cameras"):
         load_spec(_spec_with_camera(tmp_path, "nosuchcam"))

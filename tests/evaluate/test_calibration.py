@@ -28,7 +28,7 @@ def test_calibration_spec_recovers_fx_and_principal_point(tmp_path, fast_variant
     these renders (10 boards: cx -1.03 .. +0.70 px; 16: +0.50; 17: +0.47), so fewer views would need a
     looser 0.5 px bound."""
     from edgetruth.evaluate.calibration import calibrate_dataset
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.dataset.driver import render_spec
 
     render_spec("calibration", tmp_path / "cal", progress=False, announce=lambda s: None)
     cal = calibrate_dataset(tmp_path / "cal")

@@ -36,9 +36,9 @@ from scipy.optimize import least_squares  # noqa: E402
 from edgetruth import locate  # noqa: E402
 from edgetruth.evaluate import crb  # noqa: E402
 from edgetruth.locate import footprints as FP  # noqa: E402
-from edgetruth.render.analytic import StepProfile, step_image  # noqa: E402
+from edgetruth.render.synthetic.analytic import StepProfile, step_image  # noqa: E402
 from edgetruth.render.edge_truth import CircleEdge, StraightEdge  # noqa: E402
-from edgetruth.render.synthetic import render_edge_image  # noqa: E402
+from edgetruth.render.synthetic.scenarios import render_edge_image  # noqa: E402
 
 A_, B_ = 40.0, 120.0
 

@@ -2,7 +2,7 @@
 ISO 12233's reference implementation on real photographs, and under noise, 8-bit data, shading
 and dust.
 
-An edge Φ(d/s) integrated exactly over each pixel (``edgetruth.render.analytic.step_image``)
+An edge Φ(d/s) integrated exactly over each pixel (``edgetruth.render.synthetic.analytic.step_image``)
 has the MTF exp(−2π²s²ν²) · sinc(ν cos θ) · sinc(ν sin θ) along its normal (θ: the normal's
 angle from the pixel axis), whatever the phase of the edge.  Measured: within 0.004 of it up to
 Nyquist and MTF50 within 0.4 % for s >= 0.3 px; the bare pixel (s -> 0, MTF50 0.60) is the
@@ -29,7 +29,7 @@ import pytest
 
 from edgetruth.errors import InputError
 from edgetruth.evaluate.sfr import crossing, esfr
-from edgetruth.render.analytic import StepProfile, step_image
+from edgetruth.render.synthetic.analytic import StepProfile, step_image
 from edgetruth.render.edge_truth import CircleEdge, StraightEdge
 
 NU = np.linspace(0.0, 0.5, 101)

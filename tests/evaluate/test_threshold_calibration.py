@@ -28,7 +28,7 @@ def test_grid_rmse_equals_running_the_dynamic_method(data):
     """The prefix-sum shortcut must give exactly what dynamic_erf_4p gives with those thresholds."""
     tau, rmse, _ = tc.grid_search(data.entropy, data.errors["4p"], step=0.05)
     from edgetruth.evaluate.points.matching import on_edge
-    from edgetruth.render.synthetic import SCENARIOS, synthetic_image
+    from edgetruth.render.synthetic.scenarios import SCENARIOS, synthetic_image
 
     errs = []
     for scenario in SCENARIOS:
@@ -95,7 +95,7 @@ irradiance_w_m2 = 0.075
 @pytest.fixture(scope="module")
 def two_render_sets(tmp_path_factory, fast_variant):
     """Two tiny target datasets from specs that differ only in their name (so in every seed)."""
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.dataset.driver import render_spec
 
     root = tmp_path_factory.mktemp("thr")
     out = {}
@@ -108,7 +108,7 @@ def two_render_sets(tmp_path_factory, fast_variant):
 
 
 def test_render_calibration_records_its_seeds_and_refuses_them_at_test_time(two_render_sets, tmp_path):
-    from edgetruth.render.reader import open_dataset
+    from edgetruth.render.dataset.reader import open_dataset
 
     rec = tc.calibrate_renders([two_render_sets["cal_renders"]], step=0.05)
     data = rec["provenance"]["data"]

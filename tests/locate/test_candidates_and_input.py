@@ -5,7 +5,7 @@ import pytest
 from edgetruth import locate
 from edgetruth.locate.candidates import PROFILE_HALF, MASK_MARGIN_PX
 from edgetruth.render.edge_truth import CircleEdge, StraightEdge
-from edgetruth.render.synthetic import render_edge_image
+from edgetruth.render.synthetic.scenarios import render_edge_image
 
 
 def circle_image(dtype=np.float64, scale=1.0):

@@ -18,7 +18,7 @@ import numpy as np
 
 from edgetruth.locate import refine
 from edgetruth.locate.candidates import candidates
-from edgetruth.render.synthetic import render_edge_image
+from edgetruth.render.synthetic.scenarios import render_edge_image
 from tests.support.edge_scenes import A_LEVEL, B_CONTRAST, SHAPE_64 as SHAPE, make_edge, run_method, stats
 
 

@@ -8,7 +8,7 @@ from edgetruth import locate
 from edgetruth.evaluate.crb import position_std_bound_many
 from edgetruth.locate import erf_kernels as K
 from edgetruth.render.edge_truth import StraightEdge
-from edgetruth.render.synthetic import render_edge_image
+from edgetruth.render.synthetic.scenarios import render_edge_image
 
 ERF_IDS = [f"erf{m}_fixed{w}" for m in ("2p", "4p") for w in (5, 7, 9, 11)] + ["dynamic_erf_2p", "dynamic_erf_4p"]
 

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from edgetruth.locate.methods import pae2013 as P
-from edgetruth.render.analytic import StepProfile
+from edgetruth.render.synthetic.analytic import StepProfile
 from tests.support.edge_scenes import (A_LEVEL, B_CONTRAST, SHAPE_64 as SHAPE, make_edge, noise_displacement,
                                        refine_near_edge, render, run_method, stats)
 

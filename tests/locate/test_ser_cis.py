@@ -14,7 +14,7 @@ from scipy.special import ndtr
 from edgetruth import locate
 from edgetruth.locate.methods.ser_cis import cis_one, image_noise_sigma
 from edgetruth.render.edge_truth import StraightEdge
-from edgetruth.render.synthetic import render_edge_image
+from edgetruth.render.synthetic.scenarios import render_edge_image
 from tests.support import edge_scenes
 from tests.support.edge_scenes import (A_LEVEL as A, B_CONTRAST as B, BLUR, SHAPE_48 as SHAPE, circle,
                                        refine_near_edge, straight)

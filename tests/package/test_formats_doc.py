@@ -12,7 +12,7 @@ DOCUMENTED = set(re.findall(r"`([A-Za-z_][A-Za-z0-9_]*)`", DOC + (ROOT / "docs" 
 
 def test_every_locate_csv_column_of_every_builtin_method_is_documented():
     from edgetruth import locate
-    from edgetruth.render.synthetic import synthetic_image
+    from edgetruth.render.synthetic.scenarios import synthetic_image
 
     s = synthetic_image("ideal", 0, split="unit")
     cand = locate.candidates(s.image)
@@ -97,7 +97,7 @@ def test_every_own_scene_key_is_documented(tmp_path):
     clutter, an ambient term):
     every key of its ``target``, ``board``, ``shapes`` and ``illumination`` blocks is in docs/formats.md."""
     from edgetruth.render import open_dataset
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.testing import write_tiny_spec
 
     import cv2

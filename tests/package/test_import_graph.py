@@ -78,7 +78,7 @@ ALLOWED = {"ground": {"ground"}, "render": {"ground", "render"}, "locate": {"gro
 
 
 def test_every_source_folder_is_found(graph):
-    assert {"edgetruth.render.spec", "edgetruth.locate.registry", "edgetruth.evaluate.ranging.main_job",
+    assert {"edgetruth.render.dataset.spec", "edgetruth.locate.registry", "edgetruth.evaluate.ranging.main_job",
             "edgetruth.cli.commands.run"} <= set(graph)
 
 
@@ -131,3 +131,29 @@ def test_the_graph_check_finds_a_cycle():
     """The check itself can fail: a two-module cycle is reported."""
     with pytest.raises(AssertionError, match="a <-> b"):
         test_no_import_cycles({"a": {"b"}, "b": {"a"}, "c": {"a"}})
+
+
+#: render's stages and what each may import (besides the ground floor): spec -> scene -> camera
+#: (optics) -> sensor -> files, one way. The floor is render's own shared modules; the tools on top
+#: (bench, mc_noise, testing, the package itself) may import any stage.
+RENDER_FLOOR = {"edgetruth.render.schema", "edgetruth.render.variants", "edgetruth.render.edge_truth"}
+RENDER_ALLOWED = {"floor": {"floor"}, "synthetic": {"floor", "synthetic"}, "optics": {"floor", "optics"},
+                  "sensor": {"floor", "sensor"}, "scene": {"floor", "optics", "scene"},
+                  "dataset": {"floor", "optics", "scene", "sensor", "dataset"},
+                  "tools": {"floor", "synthetic", "optics", "scene", "sensor", "dataset", "tools"}}
+
+
+def _render_stage(m: str) -> str:
+    if m in RENDER_FLOOR:
+        return "floor"
+    stage = m.split(".")[2] if m.count(".") >= 2 else "tools"
+    return stage if stage in RENDER_ALLOWED and stage != "floor" else "tools"
+
+
+def test_render_stages_import_one_way(graph):
+    stages = {_render_stage(m) for m in graph if m.startswith("edgetruth.render.")}
+    assert {"synthetic", "optics", "scene", "sensor", "dataset", "floor", "tools"} <= stages
+    bad = [f"{m} ({_render_stage(m)}) imports {t} ({_render_stage(t)})" for m, ts in graph.items()
+           if m.startswith("edgetruth.render") for t in sorted(ts)
+           if t.startswith("edgetruth.render") and _render_stage(t) not in RENDER_ALLOWED[_render_stage(m)]]
+    assert not bad, "\n".join(bad)

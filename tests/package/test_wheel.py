@@ -90,7 +90,7 @@ def test_wheel_renders_and_locates_exactly_like_the_checkout(installed, tmp_path
     from edgetruth import locate
     from edgetruth.image_io import read_gray
     from edgetruth.render import open_dataset
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.dataset.driver import render_spec
 
     py, work = installed
     edgetruth = py.parent / "edgetruth"

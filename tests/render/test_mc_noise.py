@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import pytest
 
-from edgetruth.render.camera import load_camera
+from edgetruth.render.optics.camera import load_camera
 
 LIMITS = {(0.0, 1.0): 0.4, (1.0, 3.0): 0.3, (3.0, 5.0): 0.1, (5.0, 10.0): 0.1}
 
@@ -29,8 +29,8 @@ def variant(fast_variant):
                                         pytest.param(2.5, marks=pytest.mark.slow)])
 def test_mc_noise_of_the_shipped_settings(distance_m):
     from edgetruth.render.mc_noise import edge_mc_noise
-    from edgetruth.render.sensor import SensorModel
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.sensor.linear_model import SensorModel
+    from edgetruth.render.dataset.spec import load_spec
 
     settings = load_spec("study").render  # what the shipped full-resolution spec uses
     noise = edge_mc_noise(load_camera(), settings, distance_m)

@@ -25,7 +25,7 @@ from edgetruth.locate import refine
 from edgetruth.locate.candidates import candidates
 from edgetruth.locate.profiles import profile_offsets, sample_profiles
 from edgetruth.render.edge_truth import CircleEdge, StraightEdge
-from edgetruth.render.synthetic import render_edge_image
+from edgetruth.render.synthetic.scenarios import render_edge_image
 
 A_LEVEL, B_CONTRAST = 40.0, 120.0
 BLUR = 1.0

@@ -1,9 +1,9 @@
-"""Cameras, poses and a spec template shared by the own-scene tests (tests/render/test_shapes_truth.py,
+"""Cameras, poses and a spec template shared by the own-scene tests (tests/render/scene/test_shapes_truth.py,
 test_scene_outline.py, test_texture.py)."""
 from __future__ import annotations
 
-from edgetruth.render.camera import Camera
-from edgetruth.render.pose import Pose
+from edgetruth.render.optics.camera import Camera
+from edgetruth.render.scene.pose import Pose
 
 PINHOLE = Camera(width_px=320, height_px=240, pitch_um=20.0, focal_length_mm=8.0, f_number=0.0,
                  focus_distance_m=0.8)  # fx = 400 px, no distortion

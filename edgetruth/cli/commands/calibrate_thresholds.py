@@ -30,7 +30,7 @@ def run(args) -> int:
     from edgetruth.errors import InputError
     from edgetruth.evaluate import threshold_calibration as tc
     from edgetruth.fileio import check_output_file
-    from edgetruth.render.synthetic import SCENARIOS
+    from edgetruth.render.synthetic.scenarios import SCENARIOS
 
     out = check_output_file(args.output, "-o")  # before the calibration, not after it
     if not 0 < args.step <= 0.25:
@@ -38,7 +38,7 @@ def run(args) -> int:
     if args.dataset:  # the camera's own renders
         from pathlib import Path
 
-        from edgetruth.render.reader import open_dataset
+        from edgetruth.render.dataset.reader import open_dataset
 
         dirs = [Path(d) for d in args.dataset]
         n, desc, where = sum(len(open_dataset(d).targets()) for d in dirs), "calibration renders", "the renders"

@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     from edgetruth.evaluate.ranging.main_job import evaluate_datasets
     from edgetruth.evaluate.run_dir import check_run_dir, prepare_run_dir, utc_stamp
     from edgetruth.fileio import write_json
-    from edgetruth.render.reader import open_dataset
+    from edgetruth.render.dataset.reader import open_dataset
     from edgetruth.resources import default_runs_dir
 
     check_backend_args(args.backend, args.workers, args.address)

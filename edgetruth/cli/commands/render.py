@@ -55,8 +55,8 @@ def run(args: argparse.Namespace) -> int:
     from edgetruth import console
     from edgetruth.backends import check_backend_args
     from edgetruth.fileio import check_output_dir
-    from edgetruth.render.driver import render_spec
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.dataset.driver import render_spec
+    from edgetruth.render.dataset.spec import load_spec
     from edgetruth.resources import default_runs_dir
 
     check_backend_args(args.backend, args.workers, args.address)

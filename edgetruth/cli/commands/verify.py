@@ -25,8 +25,8 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from edgetruth import console
-    from edgetruth.render.driver import compact_if_idle
-    from edgetruth.render.reader import check_dataset
+    from edgetruth.render.dataset.driver import compact_if_idle
+    from edgetruth.render.dataset.reader import check_dataset
 
     d: Path = args.dir
     if compact_if_idle(d):  # a killed run's journal (unless a render is writing it now)

@@ -2,7 +2,7 @@
 
 Each square is the intersection of four half-planes; its image under a homography is a convex
 quad whose sides are exact lines.  A pixel's value is the exact pixel-area mean of a Gaussian-
-blurred step across each side (``edgetruth.render.analytic.StepProfile.pixel_mean_straight``),
+blurred step across each side (``edgetruth.render.synthetic.analytic.StepProfile.pixel_mean_straight``),
 multiplied over the square's four sides: exact wherever only one side lies within the blurred
 pixel's reach (farther than ~4 sigma + 1 px from the other sides), i.e. everywhere the study
 takes points (3 px from the corners with sigma <= 0.5 px).
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from edgetruth.conventions import pixel_centres
-from edgetruth.render.analytic import StepProfile
+from edgetruth.render.synthetic.analytic import StepProfile
 
 
 def grid_model(cols: int, rows: int, side: float = 1.0, pitch: float = 1.6) -> np.ndarray:

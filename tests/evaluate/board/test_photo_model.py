@@ -66,7 +66,7 @@ def test_noise_levels_and_palette(measured):
 def test_derived_settings_are_the_shipped_twins(measured):
     """derive_twin on CalibIm1 and CalibIm2 gives the optics, levels and noise scenes/zhang1998_twin.toml uses."""
     from edgetruth.evaluate.board.twin import BASE_LEVELS
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.dataset.spec import load_spec
 
     spec = load_spec("zhang1998_twin")
     jobs = [spec.jobs[0], spec.jobs[1]]
@@ -108,7 +108,7 @@ def test_model_esf_of_a_perfect_pixel_and_its_sharpening():
     aberration adds in quadrature, and the unsharp mask overshoots (low contrast: the sRGB curve ~linear)."""
     from dataclasses import replace
 
-    from edgetruth.render.camera import load_camera
+    from edgetruth.render.optics.camera import load_camera
 
     cam = replace(load_camera("zhang1998"), diffraction_wavelength_nm=0.0)
     t = np.linspace(-6, 6, 481)

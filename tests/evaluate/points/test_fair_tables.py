@@ -80,7 +80,7 @@ def test_points_file_round_trips_the_optical_offsets(tmp_path):
 
 
 def test_rendered_dataset_carries_the_optical_edge_and_scores_against_it(tiny_dataset):
-    from edgetruth.render.reader import open_dataset
+    from edgetruth.render.dataset.reader import open_dataset
 
     _, out = tiny_dataset
     ds = open_dataset(out)

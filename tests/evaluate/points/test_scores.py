@@ -7,11 +7,11 @@ import pytest
 
 from edgetruth.evaluate.points import scores as rp
 from edgetruth.evaluate.points import report as rpr
-from edgetruth.render.camera import load_camera
+from edgetruth.render.optics.camera import load_camera
 from edgetruth.render.edge_truth import OutlineEdge
-from edgetruth.render.ground_truth import target_ground_truth
-from edgetruth.render.outline import OutlineCurve
-from edgetruth.render.pose import Pose
+from edgetruth.render.scene.ground_truth import target_ground_truth
+from edgetruth.render.scene.outline import OutlineCurve
+from edgetruth.render.scene.pose import Pose
 
 
 def _gt(shape="square", pose=Pose(0.7, 0.12, -0.08, 2.5, -2.0, 7.0), scale=4):

@@ -1,7 +1,7 @@
 """Whole-chain sanity: noise-free, in-focus, distortion-free renders -> target finding -> dynamic_erf_4p
 -> size -> Z = fx S / l must be within 0.1 % of the true distance at every distance (T1 square, T2 circle).
 
-Renders go through the renderer's scene objects (``edgetruth.render.dataset.get_rig`` + ``edgetruth.render.ground_truth``)
+Renders go through the renderer's scene objects (``edgetruth.render.dataset.image.get_rig`` + ``edgetruth.render.scene.ground_truth``)
 with a pinhole-like camera (f/10000: defocus < 0.01 px) and a perfect lens (no PSF, no falloff), zero distortion, full resolution, the
 radiance image (no sensor noise) and a crop around the target (board margin > target size so the
 board-level estimate of ``target_finding`` sees the board).  The pose is fronto-parallel with a 3°
@@ -34,11 +34,11 @@ class _Identity:
 
 def render_clean(target: str, distance_m: float, spp: int = 64, roll_deg: float = 3.0):
     """Radiance crop (float), its (x0, y0) offset and the ground truth of a fronto-parallel target."""
-    from edgetruth.render.camera import load_camera
-    from edgetruth.render.dataset import get_rig
-    from edgetruth.render.ground_truth import target_ground_truth
-    from edgetruth.render.mitsuba_scene import RenderSettings
-    from edgetruth.render.pose import Pose
+    from edgetruth.render.optics.camera import load_camera
+    from edgetruth.render.dataset.image import get_rig
+    from edgetruth.render.scene.ground_truth import target_ground_truth
+    from edgetruth.render.scene.mitsuba_scene import RenderSettings
+    from edgetruth.render.scene.pose import Pose
 
     cam = replace(load_camera().ideal_optics(), f_number=10000.0, distortion=(0.0,) * 5)
     pose = Pose(distance_m, roll_deg=roll_deg)

@@ -73,7 +73,7 @@ def test_factor_tables_cover_every_factor_and_the_groups_outside():
 
 def test_custom_factor_and_group_are_reported(tmp_path, fast_variant):
     from edgetruth.cli import main
-    from edgetruth.render.driver import render_spec
+    from edgetruth.render.dataset.driver import render_spec
 
     cam = tmp_path / "cam.toml"
     cam.write_text(TINY_CAMERA)

@@ -8,7 +8,7 @@ from edgetruth.cli import main
 
 def test_select_jobs_spreads_the_limit_over_each_group():
     from edgetruth.evaluate.ranging.main_job import select_jobs
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.dataset.spec import load_spec
 
     spec = load_spec("study")
     sel = select_jobs(spec, 2, "target")
@@ -27,7 +27,7 @@ def test_select_jobs_spreads_the_limit_over_each_group():
 def test_render_reuse_counts_one_render_per_pose_slot_and_radiance_unit():
     """study: 50 slots x 7 cells = 350 images; G2-G4 reuse G1's render, T2-T4 need their own: 200."""
     from edgetruth.evaluate.ranging.main_job import radiance_renders, render_reuse_line, select_jobs
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.dataset.spec import load_spec
 
     spec = load_spec("study")
     targets = select_jobs(spec, None, "target")
@@ -49,7 +49,7 @@ def test_quick_run_end_to_end(tmp_path, fast_variant):
     """Render quick and thresholds_quick (1 image per cell + 15 boards), calibrate the camera and its
     thresholds, locate, score every point, report (~40 s, llvm)."""
     from edgetruth.evaluate.ranging.main_job import select_jobs
-    from edgetruth.render.spec import load_spec
+    from edgetruth.render.dataset.spec import load_spec
 
     out = tmp_path / "run"
     assert main(["run", "--limit", "1", "--skip-synthetic", "--no-progress", "-o", str(out)]) == 0

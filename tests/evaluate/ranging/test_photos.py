@@ -5,7 +5,7 @@ centre, no distortion; the test writes its calibration.json) sees fronto-paralle
 depths Z, so each target's image is exact: a square of side S has side l = fx·S/Z px (whatever its
 roll and lateral offset), a circle of diameter D a circle of diameter fx·D/Z.  Edges are a Gaussian
 blur (sigma 0.8 px) of the geometric outline, integrated over each pixel (separable closed form for
-no roll; Gauss-Legendre over the pixel otherwise; ``edgetruth.render.analytic.step_image`` for the
+no roll; Gauss-Legendre over the pixel otherwise; ``edgetruth.render.synthetic.analytic.step_image`` for the
 circle), under a gentle illumination gradient, with 1 DN of Gaussian noise, rounded to 8-bit PNG.
 Three kinds: dark squares on a light board, dark circles, light rectangles (an A5 sheet) on a darker
 wall.  The CSV holds the true depths.
@@ -63,7 +63,7 @@ def _pixel_mean_box_1d(c, lo, hi, s):
 def target_coverage(shape, u, v, half_w, half_h, roll_deg):
     """Pixel means (H, W) of the blurred target indicator (1 inside), centre (u, v) px."""
     if shape == "circle":
-        from edgetruth.render.analytic import StepProfile, step_image
+        from edgetruth.render.synthetic.analytic import StepProfile, step_image
         from edgetruth.render.edge_truth import CircleEdge
 
         return step_image((H, W), CircleEdge(u, v, half_w, bright_inside=True), StepProfile(BLUR_PX, BLUR_PX))
@@ -71,7 +71,7 @@ def target_coverage(shape, u, v, half_w, half_h, roll_deg):
         ys, xs = np.arange(H, dtype=float), np.arange(W, dtype=float)
         return np.outer(_pixel_mean_box_1d(ys, v - half_h, v + half_h, BLUR_PX),
                         _pixel_mean_box_1d(xs, u - half_w, u + half_w, BLUR_PX))
-    from edgetruth.render.analytic import gauss_legendre_pixel_mean
+    from edgetruth.render.synthetic.analytic import gauss_legendre_pixel_mean
 
     c, s = np.cos(np.radians(roll_deg)), np.sin(np.radians(roll_deg))
 

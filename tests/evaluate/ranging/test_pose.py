@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from edgetruth.evaluate.ranging.pose import circle_conic, circle_pose_distance, sampson_distance, square_pose_distance
-from edgetruth.render.camera import Camera
-from edgetruth.render.pose import Pose
+from edgetruth.render.optics.camera import Camera
+from edgetruth.render.scene.pose import Pose
 
 CAM = Camera(distortion=(0.0,) * 5)
 POSES = [Pose(0.6, 0.05, -0.03, 3.0, -2.0, 10.0), Pose(1.7, -0.2, 0.1, -3.0, 3.0, 0.0),

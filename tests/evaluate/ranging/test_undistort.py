@@ -15,7 +15,7 @@ def test_identity_model_leaves_the_image_unchanged():
 
 
 def test_points_roundtrip_with_the_renderer_model():
-    from edgetruth.render.camera import load_camera
+    from edgetruth.render.optics.camera import load_camera
 
     cam = load_camera()
     u = Undistorter(cam.K, cam.dist_coeffs, (cam.width_px, cam.height_px))
@@ -27,7 +27,7 @@ def test_points_roundtrip_with_the_renderer_model():
 
 
 def test_undistorted_image_moves_a_blob_to_its_ideal_position():
-    from edgetruth.render.camera import load_camera
+    from edgetruth.render.optics.camera import load_camera
     cam = load_camera().scaled(4)
     u = Undistorter(cam.K, cam.dist_coeffs, (cam.width_px, cam.height_px))
     # a Gaussian blob drawn at its distorted position

@@ -1,0 +1,333 @@
+"""Render a spec into a dataset directory: the driver loop, resumable, constant cost per image.
+
+The driver (the calling process) holds an exclusive ``flock`` on the dataset
+directory, works out which images are still to render (a resume re-checks the SHA-256
+of every file already recorded), and hands them to a backend (``edgetruth.backends``)
+through a bounded window: it never holds more than a few tasks per worker, and the spec
+goes to each worker once.  For each finished image it writes the files (when the
+worker does not share its disk) and appends one synced line to the journal
+(``edgetruth.render.dataset.journal``); at the end it compacts the journal into
+``manifest.json``.  Its memory does not grow with the dataset: one byte per image of
+state, nothing per finished image.
+"""
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Mapping
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from edgetruth import console
+from edgetruth.errors import InputError
+from edgetruth.fileio import is_temporary, make_output_dir, sha256_file
+from edgetruth.render.dataset.journal import (JOURNAL, MANIFEST, JournalScan, JournalWriter, ManifestReader, compact,
+                                      journal_positions, merged_entries, new_header, write_manifest)
+from edgetruth.render.dataset.spec import Spec, load_spec
+from edgetruth.render.dataset.task import init_worker, render_indexed, write_files
+
+#: Who writes the image files: ``auto`` = the workers when they see the driver's disk, else the
+#: driver; ``driver`` = always the driver (file bytes travel back, as on a multi-node cluster);
+#: ``workers`` = always the workers (a file system shared by every node).
+FILE_WRITERS = ("auto", "driver", "workers")
+_CHECK_CHUNK = 2048  # manifest entries hashed per batch on resume
+
+
+class DirLock:
+    """An exclusive ``flock`` on the dataset directory itself (no lock file to leave behind);
+    the kernel releases it when the process dies, even on ``kill -9``."""
+
+    def __init__(self, path: Path, blocking_error: bool = True):
+        import fcntl
+
+        self.fd = os.open(path, os.O_RDONLY)
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.fd)
+            self.fd = None
+            if blocking_error:
+                raise InputError(f"{path}: another `edgetruth render` is writing this dataset now; "
+                                 "wait for it to finish or choose another output directory") from None
+
+    @property
+    def held(self) -> bool:
+        return self.fd is not None
+
+    def release(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)  # closing the descriptor drops the flock
+            self.fd = None
+
+
+class ManifestView(Mapping):
+    """What ``render_spec`` returns: the manifest's header keys at once, ``["images"]`` (every
+    entry, read from disk) on first use -- a million entries are not loaded unless asked for."""
+
+    def __init__(self, out_dir: Path, header: dict):
+        self._dir, self._header, self._images = Path(out_dir), dict(header), None
+
+    def __getitem__(self, key):
+        if key != "images":
+            return self._header[key]
+        if self._images is None:
+            from edgetruth.render.dataset.reader import load_manifest
+
+            self._images = load_manifest(self._dir)["images"]
+        return self._images
+
+    def __iter__(self):
+        yield from self._header
+        yield "images"
+
+    def __len__(self) -> int:
+        return len(self._header) + 1
+
+
+def compact_if_idle(out_dir: str | Path) -> bool:
+    """Compact a dataset's journal into its manifest unless a render holds the directory (or it
+    is read-only); True if it did."""
+    d = Path(out_dir)
+    if not ((d / JOURNAL).is_file() and (d / MANIFEST).is_file() and os.access(d, os.W_OK)):
+        return False
+    lock = DirLock(d, blocking_error=False)
+    if not lock.held:
+        return False
+    try:
+        return compact(d)
+    finally:
+        lock.release()
+
+
+def check_variant_name(variant: str | None) -> None:
+    """A ``--variant`` that this Mitsuba build lacks is refused (before anything is written)."""
+    if variant:
+        import mitsuba as mi
+
+        if variant not in mi.variants():
+            raise InputError(f"--variant {variant}: not in this Mitsuba build (have: {', '.join(mi.variants())})")
+
+
+def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | None = None, progress: bool = True,
+                only: list[int] | None = None, timings: dict | None = None, announce=print,
+                backend: str = "local", workers: int | None = 1, address: str | None = None,
+                files: str = "auto", window: int | None = None) -> ManifestView:
+    """Render every image of ``spec`` into ``out_dir`` (resumable) and return the manifest.
+
+    ``only`` restricts to those job indices; ``timings`` (a dict) accumulates ``render_s``
+    (inside ``mi.render``, summed over workers), ``stage_s`` (per stage of a task, summed),
+    ``journal_s``, ``wall_s``, ``n_rendered``, ``reused`` (images whose radiance a worker reused from
+    another cell of their design slot), ``n_written_by_driver`` (images whose file bytes came
+    back to this process), ``n_complete`` and, on Ray, ``tasks_per_node`` (node id -> images).
+
+    ``backend``/``workers``/``address``: where images render (see ``edgetruth.backends``);
+    the default renders in this process.  ``files``: who writes the image files (see
+    ``FILE_WRITERS``).  ``window``: tasks in flight (default: a few per worker).  Whatever
+    the backend, the files of an image are identical, only this (driver) process writes
+    the journal and ``manifest.json``, and an interrupted run -- even ``kill -9`` -- resumes
+    where it stopped.
+    """
+    from edgetruth.backends import check_backend_args
+    from edgetruth.render import variants  # noqa: F401 -- before Mitsuba: points Dr.Jit at the pip libLLVM
+
+    check_backend_args(backend, workers, address)  # before anything is written
+    if files not in FILE_WRITERS:
+        raise InputError(f"files={files!r}: choose one of {', '.join(FILE_WRITERS)}")
+    if window is not None and (not isinstance(window, int) or window < 1):
+        raise InputError(f"window={window!r}: must be a positive integer")
+    check_variant_name(variant)
+    if not isinstance(spec, Spec):
+        spec = load_spec(spec)
+    out_dir = Path(out_dir)
+    selected = np.ones(spec.n_images, dtype=bool)
+    if only is not None:
+        bad = sorted(i for i in set(only) if not 0 <= i < spec.n_images)
+        if bad:
+            raise InputError(f"--only: index {bad[0]} out of range; {spec.name!r} has images 0-{spec.n_images - 1}")
+        selected[:] = False
+        selected[sorted(set(only))] = True
+    check_not_foreign(out_dir)
+    make_output_dir(out_dir)
+    lock = DirLock(out_dir)
+    try:
+        return _render_locked(spec, out_dir, variant, progress, selected, timings if timings is not None else {},
+                              announce, backend, workers, address, files, window)
+    finally:
+        lock.release()
+
+
+def check_not_foreign(out_dir: Path) -> None:
+    """``-o`` must be new, empty or a dataset (it has a manifest or a journal): never a folder of the
+    user's that rendering would fill with image files."""
+    if not out_dir.is_dir() or (out_dir / MANIFEST).exists() or (out_dir / JOURNAL).exists():
+        return
+    other = sorted(p.name for p in out_dir.iterdir() if not is_temporary(p.name))
+    if other:
+        raise InputError(f"-o {out_dir}: exists and is not empty ({other[0]}{', ...' if len(other) > 1 else ''}) but "
+                         "is not an edgetruth dataset (no manifest.json); choose a new or empty directory")
+
+
+def _open_dataset(spec: Spec, spec_key: str, out_dir: Path, selected: np.ndarray, announce):
+    """Check the directory holds this spec and read its record (manifest + journal, every file
+    re-hashed) before touching anything; then clear a killed run's temporaries and start the
+    manifest if new.  Returns (header, which images are complete, the journal scan)."""
+    mpath = out_dir / MANIFEST
+    scan = JournalScan()
+    done = np.zeros(spec.n_images, dtype=bool)
+    if mpath.is_file():
+        reader = ManifestReader(mpath)
+        header = reader.header
+        if (header.get("spec") != spec.name or header.get("spec_sha256") != spec_key
+                or header.get("n_images") != spec.n_images):
+            raise InputError(f"{out_dir} holds renders of another spec (or another version of {spec.name!r}); "
+                             "choose a new output directory or delete it")
+        pos, scan = journal_positions(out_dir, spec.n_images, spec_key)  # a foreign journal: InputError
+        done = _complete_images(out_dir, reader, pos, selected)  # a damaged manifest: InputError
+    else:  # a new dataset (a journal without a manifest is not trusted: it is started afresh)
+        header = new_header(spec.name, spec_key, spec.n_images)
+    for p in os.scandir(out_dir):  # temporaries of a killed run (we hold the lock: no writer is alive)
+        if is_temporary(Path(p.name)) and p.is_file():
+            os.unlink(p.path)
+    if not mpath.is_file():
+        write_manifest(mpath, header, [])
+    if scan.problem():
+        announce(f"render: {out_dir / JOURNAL}: {scan.problem()}")
+    return header, done, scan
+
+
+def _entry_complete(out_dir: Path, entry: dict) -> bool:
+    if not entry.get("complete"):
+        return False
+    for f in entry["files"].values():
+        p = out_dir / f["path"]
+        try:
+            if sha256_file(p) != f["sha256"]:
+                return False
+        except OSError:
+            return False
+    return True
+
+
+def _complete_images(out_dir: Path, reader, pos: np.ndarray, selected: np.ndarray) -> np.ndarray:
+    """Per image: recorded as complete (manifest or journal, the latest entry) and, for the
+    ``selected`` images, every file still matching its SHA-256 (the others are not re-hashed).
+    Streams the record and hashes in parallel threads (hashlib and reads release the GIL)."""
+    done = np.zeros(len(selected), dtype=bool)
+    chunk: list = []
+
+    def flush(pool):
+        for idx, ok in zip([e["index"] for e in chunk], pool.map(lambda e: _entry_complete(out_dir, e), chunk)):
+            done[idx] = ok
+        chunk.clear()
+
+    with ThreadPoolExecutor(max_workers=min(8, 2 * (os.cpu_count() or 1))) as pool:
+        for _, entry in merged_entries(out_dir, reader, pos):
+            if not selected[entry["index"]]:
+                done[entry["index"]] = bool(entry.get("complete"))
+                continue
+            chunk.append(entry)
+            if len(chunk) >= _CHECK_CHUNK:
+                flush(pool)
+        flush(pool)
+    return done
+
+
+def _llvm_threads() -> int | None:
+    import drjit as dr
+
+    return int(dr.thread_count())
+
+
+def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, backend, workers, address,
+                   files, window) -> ManifestView:
+    from edgetruth.backends import default_workers, make_backend
+    from edgetruth.render.variants import choose_variant
+
+    t_start = time.perf_counter()
+    spec_key = spec.identity_sha256  # computed once: it hashes every image's distance
+    header, done, scan = _open_dataset(spec, spec_key, out_dir, selected, announce)
+    todo = np.flatnonzero(selected & ~done)  # index order, so the journal is nearly sorted
+    # one task per radiance unit: the images that share one render (a design slot's cells) go to one
+    # worker together, which renders the unit once; every other image is a unit of its own
+    if any(g.paired for g in spec.groups):
+        rank = np.empty(spec.n_images, dtype=np.int64)
+        for u, unit in enumerate(spec.units()):
+            rank[unit] = u
+        todo = todo[np.lexsort((todo, rank[todo]))]
+        cuts = np.flatnonzero(np.diff(rank[todo])) + 1
+        task_indices = [tuple(int(i) for i in part) for part in np.split(todo, cuts)]
+    else:
+        task_indices = None
+    n_sel = int(selected.sum())
+    stats["resume_check_s"] = stats.get("resume_check_s", 0.0) + time.perf_counter() - t_start
+    if not len(todo):
+        compact(out_dir)  # a killed run's journal, or an older manifest layout
+        stats["n_complete"] = int(done.sum())
+        stats["wall_s"] = stats.get("wall_s", 0.0) + time.perf_counter() - t_start
+        return ManifestView(out_dir, header)
+    n_workers = default_workers() if workers is None else int(workers)
+    n_workers = min(n_workers, len(todo)) if backend == "local" else n_workers
+    be = make_backend(backend, workers=n_workers, address=address)  # validates before any rendering
+    bar = writer = None
+    threads_before = _llvm_threads() if be.in_process else None  # init_worker may change them here
+    try:
+        if backend == "ray" and getattr(be, "num_gpus", 0) and not variant:
+            used = "cuda_ad_rgb"
+            announce(f"render: using Mitsuba variant {used} (the Ray cluster has GPUs)")
+        else:
+            used = choose_variant(variant, announce=announce)
+        threads = max(1, default_workers() // max(1, be.concurrency)) if be.concurrency > 1 else None
+        be.set_initializer(init_worker, (used, threads, spec, spec_key))  # the spec: once per worker
+        if files == "workers" or (files == "auto" and be.shares_filesystem):
+            worker_dir = str(out_dir.resolve())
+        else:
+            worker_dir = None  # the bytes come back with the result; this process writes them
+        writer = JournalWriter(out_dir / JOURNAL, spec_key, scan.good_end)
+        bar = console.bar(total=n_sel, initial=n_sel - len(todo), unit="img", desc=f"render {spec.name}",
+                          enabled=progress)
+        if task_indices is None:
+            tasks = ((spec_key, (int(i),), used, worker_dir) for i in todo)
+        else:
+            tasks = ((spec_key, ix, used, worker_dir) for ix in task_indices)
+        stage = stats.setdefault("stage_s", {})
+        if hasattr(be, "tasks_per_node"):
+            stats["tasks_per_node"] = be.tasks_per_node  # live: a watcher sees where images render
+        for res in (r for batch in be.map_unordered(render_indexed, tasks, window=window) for r in batch):
+            t0 = time.perf_counter()
+            name, entry = res["name"], res["entry"]
+            if res["payload"] is not None:
+                write_files(out_dir, name, res["payload"])
+                stats["n_written_by_driver"] = stats.get("n_written_by_driver", 0) + 1
+            writer.append(name, entry)
+            done[entry["index"]] = True
+            stats["journal_s"] = stats.get("journal_s", 0.0) + time.perf_counter() - t0
+            stats["render_s"] = stats.get("render_s", 0.0) + res["render_s"]
+            for k, v in res["stage_s"].items():
+                stage[k] = stage.get(k, 0.0) + v
+            stats["n_rendered"] = stats.get("n_rendered", 0) + 1
+            stats["reused"] = stats.get("reused", 0) + res.get("reused", 0)
+            bar.update(1)
+    except BaseException:
+        be.close(abort=True)
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+        if writer is not None:
+            writer.close()
+        if threads_before:
+            import drjit as dr
+
+            dr.set_thread_count(threads_before)
+    be.close()
+    per_node = stats.get("tasks_per_node") or {}
+    if len(per_node) > 1:
+        announce("render: images per Ray node: " + ", ".join(f"{k[:12]} {v}" for k, v in sorted(per_node.items())))
+    t0 = time.perf_counter()
+    compact(out_dir)
+    stats["compact_s"] = stats.get("compact_s", 0.0) + time.perf_counter() - t0
+    stats["n_complete"] = int(done.sum())
+    stats["wall_s"] = stats.get("wall_s", 0.0) + time.perf_counter() - t_start
+    return ManifestView(out_dir, header)

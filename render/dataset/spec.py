@@ -1,0 +1,628 @@
+"""Render specs: a TOML file -> one typed, validated ``Spec`` whose images are pure functions of (spec, index).
+
+A spec has a ``[spec]`` table (name, camera, render settings), an optional
+``[sensor]`` table and one or more ``[[group]]`` tables.  ``load_spec`` parses and
+validates it in one pass against the key tables (``SPEC_KEYS``, ``GROUP_KEYS``,
+``edgetruth.render.sensor.linear_model.SENSOR_KEYS``, ``edgetruth.render.optics.camera.CAMERA_KEYS``;
+documented in ``docs/spec.md``): every problem is one ``InputError`` naming the file,
+the table, the key and the fix, before anything renders.
+
+A group shows a target on a board, a checkerboard (``[spec] checkerboard``) or a board of dark
+squares (``[spec] squares``: a model file such as Zhang's ``Model.txt``, or a pattern); its poses
+are drawn from ranges or listed explicitly (``poses``: R, t per image).
+
+The camera is a shipped name (``assets/cameras/NAME.toml``) or a TOML path relative to
+the spec's own folder; a group may override the keys marked per-group (f-number,
+focus distance, ...) and any sensor key, so one spec can sweep them.
+
+Image ``index`` is the pure function of (spec, index): its seed is
+``image_seed(spec.name, index)``; ``spec.jobs[index]`` computes the job on demand,
+so a spec of a million images costs nothing to load.
+"""
+from __future__ import annotations
+
+import bisect
+import functools
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from edgetruth.errors import InputError
+from edgetruth.fileio import read_toml
+from edgetruth.render.optics.camera import DEFAULT_CAMERA, Camera, camera_overrides, load_camera
+from edgetruth.render.scene.mitsuba_scene import LIGHT_OFFSET_M, RenderSettings
+from edgetruth.render.scene.pose import ROTATION_TOLERANCE, ExplicitPose, nearest_rotation
+from edgetruth.render.schema import REQUIRED, Key, _is_num, parse_table
+from edgetruth.render.sensor.linear_model import SensorModel, sensor_from_dict
+from edgetruth.render.scene.shapes import SCENE_GROUP_KEYS, scene_from_group
+from edgetruth.render.scene.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard, SquareBoard, square_board_from_dict
+
+KINDS = ("target", "checkerboard", "squares")
+SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
+MAX_SPP = 1 << 16
+MAX_IMAGES = 10_000_000
+DEFAULT_IRRADIANCE_W_M2 = 1.2  # the white board centre at ~60 % of the range above the black level at 0 dB
+
+SPEC_KEYS = [
+    Key("name", "name", None, "", "spec name (names the output directory and seeds every image); "
+        "default: the file name"),
+    Key("description", "str", "", "", "free text"),
+    Key("camera", "str", DEFAULT_CAMERA, "", "a shipped camera name or a camera TOML path (relative to the spec's "
+        "folder)"),
+    Key("camera_scale", "int", 1, "", "binning: the camera with camera_scale x fewer pixels per side (same field "
+        "of view, pitch x camera_scale)", 1, 64),
+    Key("spp", "int", RenderSettings.spp, "samples/px", "Monte-Carlo samples per pixel (a power of two, of "
+        "four for multijitter and stratified: byte-identical renders whatever the thread count)", 1, MAX_SPP),
+    Key("edge_spp", "int", RenderSettings.edge_spp, "samples/px", "samples per pixel near a target's outline "
+        "(within the PSF, defocus and motion reach; the rest of the frame uses spp; a power of two, of four for multijitter and stratified); 0 = spp "
+        "everywhere", 0, MAX_SPP),
+    Key("edge_mode", "str", RenderSettings.edge_mode, "", "the edge band: path = path-traced at edge_spp (the "
+        "reference); analytic = the board and the target's material rendered without an edge at edge_spp and "
+        "composited with the exact lens-weighted coverage (no Monte-Carlo noise from the edge; preset targets, "
+        "static camera; docs/optics.md)", choices=("path", "analytic")),
+    Key("checkerboard_spp", "int", 0, "samples/px", "samples per pixel of the checkerboard images (their corners "
+        "are edges, and boards have no edge band; a power of two, of four for multijitter and stratified); "
+        "0 = spp", 0, MAX_SPP),
+    Key("sampler", "str", RenderSettings.sampler, "", "Mitsuba sampler (orthogonal is not bit-reproducible in "
+        "Mitsuba 3.9: its renders differ in the last bit from run to run)", choices=SAMPLERS),
+    Key("target_size_m", "float", 0.13, "m", "target side (square) or diameter (circle)", 1e-3, 10.0),
+    Key("checkerboard", "table", {}, "", "the calibration board {cols, rows, square_m, margin_m}"),
+    Key("squares", "table", {}, "", "the board of dark squares of kind = \"squares\" groups {model, "
+        "model_unit_m | rows, cols, side_m, pitch_m; margin_m, plate_size_m, square_reflectance, "
+        "board_reflectance}"),
+]
+GROUP_KEYS = [
+    Key("name", "name", REQUIRED, "", "group name (unique in the spec; part of every image name)"),
+    Key("kind", "str", "target", "", "what the images show: a target on a board, a checkerboard, or a board "
+        "of dark squares ([spec] squares)", choices=KINDS),
+    Key("target", "str", "T1", "", "target id (kind = target)", choices=tuple(TARGETS)),
+    Key("count", "int", 1, "images", "images over distance_range_cm (one per equal sub-interval)", 1, MAX_IMAGES),
+    Key("distance_range_cm", "range2", (150.0, 150.0), "cm", "[near, far] distance of the board centre", 1.0, 1e5),
+    Key("distance_intervals_cm", "ranges", None, "cm", "[[near, far], ...]: count_per_interval images per "
+        "interval (replaces count and distance_range_cm)", 1.0, 1e5),
+    Key("count_per_interval", "int", 10, "images", "images per distance interval", 1, MAX_IMAGES),
+    Key("lateral_fraction", "float", 0.0, "", "lateral offset, as a fraction of the room left in the field of view",
+        0.0, 1.0),
+    Key("tilt_max_deg", "float", 0.0, "deg", "tilts about the board's x and y axes drawn from U(-t, t)", 0.0, 80.0),
+    Key("roll_max_deg", "float", 0.0, "deg", "roll about the optical axis drawn from U(-r, r)", 0.0, 180.0),
+    Key("irradiance_w_m2", "float", DEFAULT_IRRADIANCE_W_M2, "W/m^2", "irradiance at the board centre "
+        "(sets the light's power)", 1e-9, 1e6),
+    Key("sensor", "table", {}, "", "sensor overrides for this group (any [sensor] key)"),
+    Key("camera", "table", {}, "", "camera overrides for this group (per-group camera keys only)"),
+    Key("poses", "tables", None, "", "explicit poses [{R = [[r11, r12, r13], [...], [...]], t = [tx, ty, tz]}, "
+        "...]: one image per pose, instead of count, distances, lateral_fraction, tilts and roll; "
+        "X_cam = R X_board + t (OpenCV camera frame); the board frame: kind squares: the model's frame "
+        "([spec] squares), else centred on the board (x right, y down, z into it); R must be a rotation "
+        f"(R^T R = I within {ROTATION_TOLERANCE:g}, det +1; the nearest rotation is used); t in pose_unit_m"),
+    Key("pose_unit_m", "float", 1.0, "m", "unit of the explicit poses' t (1: metres; 0.0254: inches)", 1e-9, 1e3),
+    Key("light_position_m", "vec3", tuple(float(v) for v in LIGHT_OFFSET_M), "m", "where the square area light "
+        "sits (camera frame), aimed at the board centre; z < 0 (behind the image plane: never in view)",
+        -100.0, 100.0, check=lambda v: None if v[2] < 0 else "z must be < 0 (behind the camera's image plane), "
+        "or the light could stand in view or shade the board"),
+    # the scene of a target group (edgetruth.render.scene.shapes): any key here renders the group's own scene
+    Key("shapes", "tables", None, "", "kind = target: the shapes on the board [{type, offset_m, rotation_deg, "
+        "size keys, material}, ...] (\"Shapes\" below), replacing the target preset's; shape 0 is the ranged "
+        "target, a later shape covers earlier ones"),
+    Key("target_material", "table", {}, "", "kind = target: material keys {type, albedo, alpha, eta, "
+        "specular_reflectance, label} over shape 0's material (\"Materials\" below); in a [design], levels of "
+        "two factors merge (albedo x gloss)"),
+    Key("board_material", "table", {}, "", "kind = target: the board's material keys (default diffuse, albedo "
+        "0.8)"),
+    Key("lights", "tables", None, "", "kind = target: the lights [{type, position_m, aim_board_m, size_m, share, "
+        "cutoff_deg, beam_deg}, ...] (\"Lights\" below), replacing the default square area light"),
+    Key("clutter", "tables", None, "", "kind = target: planar shapes held in front of the board, parallel to it "
+        "[{type (rectangle, circle, ellipse, polygon or grid), offset_m, rotation_deg, size keys, material, "
+        "raised_m (how far in front of the board, >= 0.001 m)}, ...]: they hide what lies behind them and cast "
+        "shadows on the board; the truth gives their outlines and, per light, their shadows' outlines"),
+    Key("ambient", "float", 0.0, "", "kind = target: a constant environment light giving ambient x "
+        "irradiance_w_m2 on the open board (adds Monte-Carlo noise: it is sampled over the sphere)", 0.0, 100.0),
+]
+
+
+POSE_KEYS = ("count", "distance_range_cm", "distance_intervals_cm", "count_per_interval", "lateral_fraction",
+             "tilt_max_deg", "roll_max_deg")
+#: a group's own keys that a [design] does not take (explicit poses and the light's place are per group)
+GROUP_ONLY_KEYS = ("poses", "pose_unit_m", "light_position_m")
+DESIGN_MODES = ("one_at_a_time", "full")
+DESIGN_KEYS = [
+    Key("kind", "str", "target", "", "what the images show", choices=KINDS),
+    Key("mode", "str", "one_at_a_time", "", "cells: one_at_a_time = the base cell (every factor's first level) "
+        "plus each other level of one factor at a time; full = every combination", choices=DESIGN_MODES),
+    *[k for k in GROUP_KEYS if k.name in POSE_KEYS],
+    Key("factor", "tables", REQUIRED, "", "[[design.factor]] tables: name + levels"),
+]
+FACTOR_KEYS = [
+    Key("name", "name", REQUIRED, "", "factor name (e.g. illumination, target)"),
+    Key("levels", "tables", REQUIRED, "", "[{name = ..., <group keys>}, ...]: each level sets any [[group]] key "
+        "except the pose keys (target, irradiance_w_m2, sensor, camera, ...)"),
+]
+#: keys a level may set: the group's own keys except its name, kind and the pose keys (shared by every cell)
+LEVEL_KEYS = [Key("name", "name", REQUIRED, "", "level name (part of the cell name)")] + [
+    k for k in GROUP_KEYS if k.name not in POSE_KEYS and k.name not in ("name", "kind") + GROUP_ONLY_KEYS]
+
+
+def image_seed(spec_name: str, index: int) -> int:
+    """A 31-bit seed from SHA-256 of (spec name, image index): stable across runs and machines."""
+    return key_seed(spec_name, str(index))
+
+
+def key_seed(spec_name: str, key: str) -> int:
+    """A 31-bit seed from SHA-256 of (spec name, key): stable across runs and machines."""
+    digest = hashlib.sha256(f"edgetruth/{spec_name}/{key}".encode()).digest()
+    return int.from_bytes(digest[:4], "little") & 0x7FFFFFFF
+
+
+def slot_seed(spec_name: str, slot: int) -> int:
+    """The seed of pose slot ``slot`` of a spec's design: every cell renders this pose."""
+    return key_seed(spec_name, f"slot/{slot}")
+
+
+@dataclass(frozen=True)
+class Group:
+    """One ``[[group]]``: its images share kind, target, pose ranges, light, sensor and camera."""
+
+    name: str
+    kind: str
+    target: object  # a preset id (str), a ``TargetScene`` (the group's own scene) or None (not a target)
+    first_index: int
+    distances_cm: tuple  # one per image, stratified (see ``_distances_cm``)
+    lateral_fraction: float
+    tilt_max_deg: float
+    roll_max_deg: float
+    irradiance_w_m2: float
+    sensor: SensorModel
+    camera: Camera
+    camera_overrides: dict = field(default_factory=dict)
+    sensor_overrides: dict = field(default_factory=dict)
+    #: paired design cells only: {factor: level} and the radiance unit (cells that differ only in light
+    #: power and sensor settings share one radiance render per pose slot)
+    levels: dict | None = None
+    base_levels: dict | None = None
+    radiance_unit: int | None = None
+    unit_irradiance_w_m2: float | None = None
+    #: explicit poses (``ExplicitPose``, in the rendering's board frame: centred on the board), one per image
+    poses: tuple | None = None
+    light_position_m: tuple | None = None  # None: ``LIGHT_OFFSET_M``
+
+    @property
+    def count(self) -> int:
+        return len(self.distances_cm)
+
+    @property
+    def paired(self) -> bool:
+        """Image k of this group is pose slot k of the spec's design (shared with the other cells)."""
+        return self.levels is not None
+
+
+@dataclass(frozen=True)
+class Job:
+    """Image ``index`` of a spec: what to render (a pure function of the spec and the index)."""
+
+    index: int
+    name: str
+    group: str
+    kind: str
+    seed: int
+    distance_cm: float
+    target: object  # a preset id (str), a ``TargetScene`` or None
+    lateral_fraction: float
+    tilt_max_deg: float
+    roll_max_deg: float
+    irradiance_w_m2: float
+    sensor: SensorModel
+    camera: Camera
+    #: the pose's seed: the image's own, or its design slot's (shared by every cell)
+    pose_seed: int = 0
+    #: the Monte-Carlo seed of the radiance render (shared by the cells of a radiance unit)
+    render_seed: int = 0
+    slot: int | None = None
+    levels: dict | None = None
+    base_levels: dict | None = None
+    radiance_unit: int | None = None
+    #: the radiance of this image is the unit's render at ``unit_irradiance_w_m2``, scaled by
+    #: irradiance_w_m2 / unit_irradiance_w_m2 (light transport is linear in emitted power)
+    unit_irradiance_w_m2: float | None = None
+    #: an explicit pose (``ExplicitPose``, rendering board frame), or None: drawn from the pose seed
+    pose: ExplicitPose | None = None
+    light_position_m: tuple | None = None
+
+
+class Jobs:
+    """``spec.jobs``: a read-only sequence of ``Job`` computed on demand (``len``, index, iterate)."""
+
+    def __init__(self, spec: "Spec"):
+        self._spec = spec
+        self._starts = [g.first_index for g in spec.groups]
+
+    def __len__(self) -> int:
+        return self._spec.n_images
+
+    def __getitem__(self, index: int) -> Job:
+        n = len(self)
+        if not isinstance(index, (int, np.integer)):
+            raise TypeError("spec.jobs takes an integer index")
+        index = int(index)
+        if index < 0:
+            index += n
+        if not 0 <= index < n:
+            raise IndexError(f"image {index} out of range: {self._spec.name!r} has images 0-{n - 1}")
+        g = self._spec.groups[bisect.bisect_right(self._starts, index) - 1]
+        k = index - g.first_index
+        seed = image_seed(self._spec.name, index)
+        if g.paired:
+            pose_seed = slot_seed(self._spec.name, k)
+            render_seed = key_seed(self._spec.name, f"slot/{k}/unit/{g.radiance_unit}")
+        else:
+            pose_seed = render_seed = seed
+        return Job(index=index, name=f"{index:04d}_{g.name}", group=g.name, kind=g.kind,
+                   seed=seed, distance_cm=float(g.distances_cm[k]), target=g.target,
+                   lateral_fraction=g.lateral_fraction, tilt_max_deg=g.tilt_max_deg, roll_max_deg=g.roll_max_deg,
+                   irradiance_w_m2=g.irradiance_w_m2, sensor=g.sensor, camera=g.camera, pose_seed=pose_seed,
+                   render_seed=render_seed, slot=k if g.paired else None, levels=g.levels, base_levels=g.base_levels,
+                   radiance_unit=g.radiance_unit, unit_irradiance_w_m2=g.unit_irradiance_w_m2,
+                   pose=None if g.poses is None else g.poses[k], light_position_m=g.light_position_m)
+
+    def __iter__(self):
+        for i in range(len(self)):
+            yield self[i]
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A parsed, validated spec."""
+
+    name: str
+    description: str
+    path: Path | None
+    camera: Camera  # the spec's camera (binned by camera_scale); groups may override per-group keys
+    camera_ref: str
+    camera_scale: int
+    render: RenderSettings
+    target_size_m: float
+    checkerboard: Checkerboard
+    sensor: SensorModel
+    groups: tuple
+    text_sha256: str = ""
+    squares: SquareBoard | None = None
+
+    @property
+    def n_images(self) -> int:
+        g = self.groups[-1]
+        return g.first_index + g.count
+
+    @property
+    def jobs(self) -> Jobs:
+        return Jobs(self)
+
+    def group(self, name: str) -> Group:
+        for g in self.groups:
+            if g.name == name:
+                return g
+        raise KeyError(name)
+
+    def resolved(self) -> dict:
+        """Every value that determines the images (no paths): what ``identity_sha256`` hashes.  The
+        keys of the squares board, explicit poses and the light's place appear only when used (the
+        hashes of specs without them are unchanged)."""
+        groups = []
+        for g in self.groups:
+            d = {"name": g.name, "kind": g.kind, "target": str(g.target) if g.target is not None else None,
+                 "count": g.count,
+                 "distances_cm": list(g.distances_cm), "lateral_fraction": g.lateral_fraction,
+                 "tilt_max_deg": g.tilt_max_deg, "roll_max_deg": g.roll_max_deg,
+                 "irradiance_w_m2": g.irradiance_w_m2, "sensor": g.sensor.identity(),
+                 "camera": g.camera.to_dict(), "levels": g.levels, "radiance_unit": g.radiance_unit,
+                 "unit_irradiance_w_m2": g.unit_irradiance_w_m2}
+            if g.poses is not None:
+                d["poses"] = [p.to_dict() for p in g.poses]
+            if g.light_position_m is not None:
+                d["light_position_m"] = list(g.light_position_m)
+            if g.target is not None and not isinstance(g.target, str):  # a scene of its own
+                d["scene"] = g.target.resolved()
+            groups.append(d)
+        out = {"name": self.name, "camera": self.camera.to_dict(), "camera_scale": self.camera_scale,
+               "render": self.render.to_dict(), "target_size_m": self.target_size_m,
+               "checkerboard": asdict(self.checkerboard), "sensor": self.sensor.identity(), "groups": groups}
+        if any(g.kind == "squares" for g in self.groups):
+            out["squares"] = self.squares.resolved()
+        return out
+
+    def units(self) -> list[list[int]]:
+        """Image indices that share one radiance render (a design slot of one radiance unit); every
+        other image is a unit of its own.  Rendering a unit's images together renders it once."""
+        out, by_key = [], {}
+        for g in self.groups:
+            for k in range(g.count):
+                i = g.first_index + k
+                if g.paired:
+                    key = (g.radiance_unit, k)
+                    if key not in by_key:
+                        by_key[key] = len(out)
+                        out.append([])
+                    out[by_key[key]].append(i)
+                else:
+                    out.append([i])
+        return out
+
+    @functools.cached_property  # the spec is frozen; hashing a million-image spec takes ~1 s
+    def identity_sha256(self) -> str:
+        """SHA-256 of the resolved spec: equal for any two specs that render the same images."""
+        text = json.dumps(self.resolved(), sort_keys=True, default=float)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+
+def resolve_spec_path(name_or_path: str | Path) -> Path:
+    """``standard`` -> the shipped ``scenes/standard.toml``; anything with a suffix or a slash is a path."""
+    from edgetruth.resources import shipped_spec
+
+    s = str(name_or_path)
+    if Path(s).suffix != ".toml" and "/" not in s and "\\" not in s:
+        return shipped_spec(s)
+    return Path(s).expanduser()
+
+
+def _distances_cm(seed: int, g: dict) -> tuple:
+    """Stratified distances: one per equal sub-interval, uniform inside it, from a group-level stream
+    so the list is stable."""
+    rng = np.random.Generator(np.random.PCG64(seed))
+    if g.get("distance_intervals_cm") is not None:
+        n = g["count_per_interval"]
+        out = []
+        for a, b in g["distance_intervals_cm"]:
+            out.append(a + (np.arange(n) + rng.uniform(size=n)) * (b - a) / n)
+        return tuple(float(v) for v in np.concatenate(out))
+    a, b = g["distance_range_cm"]
+    n = g["count"]
+    return tuple(float(v) for v in a + (np.arange(n) + rng.uniform(size=n)) * (b - a) / n)
+
+
+def _design_cells(design, where: str) -> list[tuple[dict, dict]]:
+    """The cells of a [design] as (group table, {factor: level}) pairs, in a stable order."""
+    import itertools
+
+    d = parse_table(design, DESIGN_KEYS, where)
+    factors = design.get("factor")
+    if not (isinstance(factors, list) and factors and all(isinstance(f, dict) for f in factors)):
+        raise InputError(f"{where}: factor: give one or more [[design.factor]] tables with a name and levels")
+    pose = {k: design[k] for k in POSE_KEYS if k in design}
+    parsed, fnames = [], set()
+    for i, f in enumerate(factors):
+        fw = f"{where} factor {f.get('name', i)!r}"
+        fv = parse_table(f, FACTOR_KEYS, fw)
+        if fv["name"] in fnames:
+            raise InputError(f"{fw}: name = {fv['name']!r}: factor names must be unique")
+        fnames.add(fv["name"])
+        levels = f["levels"]
+        if not (isinstance(levels, list) and levels and all(isinstance(v, dict) for v in levels)):
+            raise InputError(f"{fw}: levels: give a list of tables [{{name = ..., ...}}, ...]")
+        lv = []
+        for j, level in enumerate(levels):
+            lw = f"{fw} level {level.get('name', j)!r}"
+            parse_table(level, LEVEL_KEYS, lw)
+            if level["name"] in {x["name"] for x in lv}:
+                raise InputError(f"{lw}: level names must be unique within a factor")
+            lv.append(level)
+        parsed.append((fv["name"], lv))
+    if d["mode"] == "full":
+        combos = list(itertools.product(*[range(len(lv)) for _, lv in parsed]))
+    else:  # the base cell, then each other level of one factor at a time
+        combos = [tuple(0 for _ in parsed)]
+        for fi, (_, lv) in enumerate(parsed):
+            combos += [tuple(j if q == fi else 0 for q in range(len(parsed))) for j in range(1, len(lv))]
+    base = {fname: lv[0]["name"] for fname, lv in parsed}
+    cells = []
+    for combo in combos:
+        table = {"kind": d["kind"], **pose}
+        levels = {}
+        for (fname, lv), j in zip(parsed, combo):
+            level = dict(lv[j])
+            levels[fname] = level.pop("name")
+            for k, v in level.items():
+                if isinstance(v, dict) and isinstance(table.get(k), dict):  # sensor/camera: merge
+                    table[k] = {**table[k], **v}
+                elif k in table and k != "kind":
+                    raise InputError(f"{where}: key {k} is set by two factors ({', '.join(levels)}); "
+                                     "let one factor own each key")
+                else:
+                    table[k] = v
+        table["name"] = "_".join(levels.values())
+        cells.append((table, {"levels": levels, "base": base}))
+    return cells
+
+
+def _n_images(g: dict) -> int:
+    if g.get("poses") is not None:
+        return len(g["poses"])
+    if g.get("distance_intervals_cm") is not None:
+        return len(g["distance_intervals_cm"]) * g["count_per_interval"]
+    return g["count"]
+
+
+def parse_poses(poses: list, unit_m: float, where: str) -> tuple:
+    """Explicit poses -> ``ExplicitPose`` (nearest rotation, t in metres), each checked: R a 3 x 3 rotation
+    (within ``ROTATION_TOLERANCE``, det +1), t three numbers."""
+    out = []
+    for i, p in enumerate(poses):
+        pw = f"{where}: poses[{i}]"
+        unknown = sorted(set(p) - {"R", "t"})
+        if unknown or "R" not in p or "t" not in p:
+            raise InputError(f"{pw}: give exactly R (3 x 3, by rows) and t (3 numbers)"
+                             + (f"; unknown key(s) {', '.join(unknown)}" if unknown else ""))
+        r, t = p["R"], p["t"]
+        if not (isinstance(r, list) and len(r) == 3 and all(isinstance(row, list) and len(row) == 3
+                                                            and all(_is_num(v) for v in row) for row in r)):
+            raise InputError(f"{pw}: R = {r!r}: give a 3 x 3 matrix by rows, [[r11, r12, r13], [r21, ...], [...]]")
+        if not (isinstance(t, list) and len(t) == 3 and all(_is_num(v) for v in t)):
+            raise InputError(f"{pw}: t = {t!r}: give [tx, ty, tz] (in pose_unit_m)")
+        rm = np.asarray(r, dtype=np.float64)
+        dev = float(np.max(np.abs(rm.T @ rm - np.eye(3))))
+        if dev > ROTATION_TOLERANCE or np.linalg.det(rm) <= 0:
+            raise InputError(f"{pw}: R is not a rotation (max |R^T R - I| = {dev:.3g}, det = {np.linalg.det(rm):.4g}); "
+                             f"give an orthonormal matrix with det +1 (to {ROTATION_TOLERANCE:g})")
+        out.append(ExplicitPose.from_rt(nearest_rotation(rm), np.asarray(t, dtype=np.float64) * unit_m))
+    return tuple(out)
+
+
+def _check_explicit_poses(poses: tuple, g: dict, spec_parts: dict, camera: Camera, where: str) -> None:
+    """The board must lie in front of the camera; a target's outline in the image."""
+    from edgetruth.render.scene.ground_truth import outline_in_view, view_outline_local
+
+    for i, pose in enumerate(poses):
+        if g["kind"] == "squares":
+            pts = spec_parts["squares"].plate_corners_local()
+        elif g["kind"] == "checkerboard":
+            pts = spec_parts["checkerboard"].plate_corners_local()
+        else:
+            pts = view_outline_local(spec_parts["scene"] or g["target"], spec_parts["target_size_m"])
+        cam_pts = pose.to_camera(pts)
+        if np.any(cam_pts[:, 2] <= 0):
+            raise InputError(f"{where}: poses[{i}]: the board reaches behind the camera (z <= 0); check R, t and "
+                             "pose_unit_m (the board frame's z axis points away from the camera)")
+        if g["kind"] == "target" and not outline_in_view(camera, cam_pts, 0.0):
+            raise InputError(f"{where}: poses[{i}]: the target's outline leaves the image; move it into view")
+
+
+#: Dr.Jit's LLVM backend splits a render into blocks of 2^14 samples: with a power-of-two spp up to
+#: that, a pixel's samples never straddle two blocks, so the film's atomic adds happen in one order
+#: whatever the thread count (any other spp leaves ~1/1000 pixels differing in the last bit).
+MAX_REPRODUCIBLE_SPP = 1 << 14
+#: Samplers that round the sample count up to a near-square grid (multijitter: 32 -> 5 x 7 = 35,
+#: 512 -> 22 x 24 = 528): only a power of four stays a power of two for them.
+SQUARE_GRID_SAMPLERS = ("multijitter", "stratified")
+
+
+def _check_sample_counts(s: dict, where: str) -> None:
+    """spp and edge_spp must be powers of two up to ``MAX_REPRODUCIBLE_SPP`` (of four for the
+    samplers that round to a square grid): byte-identical renders whatever the thread count."""
+    square = s.get("sampler") in SQUARE_GRID_SAMPLERS
+    base, what = (4, "a power of four") if square else (2, "a power of two")
+    for key in ("spp", "edge_spp", "checkerboard_spp"):
+        n = s.get(key, 0)
+        if key != "spp" and n == 0:
+            continue
+        ok = n & (n - 1) == 0 and (not square or (n.bit_length() - 1) % 2 == 0)
+        if not ok or n > MAX_REPRODUCIBLE_SPP:
+            lo = 1
+            while lo * base <= min(n, MAX_REPRODUCIBLE_SPP):
+                lo *= base
+            hint = f"use {lo} or {base * lo}" if n < MAX_REPRODUCIBLE_SPP else f"use at most {MAX_REPRODUCIBLE_SPP}"
+            extra = f" (the {s['sampler']} sampler rounds other counts to a square grid)" if square else ""
+            raise InputError(f"{where}: {key} = {n}: {hint} -- {what} up to {MAX_REPRODUCIBLE_SPP}{extra} keeps "
+                             "renders byte-identical whatever the number of threads and workers")
+
+
+def load_spec(name_or_path: str | Path) -> Spec:
+    """Parse and validate a spec (a shipped name or a TOML path) into a ``Spec``, in one pass."""
+    path = resolve_spec_path(name_or_path)
+    data = read_toml(path)
+    src = str(path)
+    unknown = sorted(set(data) - {"spec", "sensor", "group", "design"})
+    if unknown:
+        raise InputError(f"{src}: unknown table(s) {', '.join(unknown)}; a spec has [spec], [sensor], [[group]] "
+                         "and [design]")
+    s = parse_table(data.get("spec", {}), SPEC_KEYS, f"{src} [spec]")
+    name = s["name"] or path.stem
+    from edgetruth.render.schema import check_value
+
+    check_value(SPEC_KEYS[0], name, f"{src} [spec] (default name from the file name)")
+    board = Checkerboard(**parse_table(s["checkerboard"], CHECKERBOARD_KEYS, f"{src} [spec] checkerboard"))
+    squares = square_board_from_dict(s["squares"], path.parent, f"{src} [spec] squares")
+    try:
+        base_camera = load_camera(s["camera"], base_dir=path.parent)
+    except InputError as exc:
+        raise InputError(f"{src} [spec] camera = {s['camera']!r}: {exc}") from None
+    if s["camera_scale"] != 1:
+        c = base_camera
+        if c.width_px % s["camera_scale"] or c.height_px % s["camera_scale"]:
+            raise InputError(f"{src} [spec] camera_scale = {s['camera_scale']}: {c.width_px} x {c.height_px} px is "
+                             "not divisible by it; choose a divisor of both")
+        base_camera = base_camera.scaled(s["camera_scale"])
+    base_sensor = sensor_from_dict(data.get("sensor", {}), where=f"{src} [sensor]")
+    groups_raw = data.get("group", [])
+    design_cells = _design_cells(data["design"], f"{src} [design]") if "design" in data else []
+    if not (isinstance(groups_raw, list) and all(isinstance(g, dict) for g in groups_raw)) or \
+            not (groups_raw or design_cells):
+        raise InputError(f"{src}: needs at least one [[group]] table or a [design] (see docs/spec.md)")
+    groups, names, first = [], set(), 0
+    units: dict = {}
+    for i, raw in enumerate(list(groups_raw) + [c for c, _ in design_cells]):
+        cell = design_cells[i - len(groups_raw)][1] if i >= len(groups_raw) else None
+        levels = cell["levels"] if cell else None
+        where = (f"{src} group {raw.get('name', i)!r}" if levels is None
+                 else f"{src} [design] cell {raw.get('name')!r}")
+        g = parse_table(raw, GROUP_KEYS, where)
+        if g["name"] in names:
+            raise InputError(f"{where}: name = {g['name']!r}: group names must be unique")
+        names.add(g["name"])
+        if g["kind"] != "target" and "target" in raw:
+            raise InputError(f"{where}: target = {raw['target']!r}: a {g['kind']} group has no target; remove it")
+        if g.get("poses") is not None:
+            given = sorted(k for k in POSE_KEYS if k in raw)
+            if given:
+                raise InputError(f"{where}: poses and {', '.join(given)}: explicit poses replace the drawn ones "
+                                 "(one image per pose); remove one or the other")
+        elif "pose_unit_m" in raw:
+            raise InputError(f"{where}: pose_unit_m applies to explicit poses; remove it or add poses")
+        if g.get("distance_intervals_cm") is not None and ("count" in raw or "distance_range_cm" in raw):
+            raise InputError(f"{where}: give either distance_intervals_cm (+ count_per_interval) or "
+                             "distance_range_cm (+ count), not both")
+        n = _n_images(g)
+        if first + n > MAX_IMAGES:
+            raise InputError(f"{src}: more than {MAX_IMAGES:,} images; split the spec")
+        sensor = sensor_from_dict(g["sensor"], base_sensor, where=f"{where} sensor")
+        cam_over = camera_overrides(g["camera"], f"{where} camera")
+        camera = replace(base_camera, **cam_over) if cam_over else base_camera
+        scene = None
+        if g["kind"] == "target":
+            scene = scene_from_group(g, raw, s["target_size_m"], g["light_position_m"], where, base_dir=path.parent)
+        else:
+            given = [k for k in SCENE_GROUP_KEYS if k in raw]
+            if given:
+                raise InputError(f"{where}: {', '.join(given)} applies to kind = \"target\" groups; remove it")
+        poses = None
+        if g.get("poses") is not None:
+            poses = parse_poses(g["poses"], g["pose_unit_m"], where)
+            if g["kind"] == "squares":  # model frame -> the rendering's board frame (centred on the squares)
+                poses = tuple(p.moved_origin(squares.centre_model_m) for p in poses)
+            _check_explicit_poses(poses, g, {"squares": squares, "checkerboard": board, "scene": scene,
+                                             "target_size_m": s["target_size_m"]}, camera, where)
+        light = None if "light_position_m" not in raw else tuple(g["light_position_m"])
+        unit = unit_e = None
+        if levels is not None:
+            # cells that differ only in light power and sensor settings share one radiance render
+            key = (g["kind"], g["target"], json.dumps(camera.to_dict(), sort_keys=True))
+            if scene is not None:  # materials, shapes and lights change the radiance, not just its scale
+                key += (json.dumps(scene.resolved(), sort_keys=True),)
+            if camera.moving:  # the exposure sets the motion blur: part of the radiance
+                key += (sensor.exposure_s,)
+            unit, unit_e = units.setdefault(key, (len(units), g["irradiance_w_m2"]))
+            dists = _distances_cm(key_seed(name, "design/distances"), g)  # the slots: one stream for all cells
+        elif poses is not None:
+            dists = tuple(100.0 * p.distance_m for p in poses)  # the board centre's z
+        else:
+            dists = _distances_cm(image_seed(name, -1 - first), g)  # seeded by the group's first image index
+        target = (scene or g["target"]) if g["kind"] == "target" else None
+        groups.append(Group(name=g["name"], kind=g["kind"], target=target,
+                            first_index=first, distances_cm=dists,
+                            lateral_fraction=g["lateral_fraction"], tilt_max_deg=g["tilt_max_deg"],
+                            roll_max_deg=g["roll_max_deg"], irradiance_w_m2=g["irradiance_w_m2"], sensor=sensor,
+                            camera=camera, camera_overrides=cam_over, sensor_overrides=dict(g["sensor"]),
+                            levels=levels, base_levels=cell["base"] if cell else None, radiance_unit=unit,
+                            unit_irradiance_w_m2=unit_e, poses=poses, light_position_m=light))
+        first += n
+    _check_sample_counts(s, f"{src} [spec]")
+    if s["edge_mode"] == "analytic":  # edgetruth.render.scene.edge_band.render_analytic_band's scope
+        for g in groups:
+            if g.kind == "target" and (g.camera.moving or not isinstance(g.target, str)):
+                raise InputError(f"{src} group {g.name!r}: edge_mode = \"analytic\" covers preset targets (T1..T4) "
+                                 "and a static camera; set edge_mode = \"path\" for this spec")
+    return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
+                camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"],
+                                                                         edge_spp=s["edge_spp"],
+                                                                         checkerboard_spp=s["checkerboard_spp"],
+                                                                         edge_mode=s["edge_mode"]),
+                target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
+                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares)

@@ -1,0 +1,503 @@
+"""Ground truth geometry of a posed board: target outlines, checkerboard corners and the squares of a
+board of squares in pixels.
+
+Points are projected with the camera's exact model (``Camera.project``), in OpenCV
+pixel coordinates, both distorted (what the image shows) and undistorted (the ideal
+pinhole image with the same K).  A target's outline also comes as a dense polyline of the
+*distorted* curve (``edgetruth.render.scene.outline.OutlineCurve`` evaluates it exactly): under
+distortion a square's sides are curves, not the chords between its corners.  With a moving
+camera everything is at mid-exposure, plus the outline at the start and end of the exposure.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from edgetruth.render.optics.camera import Camera
+from edgetruth.render.optics.optical_edge import optical_edge_ground_truth
+from edgetruth.render.scene.outline import OutlineCurve, camera_points_at
+from edgetruth.render.scene.targets import (BOARD_HALF_SIZE_M, BOARD_REFLECTANCE, TARGET_STANDOFF_M, TARGETS, Checkerboard,
+                                      SquareBoard)
+from edgetruth.render.scene.pose import Pose
+
+CIRCLE_OUTLINE_POINTS = 720
+
+
+def _project_both(camera: Camera, pts_cam: np.ndarray) -> dict:
+    return {"distorted_px": camera.project(pts_cam, distorted=True).tolist(),
+            "undistorted_px": camera.project(pts_cam, distorted=False).tolist()}
+
+
+def target_outline_local(shape: str, size_m: float, n_circle: int = CIRCLE_OUTLINE_POINTS) -> np.ndarray:
+    """Outline points in the board frame at the target's plane (z = −stand-off).
+
+    Square: 4 corners, order top-left, top-right, bottom-right, bottom-left (image orientation
+    for an untilted board).  Circle: ``n_circle`` points at angles 2πk/n from local +x towards +y.
+    """
+    h = size_m / 2.0
+    z = -TARGET_STANDOFF_M
+    if shape == "square":
+        return np.array([[-h, -h, z], [h, -h, z], [h, h, z], [-h, h, z]])
+    t = 2.0 * np.pi * np.arange(n_circle) / n_circle
+    return np.stack([h * np.cos(t), h * np.sin(t), np.full_like(t, z)], axis=1)
+
+
+def motion_ground_truth(camera: Camera, exposure_s: float, points_cam: np.ndarray, centre_cam: np.ndarray) -> dict:
+    """Where the outline points and the centre are at the start and end of the exposure (τ = ∓T/2)."""
+    half = 0.5 * exposure_s
+    taus = np.linspace(-half, half, 9)
+    return {"velocity_m_s": list(camera.velocity_m_s), "angular_velocity_deg_s": list(camera.angular_velocity_deg_s),
+            "exposure_s": exposure_s, "reference": "outline, centre and pose are at mid-exposure",
+            "camera_motion": "at time tau from mid-exposure the camera sits at v*tau, rotated by omega*tau",
+            "outline_start_distorted_px": camera.project(camera_points_at(camera, points_cam, -half)).tolist(),
+            "outline_end_distorted_px": camera.project(camera_points_at(camera, points_cam, half)).tolist(),
+            "centre_track_tau_s": taus.tolist(),
+            "centre_track_distorted_px": [camera.project(camera_points_at(camera, centre_cam, t))[0].tolist()
+                                          for t in taus]}
+
+
+def target_ground_truth(camera: Camera, pose: Pose, target, size_m: float, exposure_s: float = 0.0) -> dict:
+    """The truth of a target image: ``target`` a preset id (T1..T4) or a ``TargetScene``."""
+    from edgetruth.render.scene.shapes import TargetScene
+
+    if isinstance(target, TargetScene):
+        return scene_ground_truth(camera, pose, target, exposure_s)
+    spec = TARGETS[target]
+    centre_cam = pose.to_camera(np.array([[0.0, 0.0, -TARGET_STANDOFF_M]]))
+    outline = pose.to_camera(target_outline_local(spec["shape"], size_m))
+    curve = OutlineCurve(camera, pose, spec["shape"], size_m)
+    t = curve.parameters()
+    extra = {}
+    if camera.moving:
+        extra["motion"] = motion_ground_truth(camera, exposure_s, outline, centre_cam)
+    return {
+        "target": {"id": target, "shape": spec["shape"], "material": spec["material"],
+                   "size_m": size_m, "size_meaning": "side" if spec["shape"] == "square" else "diameter",
+                   "reflectance": spec["reflectance"], "standoff_m": TARGET_STANDOFF_M,
+                   **({"ggx_alpha": spec["alpha"], "ior": spec["eta"]} if "alpha" in spec else {})},
+        "board": {"material": "white_matte", "reflectance": BOARD_REFLECTANCE,
+                  "half_size_m": list(BOARD_HALF_SIZE_M)},
+        "true_distance_m": float(centre_cam[0, 2]),  # Z of the target centre (the ranging quantity)
+        "true_range_m": float(np.linalg.norm(centre_cam)),
+        "centre": _project_both(camera, centre_cam),
+        "outline": {"kind": "corners" if spec["shape"] == "square" else "points",
+                    "order": ("top-left, top-right, bottom-right, bottom-left (board frame)"
+                              if spec["shape"] == "square" else "angle 2*pi*k/n from board +x towards +y"),
+                    **_project_both(camera, outline),
+                    "polyline_distorted_px": curve.points(t).tolist(),
+                    "polyline_parameter": t.tolist(),
+                    "polyline_meaning": "dense points ON the distorted outline curve (square: clockwise from the "
+                                        "top-left corner, parameter t in [0, 1): side floor(4t); circle: angle "
+                                        "2*pi*t); chords stay within polyline_chord_error_px of the curve, which "
+                                        "edgetruth.render.scene.outline.OutlineCurve evaluates exactly",
+                    "polyline_chord_error_px": curve.chord_error_px(),
+                    "optical_edge": optical_edge_ground_truth(curve, t)},
+        "defocus_radius_px": float(camera.defocus_radius_px(centre_cam[0, 2])),
+        **extra,
+    }
+
+
+def checker_ground_truth(camera: Camera, pose: Pose, board: Checkerboard) -> dict:
+    corners = pose.to_camera(board.inner_corners_local(-TARGET_STANDOFF_M))
+    return {
+        "checkerboard": {**board.to_dict(), "standoff_m": TARGET_STANDOFF_M},
+        "corners": {"order": "row-major, x fastest (cv2.findChessboardCorners order for this orientation)",
+                    "object_points_m": board.inner_corners_local(0.0).tolist(),
+                    **_project_both(camera, corners)},
+        "true_distance_m": float(pose.distance_m),
+    }
+
+
+def model_pose(pose: Pose, board: SquareBoard) -> dict:
+    """The pose of a squares board's *model* frame: X_cam = R X_model + t (the rendering's board frame
+    is centred on the squares: X_model = X_board + c)."""
+    r = pose.rotation
+    t = pose.translation_m - r @ board.centre_model_m
+    return {"R": r.tolist(), "t_m": t.tolist(), "t_model_unit": (t / board.model_unit_m).tolist(),
+            "meaning": "X_cam = R X_model + t (model frame of squares.model_points_m; t_model_unit: t in the "
+                       "model's unit, model_unit_m)"}
+
+
+def squares_ground_truth(camera: Camera, pose: Pose, board: SquareBoard) -> dict:
+    """Every square's corners (model order), in the image and undistorted, and its exact distorted
+    outline as a dense polyline; the model points and the model frame's pose."""
+    quads = board.quads_local(-TARGET_STANDOFF_M)  # the printed squares (flush: 10 um in front of the plate)
+    n = len(quads)
+    cam_pts = pose.to_camera(quads.reshape(-1, 3))
+    dist = camera.project(cam_pts, distorted=True).reshape(n, 4, 2)
+    und = camera.project(cam_pts, distorted=False).reshape(n, 4, 2)
+    from edgetruth.conventions import inside_image
+
+    in_view = inside_image(dist[..., 0], dist[..., 1], camera.shape).all(axis=1) & (cam_pts[:, 2].reshape(n, 4) > 0).all(1)
+    polylines, params, chord = [], [], 0.0
+    for q in quads:
+        curve = OutlineCurve.polygon(camera, pose, q)
+        t = curve.parameters()
+        polylines.append(curve.points(t).tolist())
+        params.append(t.tolist())
+        chord = max(chord, curve.chord_error_px())
+    return {
+        "squares": {**board.to_dict(), "standoff_m": TARGET_STANDOFF_M, "count": n,
+                    "order": "model order (the model file's lines, or a pattern row-major from the top-left "
+                             "square); each square's corners in the model's order (a pattern: top-left, top-right, "
+                             "bottom-right, bottom-left)",
+                    "model_points_m": board.model_points(0.0).tolist(),
+                    "pose_model": model_pose(pose, board),
+                    "corners_distorted_px": dist.tolist(),
+                    "corners_undistorted_px": und.tolist(),
+                    "in_view": in_view.tolist(),
+                    "polylines_distorted_px": polylines,
+                    "polylines_parameter": params,
+                    "polyline_meaning": "per square, dense points ON its exact distorted outline (its straight "
+                                        "sides through the lens), from corner 0 in the model's corner order; "
+                                        "parameter t in [0, 1): side floor(4t) from corner floor(4t) to the next; "
+                                        "edgetruth.render.scene.outline.OutlineCurve.polygon evaluates it exactly",
+                    "polyline_chord_error_px": chord},
+        "true_distance_m": float(pose.translation_m[2]),
+    }
+
+
+def _board_corners() -> np.ndarray:
+    hx, hy = BOARD_HALF_SIZE_M
+    return np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+
+
+def outline_in_view(camera: Camera, pts_cam: np.ndarray, margin_px: float) -> bool:
+    """All points in front of the camera and inside the image with ``margin_px`` to spare."""
+    from edgetruth.conventions import inside_image
+
+    if np.any(pts_cam[:, 2] <= 0):
+        return False
+    px = camera.project(pts_cam)
+    return bool(np.all(inside_image(px[:, 0], px[:, 1], camera.shape, margin_px)))
+
+
+# --- the shape catalogue ------------------------------------------------------------------------------
+def view_outline_local(target, size_m: float, paired: bool = False) -> np.ndarray:
+    """Board points that must stay in view when a pose is drawn: a preset's outline (paired design slots:
+    the square, which bounds the circle, so every cell draws the same pose), or a ``TargetScene``'s shapes'
+    outlines (plus that square when paired)."""
+    from edgetruth.render.scene.shapes import TargetScene
+
+    if not isinstance(target, TargetScene):
+        return target_outline_local("square" if paired else TARGETS[target]["shape"], size_m)
+    xy = target.sample_points()
+    pts = np.column_stack([xy, np.full(len(xy), -TARGET_STANDOFF_M)])
+    return np.concatenate([target_outline_local("square", size_m), pts]) if paired else pts
+
+
+def shape_outline_truth(camera: Camera, pose: Pose, scene, k: int) -> list[dict]:
+    """Every outline of shape ``k`` of ``scene``: its exact distorted curve (dense polyline, parameters,
+    chord error), its corners, and the parts of it that later shapes and clutter leave visible."""
+    shape = scene.shapes[k]
+    standoff = (k + 1) * TARGET_STANDOFF_M
+    occluders = list(scene.shapes[k + 1:]) + raised_covers(pose, scene, standoff)
+    return outline_truth(camera, pose, shape.outlines(), standoff, occluders)
+
+
+
+def raised_covers(pose: Pose, scene, source_height_m: float) -> list:
+    """The clutter items that can hide points ``source_height_m`` in front of the board (as occluders)."""
+    from edgetruth.render.scene.shapes import RaisedCover
+
+    eye = pose.rotation.T @ (-pose.translation_m)  # the camera centre in the board frame
+    return [RaisedCover(c, tuple(eye), source_height_m) for c in getattr(scene, "clutter", ())
+            if c.raised_m > source_height_m]
+
+
+def outline_truth(camera: Camera, pose: Pose, outlines, standoff: float, occluders: list) -> list[dict]:
+    """Per outline (at ``standoff`` in front of the board): its exact distorted curve, the parts no occluder
+    hides, their polylines and ends, and its corners."""
+    from edgetruth.render.scene.shapes import visible_intervals
+
+    out = []
+    for o in outlines:
+        curve = OutlineCurve.of(camera, pose, o, standoff)
+        t = curve.parameters()
+        vis = visible_intervals(o, occluders)
+        pieces = []
+        tt = np.concatenate([t, t + 1.0])  # the full polyline's parameters, unwrapped: corners included
+        for t0, t1 in vis:
+            inner = tt[(tt > t0 + 1e-12) & (tt < t1 - 1e-12)]
+            pieces.append(curve.points(np.concatenate([[t0], inner, [t1]])).tolist())
+        ends = [e for iv in vis for e in iv] if vis != [[0.0, 1.0]] else []
+        d = {"name": o.name, "curve": o.kind,
+             "polyline_distorted_px": curve.points(t).tolist(), "polyline_parameter": t.tolist(),
+             "polyline_chord_error_px": curve.chord_error_px(),
+             "visible_intervals": vis,
+             "visible_polylines_distorted_px": pieces,
+             "occlusion_points_distorted_px": curve.points(np.mod(ends, 1.0)).tolist() if ends else []}
+        if o.kind == "polygon":
+            tc = o.corner_parameters()
+            d["corners_distorted_px"] = curve.points(tc).tolist()
+            d["corners_undistorted_px"] = curve.points(tc, distorted=False).tolist()
+            d["corners_visible"] = [any(a - 1e-12 <= tt <= b + 1e-12 or a - 1e-12 <= tt + 1 <= b + 1e-12
+                                        for a, b in vis) for tt in tc]
+        else:
+            d["conic_board_m"] = dict(zip(("cx", "cy", "a", "b", "theta_rad"), o.conic))
+        out.append(d)
+    return out
+
+
+def texture_placement(camera: Camera, pose: Pose, corners_xy, z_m: float, material) -> dict:
+    """Where a printed texture lies: its image's four corners on the board (board frame, at z = ``z_m``) and
+    in the image (distorted and undistorted px)."""
+    from pathlib import Path
+
+    from edgetruth.render.scene.materials import texture_levels
+
+    h, w = texture_levels(material.texture, material.texture_sha256).shape
+    xy = np.asarray(corners_xy, float)
+    cam = pose.to_camera(np.column_stack([xy, np.full(len(xy), z_m)]))
+    return {"file": Path(material.texture).name, "sha256": material.texture_sha256, "size_px": [w, h],
+            "filter": "nearest", "corners_board_m": xy.tolist(), **{f"corners_{k}": v for k, v in
+                                                                   _project_both(camera, cam).items()},
+            "order": "the image's top-left, top-right, bottom-right, bottom-left corners (the outer corners of its "
+                     "corner pixels)",
+            "meaning": "texel (row i, column j) of the W x H image is printed on the quad between the corners at "
+                       "bilinear parameters u in [j, j + 1] / W (top-left -> top-right), v in [i, i + 1] / H "
+                       "(top-left -> bottom-left), with reflectance albedo x its gray level / full scale"}
+
+
+def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.0) -> dict:
+    """The truth of a ``TargetScene`` image.  ``target`` and ``outline`` describe shape 0 (the ranged
+    target) as for a preset, so the evaluation reads either; ``shapes`` lists every shape with every
+    outline (a ring: outer and inner), its corners and its visible parts."""
+    p = scene.primary
+    standoff = TARGET_STANDOFF_M
+    centre_cam = pose.to_camera(np.array([[p.offset_m[0], p.offset_m[1], -standoff]]))
+    o = p.outlines()[0]
+    curve = OutlineCurve.of(camera, pose, o, standoff)
+    t = curve.parameters()
+    square = p.type == "rectangle" and p.width_m == p.height_m
+    circle = p.type == "circle"
+    if o.kind == "polygon":
+        corners_xy = np.asarray(o.vertices, float)
+        kind, order = "corners", "the polygon's vertices in order (rectangle: top-left, top-right, bottom-right, " \
+                                 "bottom-left of the unturned shape, board frame)"
+    else:
+        corners_xy = o.local_xy(np.arange(CIRCLE_OUTLINE_POINTS) / CIRCLE_OUTLINE_POINTS)
+        kind, order = "points", "angle 2*pi*k/n from the conic's turned +x axis towards +y"
+    pts_cam = pose.to_camera(np.column_stack([corners_xy, np.full(len(corners_xy), -standoff)]))
+    m = p.material
+    size = {"rectangle": p.width_m, "circle": p.diameter_m, "ring": p.outer_diameter_m, "ellipse": max(p.axes_m),
+            "grid": (p.cols - 1) * p.pitch_m[0] + p.element_size_m}.get(
+        p.type, float(2 * np.max(np.linalg.norm(corners_xy - p.offset_m, axis=1))))
+    extra = {}
+    if camera.moving:
+        extra["motion"] = motion_ground_truth(camera, exposure_s, pts_cam, centre_cam)
+    return {
+        "target": {"id": scene.id, "shape": "square" if square else ("circle" if circle else p.type),
+                   "type": p.type, "material": m.label or m.type, "material_params": m.to_dict(),
+                   "size_m": size,
+                   "size_meaning": {"rectangle": "width", "circle": "diameter", "ring": "outer diameter",
+                                    "ellipse": "longer axis", "grid": "width along its x (outer element edges)"
+                                    }.get(p.type, "largest extent"),
+                   "reflectance": m.albedo if m.type != "roughconductor" else None, "standoff_m": standoff,
+                   "offset_m": list(p.offset_m), "rotation_deg": p.rotation_deg,
+                   **({"ggx_alpha": m.alpha, "ior": m.eta} if m.type == "roughplastic" else {})},
+        "board": {"material": scene.board.label or scene.board.type, "material_params": scene.board.to_dict(),
+                  "reflectance": scene.board.albedo, "half_size_m": list(BOARD_HALF_SIZE_M),
+                  **({"texture": texture_placement(camera, pose, _board_corners(), 0.0, scene.board)}
+                     if scene.board.texture else {})},
+        "true_distance_m": float(centre_cam[0, 2]),
+        "true_range_m": float(np.linalg.norm(centre_cam)),
+        "centre": _project_both(camera, centre_cam),
+        "outline": {"kind": kind, "order": order, **_project_both(camera, pts_cam),
+                    "polyline_distorted_px": curve.points(t).tolist(), "polyline_parameter": t.tolist(),
+                    "polyline_meaning": "dense points ON shape 0's exact distorted outline (polygon: side floor(n t) "
+                                        "from vertex floor(n t); conic: angle 2*pi*t); the full outline, whether or "
+                                        "not later shapes cover part of it (shapes[0] says which parts are visible)",
+                    "polyline_chord_error_px": curve.chord_error_px(),
+                    "optical_edge": optical_edge_ground_truth(curve, t)},
+        "shapes": [{"index": k, **s.to_dict(), "standoff_m": (k + 1) * TARGET_STANDOFF_M,
+                    "centre": _project_both(camera, pose.to_camera(
+                        np.array([[s.offset_m[0], s.offset_m[1], -(k + 1) * TARGET_STANDOFF_M]]))),
+                    "outlines": shape_outline_truth(camera, pose, scene, k),
+                    **({"texture": texture_placement(camera, pose, s.outlines()[0].vertices,
+                                                     -(k + 1) * TARGET_STANDOFF_M, s.material)}
+                       if s.material.texture else {})} for k, s in enumerate(scene.shapes)],
+        "shapes_meaning": "shape k lies (k + 1) x 10 um in front of the board and covers shapes 0..k-1 (a ring covers "
+                          "its whole outer disk: its hole shows the board); per outline: the exact distorted curve "
+                          "(edgetruth.render.scene.outline.OutlineCurve.of), visible_intervals [t0, t1] of its parameter "
+                          "not covered by later shapes (t1 > 1 wraps), their polylines, and the points where a "
+                          "covering shape cuts it (corners of the visible region)",
+        "defocus_radius_px": float(camera.defocus_radius_px(centre_cam[0, 2])),
+        **({"clutter": clutter_truth(camera, pose, scene)} if getattr(scene, "clutter", ()) else {}),
+        **extra,
+    }
+
+
+def clutter_truth(camera: Camera, pose: Pose, scene) -> list[dict]:
+    """Per clutter item: its outlines (exact distorted curves, the parts no nearer item hides) and, per
+    light, its shadow on the board: exact for point and spot lights (parallel planes: the outline scaled by
+    D / (D - h) about the light's foot), an area light's from its centre (the penumbra widens it by about
+    side x h / (D - h) on each side)."""
+    from edgetruth.render.scene.shapes import shadow_outline
+
+    out = []
+    for c, item in enumerate(scene.clutter):
+        occ = raised_covers(pose, scene, item.raised_m)
+        d = {"index": c, **item.to_dict(),
+             "outlines": outline_truth(camera, pose, item.shape.outlines(), item.raised_m, occ), "shadows": []}
+        for i, lt in enumerate(scene.lights):
+            lb = pose.rotation.T @ (np.asarray(lt.position_m, float) - pose.translation_m)  # board frame
+            sh = [shadow_outline(o, item.raised_m, lb) for o in item.shape.outlines()]
+            if any(s is None for s in sh):
+                d["shadows"].append({"light": i, "cast": False})
+                continue
+            dist = -float(lb[2])
+            # what hides the shadow's edge in the image: the shapes on the board and every clutter item
+            hide = list(scene.shapes) + raised_covers(pose, scene, 0.0)
+            rec = {"light": i, "cast": True, "exact": lt.type != "area",
+                   "light_board_m": lb.tolist(), "scale": dist / (dist - item.raised_m),
+                   "outlines": outline_truth(camera, pose, sh, 0.0, hide)}
+            if lt.type == "area":
+                rec["penumbra_half_width_m"] = lt.size_m * item.raised_m / (dist - item.raised_m) / 2
+            d["shadows"].append(rec)
+        out.append(d)
+    return out
+
+
+class SceneOutline:
+    """Every visible edge of a ``TargetScene`` image, read from its ground truth (``shapes``, ``clutter``):
+    the parts of each shape's outlines that no later shape and no clutter hides, and the clutter's own
+    outlines (clutter item c is layer ``len(shapes) + c`` in ``outlines``, ``edge_shape`` and ``shape_at``).
+
+    - ``signed_distance(x, y)``: px to the nearest visible edge, > 0 on that outline's board side (outside
+      its shape, inside a ring's hole);
+    - ``edge_index(x, y)``: which outline that is (an index into ``outlines``, (shape index, outline name)
+      pairs); ``edge_shape(x, y)``: its shape index;
+    - ``corner_distance(x, y)``: px to the nearest corner of the visible edges (``corners_px``: the visible
+      polygon corners and the points where a covering shape cuts an outline);
+    - ``shape_at(x, y)``: which shape the image shows at the point (-1: the board, a ring's hole included).
+
+    Distances come from the dense polylines (chords within ``polyline_chord_error_px`` <= 1e-3 px of the
+    exact curves): the nearest of the segments next to the ``K_NEAREST`` nearest polyline vertices."""
+
+    K_NEAREST = 8  # vertices whose segments are measured: far more than the 2 needed at <= 2 px spacing
+
+    def __init__(self, gt: dict):
+        self.outlines, self._full, self._pieces, self._flip = [], [], [], []
+        corners = []
+        n = len(gt["shapes"])
+        # clutter item c is layer n + c, above every shape; nearer items (higher) hide further ones
+        layers = [(s, int(s["index"])) for s in gt["shapes"]] + \
+            [(c, n + int(c["index"])) for c in gt.get("clutter", [])]
+        self._top_first = [n + int(c["index"]) for c in sorted(gt.get("clutter", []), key=lambda c: -c["raised_m"])] \
+            + list(range(n - 1, -1, -1))
+        for s, layer in layers:
+            for o in s["outlines"]:
+                self.outlines.append((layer, o["name"]))
+                self._full.append(np.asarray(o["polyline_distorted_px"], float))
+                self._pieces.append([np.asarray(p, float).reshape(-1, 2) for p in o["visible_polylines_distorted_px"]])
+                self._flip.append(o["name"] == "inner")  # a ring's hole: the board is inside
+                if "corners_distorted_px" in o:
+                    corners += [c for c, v in zip(o["corners_distorted_px"], o["corners_visible"]) if v]
+                corners += list(o.get("occlusion_points_distorted_px", []))
+        self.corners_px = np.asarray(corners, float).reshape(-1, 2)
+        self.n_shapes = n
+        # every visible piece as segments a -> b, with the outline each belongs to
+        a, b, owner = [], [], []
+        for i, pieces in enumerate(self._pieces):
+            for p in pieces:
+                if len(p) >= 2:
+                    a.append(p[:-1])
+                    b.append(p[1:])
+                    owner.append(np.full(len(p) - 1, i))
+        if a:
+            self._a, self._b, self._owner = np.concatenate(a), np.concatenate(b), np.concatenate(owner)
+        else:
+            self._a = self._b = np.zeros((0, 2))
+            self._owner = np.zeros(0, int)
+
+    @classmethod
+    def from_ground_truth(cls, gt: dict) -> "SceneOutline":
+        return cls(gt)
+
+    @property
+    def shape(self) -> str:
+        return "scene"
+
+    def _nearest(self, x, y):
+        """(distance px, outline index, query points (N, 2)) to the nearest visible segment."""
+        from scipy.spatial import cKDTree
+
+        q = np.column_stack([np.ravel(x), np.ravel(y)]).astype(float)
+        m = len(self._a)
+        if not m or not len(q):
+            return np.full(len(q), np.inf), np.full(len(q), -1), q
+        # segment k starts at vertex k; a vertex near q has its own segment (k) and the one ending at it
+        # (k - 1 where segment k - 1 ends where k starts; else k is a piece's first vertex)
+        k = min(self.K_NEAREST, m)
+        tree = cKDTree(self._a)
+        best, seg = np.empty(len(q)), np.empty(len(q), dtype=int)
+        for s0 in range(0, len(q), 65536):  # blocks: memory ~ 65536 x 2k segments
+            qq = q[s0:s0 + 65536]
+            idx = np.asarray(tree.query(qq, k=k)[1]).reshape(len(qq), k)
+            cand = np.concatenate([idx, np.maximum(idx - 1, 0)], axis=1)
+            a, b = self._a[cand], self._b[cand]  # (n, 2k, 2)
+            d = b - a
+            u = np.clip(np.sum((qq[:, None] - a) * d, axis=2) / np.maximum(np.sum(d * d, axis=2), 1e-300), 0.0, 1.0)
+            dist = np.linalg.norm(qq[:, None] - (a + u[..., None] * d), axis=2)
+            j = np.argmin(dist, axis=1)
+            r = np.arange(len(qq))
+            best[s0:s0 + len(qq)], seg[s0:s0 + len(qq)] = dist[r, j], cand[r, j]
+        return best, self._owner[seg], q
+
+    def edge_index(self, x, y) -> np.ndarray:
+        """Index into ``outlines`` of the nearest visible edge of each point (-1: the scene shows none)."""
+        return self._nearest(x, y)[1].reshape(np.shape(x))
+
+    def edge_shape(self, x, y) -> np.ndarray:
+        """Shape index of the nearest visible edge of each point."""
+        i = self._nearest(x, y)[1]
+        shp = np.array([s for s, _ in self.outlines] + [-1])
+        return shp[i].reshape(np.shape(x))
+
+    def signed_distance(self, x, y) -> np.ndarray:
+        """px to the nearest visible edge, > 0 on its board side."""
+        from edgetruth.render.edge_truth import closed_polyline_signed_distance
+
+        dist, idx, q = self._nearest(x, y)
+        out = np.array(dist)
+        for i in np.unique(idx[idx >= 0]):
+            sel = idx == i
+            sign = np.sign(closed_polyline_signed_distance(self._full[i], q[sel, 0], q[sel, 1]))
+            sign[sign == 0] = 1.0
+            out[sel] = (-sign if self._flip[i] else sign) * dist[sel]
+        return out.reshape(np.shape(x))
+
+    def corner_distance(self, x, y) -> np.ndarray:
+        """px to the nearest corner of the visible edges (inf where there is none: e.g. uncovered conics)."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        shape = np.broadcast(x, y).shape
+        if not len(self.corners_px):
+            return np.full(shape, np.inf)
+        from scipy.spatial import cKDTree
+
+        q = np.column_stack([np.ravel(np.broadcast_to(x, shape)), np.ravel(np.broadcast_to(y, shape))])
+        return cKDTree(self.corners_px).query(q)[0].reshape(shape)
+
+    def shape_at(self, x, y) -> np.ndarray:
+        """Index of the shape the image shows at each point (the topmost shape whose outer outline -- a
+        grid: any element's -- holds it), -1 on the board (a ring's hole shows the board)."""
+        from matplotlib.path import Path as _Path
+
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        shape = np.broadcast(x, y).shape
+        q = np.column_stack([np.ravel(np.broadcast_to(x, shape)), np.ravel(np.broadcast_to(y, shape))])
+        out = np.full(len(q), -1)
+        todo = np.ones(len(q), bool)
+        for k in self._top_first:
+            mine = [i for i, (s, _) in enumerate(self.outlines) if s == k]
+            outer = [i for i in mine if not self._flip[i]]
+            inner = [i for i in mine if self._flip[i]]
+            inside = np.zeros(len(q), bool)
+            for i in outer:  # a grid: any of its elements
+                inside[todo] |= _Path(self._full[i]).contains_points(q[todo])
+            hole = np.zeros(len(q), bool)
+            if inner and inside.any():
+                hole[inside] = _Path(self._full[inner[0]]).contains_points(q[inside])
+            out[inside & ~hole] = k
+            todo &= ~inside  # the shape (or its hole, showing the board) hides everything below
+        return out.reshape(shape)
