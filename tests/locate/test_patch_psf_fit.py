@@ -99,6 +99,47 @@ def test_known_psf_option_fixes_the_blur():
     assert np.max(np.abs(edge.signed_distance(known.x, known.y))) < 0.005
 
 
+def test_points_are_bit_stable_run_to_run_and_across_thread_counts():
+    """The vectorised pixel loop reassociates its sums, but in an order fixed at compile time, and the
+    points run in fixed chunks: the same image gives the same points to the last bit, twice in a row
+    and on one thread."""
+    import numba
+
+    edge = make_edge("circle", 2)
+    clean = render(SHAPE_64, edge, 1.0)
+    img = clean + np.random.default_rng(5).normal(0, NOISE * B_CONTRAST, clean.shape)
+    cand = near_candidates(clean, edge)
+    a = locate.refine(img, cand, "patch_psf_fit")
+    b = locate.refine(img, cand, "patch_psf_fit")
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        c = locate.refine(img, cand, "patch_psf_fit")
+    finally:
+        numba.set_num_threads(threads)
+    for other in (b, c):
+        np.testing.assert_array_equal(a.x, other.x)
+        np.testing.assert_array_equal(a.y, other.y)
+        np.testing.assert_array_equal(a.se, other.se)
+
+
+def test_compiled_curvature_equals_the_numpy_reference():
+    """The fit's curvatures (numba) are curvature_at's (numpy) to the last bit; on a circle of radius r
+    they read ~1/r (kappa > 0 round a bright disk)."""
+    from edgetruth.locate.methods import patch_psf_fit as P
+
+    edge = make_edge("circle", 1)
+    img = render(SHAPE_64, edge, 1.0)
+    cand = near_candidates(img, edge)
+    ref = P.curvature_at(cand)
+    got = np.zeros(len(cand))
+    P.curvatures(cand.grad_x, cand.grad_y, cand.x, cand.y, got)
+    np.testing.assert_array_equal(got, ref)
+    r = np.hypot(cand.x - edge.cx, cand.y - edge.cy).mean()
+    sign = 1.0 if edge.bright_inside else -1.0
+    assert np.median(sign * got) == pytest.approx(1.0 / r, rel=0.25)
+
+
 def test_flat_region_is_not_converged():
     edge = make_edge("line", 0)
     img = render(SHAPE_64, edge, 1.0)
@@ -110,15 +151,17 @@ def test_flat_region_is_not_converged():
 
 @pytest.mark.parametrize("kind,pinned", [("line", 0.97350), ("circle", 1.00741)])
 def test_fast_settings_keep_the_accuracy(kind, pinned):
-    """The speed-ups (a step of 1e-4 px ends the fit, taken without another pass; Phi from a table;
-    work arrays reused) keep the fit: on a Monte-Carlo set (8 edges x 3 draws, blur 1 px,
-    sigma_n/B = 0.02) every point lies within 2e-5 px of the tol_px = 1e-7 fit (the old setting,
-    ~6.5 iterations against ~3.1; measured 5e-6 lines, 8e-6 circles),
-    and RMSE / bound is pinned to its measured value (lines 0.97350, circles 1.00741, 1,989 and
-    2,877 points) within 2e-4."""
+    """The speed-ups (a step of 3e-3 px ends the fit, taken without another pass; a two-step ERF start;
+    Phi from a table; the pixel loop vectorised) keep the fit: on a Monte-Carlo set (8 edges x 3 draws,
+    blur 1 px, sigma_n/B = 0.02) every point lies within 3e-4 px of the tol_px = 1e-7 fit (measured
+    1.9e-4 lines, 2.1e-4 circles: < 1 % of the median bound, 0.024 px; ~2.2 passes over the patch
+    against ~6.5), and RMSE / bound is pinned to its measured value (the 1e-7 fit: lines 0.97350,
+    circles 1.00741, 1,989 and 2,877 points; the 3e-3 fit reads 0.97351 and 1.00739) within 2e-4."""
     fast, bounds, _ = _run(kind, range(8))
     strict, _, _ = _run(kind, range(8), tol_px=1e-7)
     for a, b in zip(fast, strict):
-        assert a.shape == b.shape and np.max(np.abs(a - b)) <= 2e-5
+        assert a.shape == b.shape and np.max(np.abs(a - b)) <= 3e-4
     e, b = np.concatenate(fast), np.concatenate(bounds)
+    es = np.concatenate(strict)
+    assert np.sqrt(np.mean(es ** 2)) / np.sqrt(np.mean(b ** 2)) == pytest.approx(pinned, abs=2e-4)
     assert np.sqrt(np.mean(e ** 2)) / np.sqrt(np.mean(b ** 2)) == pytest.approx(pinned, abs=2e-4)
