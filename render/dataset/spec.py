@@ -115,8 +115,10 @@ GROUP_KEYS = [
         "cutoff_deg, beam_deg}, ...] (\"Lights\" below), replacing the default square area light"),
     Key("clutter", "tables", None, "", "kind = target: planar shapes held in front of the board, parallel to it "
         "[{type (rectangle, circle, ellipse, polygon or grid), offset_m, rotation_deg, size keys, material, "
-        "raised_m (how far in front of the board, >= 0.001 m)}, ...]: they hide what lies behind them and cast "
-        "shadows on the board; the truth gives their outlines and, per light, their shadows' outlines"),
+        "raised_m (how far in front of the board, >= 0.001 m)}, ...], and boxes standing on it [{type = \"box\", "
+        "size_m = [x, y, z], offset_m, rotation_deg, material}] (\"Clutter boxes\" below): they hide what lies "
+        "behind them and cast shadows on the board; the truth gives their outlines (a box: its silhouette) "
+        "and, per light, their shadows' outlines"),
     Key("ambient", "float", 0.0, "", "kind = target: a constant environment light giving ambient x "
         "irradiance_w_m2 on the open board (adds Monte-Carlo noise: it is sampled over the sphere)", 0.0, 100.0),
 ]

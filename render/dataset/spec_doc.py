@@ -86,7 +86,7 @@ def scene_section() -> list[str]:
     """The target scene's own keys: shapes, materials, lights (``edgetruth.render.scene.shapes``)."""
     from edgetruth.render.scene.lights import LIGHT_KEYS
     from edgetruth.render.scene.materials import MATERIAL_KEYS
-    from edgetruth.render.scene.shapes import SHAPE_KEYS
+    from edgetruth.render.scene.shapes import BOX_KEYS, SHAPE_KEYS
 
     return [
         "### The target scene: shapes, materials, lights", "",
@@ -125,7 +125,14 @@ def scene_section() -> list[str]:
         "picks one per sample (more Monte-Carlo noise per spp).  The ground truth's `illumination` records "
         "every light, its emission, and the irradiance it gives at the board centre and at each shape's "
         "centre, and the range of the total irradiance on the target's outline (its non-uniformity, %).", "",
-        table(LIGHT_KEYS), ""]
+        table(LIGHT_KEYS), "",
+        "**Clutter boxes** (an item `{ type = \"box\", ... }` of `clutter = [...]`): a cuboid standing on the "
+        "board, on top of its printed shapes.  The ground truth gives its silhouette seen from the camera "
+        "(`clutter[].outlines[0]`, named `silhouette`: a polygon of its corners, `vertices_board_m`, each "
+        "side a straight 3-D edge through the lens), the parts of it that nearer clutter leaves visible, "
+        "and, per light, its shadow on the board (exact for point and spot lights: the convex hull of its "
+        "corners' projections from the light).", "",
+        table(BOX_KEYS), ""]
 
 
 def spec_markdown() -> str:

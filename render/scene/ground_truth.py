@@ -195,13 +195,21 @@ def shape_outline_truth(camera: Camera, pose: Pose, scene, k: int) -> list[dict]
 
 
 
-def raised_covers(pose: Pose, scene, source_height_m: float) -> list:
-    """The clutter items that can hide points ``source_height_m`` in front of the board (as occluders)."""
-    from edgetruth.render.scene.shapes import RaisedCover
+def raised_covers(pose: Pose, scene, source_height_m: float, skip: int | None = None) -> list:
+    """The clutter items that can hide points ``source_height_m`` in front of the board (as occluders): the
+    planar items held higher, and every box (the segment to the eye decides); ``skip``: an item's index to
+    leave out (a box's own silhouette)."""
+    from edgetruth.render.scene.shapes import BoxCover, RaisedCover
 
-    eye = pose.rotation.T @ (-pose.translation_m)  # the camera centre in the board frame
-    return [RaisedCover(c, tuple(eye), source_height_m) for c in getattr(scene, "clutter", ())
-            if c.raised_m > source_height_m]
+    eye = tuple(_eye_board(pose))
+    return [BoxCover(c.shape, eye, source_height_m) if c.is_box else RaisedCover(c, eye, source_height_m)
+            for i, c in enumerate(getattr(scene, "clutter", ()))
+            if i != skip and (c.is_box or c.raised_m > source_height_m)]
+
+
+def _eye_board(pose: Pose) -> np.ndarray:
+    """The camera centre in the board frame."""
+    return pose.rotation.T @ (-pose.translation_m)
 
 
 def outline_truth(camera: Camera, pose: Pose, outlines, standoff: float, occluders: list) -> list[dict]:
@@ -255,7 +263,9 @@ def texture_placement(camera: Camera, pose: Pose, corners_xy, z_m: float, materi
                      "corner pixels)",
             "meaning": "texel (row i, column j) of the W x H image is printed on the quad between the corners at "
                        "bilinear parameters u in [j, j + 1] / W (top-left -> top-right), v in [i, i + 1] / H "
-                       "(top-left -> bottom-left), with reflectance albedo x its gray level / full scale"}
+                       "(top-left -> bottom-left), with reflectance albedo x its gray level / full scale; the quad is "
+                       "the shape's bounding box in its own frame (edgetruth.render.scene.shapes.Shape.texture_frame), "
+                       "the print shows only inside the shape's outline (not in a ring's hole)"}
 
 
 def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.0) -> dict:
@@ -313,7 +323,7 @@ def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.
                     "centre": _project_both(camera, pose.to_camera(
                         np.array([[s.offset_m[0], s.offset_m[1], -(k + 1) * TARGET_STANDOFF_M]]))),
                     "outlines": shape_outline_truth(camera, pose, scene, k),
-                    **({"texture": texture_placement(camera, pose, s.outlines()[0].vertices,
+                    **({"texture": texture_placement(camera, pose, s.texture_corners(),
                                                      -(k + 1) * TARGET_STANDOFF_M, s.material)}
                        if s.material.texture else {})} for k, s in enumerate(scene.shapes)],
         "shapes_meaning": "shape k lies (k + 1) x 10 um in front of the board and covers shapes 0..k-1 (a ring covers "
@@ -329,33 +339,156 @@ def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.
 
 def clutter_truth(camera: Camera, pose: Pose, scene) -> list[dict]:
     """Per clutter item: its outlines (exact distorted curves, the parts no nearer item hides) and, per
-    light, its shadow on the board: exact for point and spot lights (parallel planes: the outline scaled by
-    D / (D - h) about the light's foot), an area light's from its centre (the penumbra widens it by about
-    side x h / (D - h) on each side)."""
-    from edgetruth.render.scene.shapes import shadow_outline
+    light, its shadow on the board: exact for point and spot lights (a planar item's: the outline scaled by
+    D / (D - h) about the light's foot; a box's: the convex hull of its corners' central projections), an
+    area light's from its centre (the penumbra widens it by about side x h / (D - h) on each side) plus its
+    exact umbra and penumbra (``area_shadow_regions``; the irradiance between: ``clutter_shadow_irradiance``).  A
+    box's outline is its silhouette from the camera (``Box.silhouette``: a polygon of its corners, each side
+    a straight 3-D edge through the lens), which nearer items may hide; its internal edges between faces
+    are not recorded (they do not bound the board)."""
+    from edgetruth.render.scene.shapes import FootprintCover, Outline, SpaceOutline, shadow_outline
 
     out = []
     for c, item in enumerate(scene.clutter):
-        occ = raised_covers(pose, scene, item.raised_m)
-        d = {"index": c, **item.to_dict(),
-             "outlines": outline_truth(camera, pose, item.shape.outlines(), item.raised_m, occ), "shadows": []}
+        if item.is_box:
+            sil = item.shape.silhouette(_eye_board(pose))
+            occ = raised_covers(pose, scene, 0.0, skip=c)  # other items; the prints lie under it
+            outs = outline_truth(camera, pose, [SpaceOutline("silhouette", tuple(map(tuple, sil)))], 0.0, occ)
+            outs[0]["vertices_board_m"] = sil.tolist()
+            d = {"index": c, **item.to_dict(), "outlines": outs, "shadows": []}
+        else:
+            occ = raised_covers(pose, scene, item.raised_m)
+            d = {"index": c, **item.to_dict(),
+                 "outlines": outline_truth(camera, pose, item.shape.outlines(), item.raised_m, occ), "shadows": []}
         for i, lt in enumerate(scene.lights):
             lb = pose.rotation.T @ (np.asarray(lt.position_m, float) - pose.translation_m)  # board frame
-            sh = [shadow_outline(o, item.raised_m, lb) for o in item.shape.outlines()]
+            if item.is_box:
+                poly = item.shape.shadow_polygon(lb)
+                sh = [None] if poly is None else [Outline("outline", "polygon", vertices=tuple(map(tuple, poly)))]
+                height = item.top_m
+            else:
+                sh = [shadow_outline(o, item.raised_m, lb) for o in item.shape.outlines()]
+                height = item.raised_m
             if any(s is None for s in sh):
                 d["shadows"].append({"light": i, "cast": False})
                 continue
             dist = -float(lb[2])
-            # what hides the shadow's edge in the image: the shapes on the board and every clutter item
+            # what hides the shadow's edge in the image: the shapes on the board and every clutter item (a
+            # box's own shadow also runs along its base, where the image shows the box: left out there)
             hide = list(scene.shapes) + raised_covers(pose, scene, 0.0)
-            rec = {"light": i, "cast": True, "exact": lt.type != "area",
-                   "light_board_m": lb.tolist(), "scale": dist / (dist - item.raised_m),
-                   "outlines": outline_truth(camera, pose, sh, 0.0, hide)}
+            if item.is_box:
+                hide.append(FootprintCover(item.shape, 2.0 * item.shape.base_m))
+            rec = {"light": i, "cast": True, "exact": lt.type != "area", "light_board_m": lb.tolist()}
+            if not item.is_box:
+                rec["scale"] = dist / (dist - item.raised_m)
+            rec["outlines"] = outline_truth(camera, pose, sh, 0.0, hide)
             if lt.type == "area":
-                rec["penumbra_half_width_m"] = lt.size_m * item.raised_m / (dist - item.raised_m) / 2
+                rec["penumbra_half_width_m"] = lt.size_m * height / (dist - height) / 2
+                rec.update(area_shadow_regions(camera, pose, item, lt, hide))
             d["shadows"].append(rec)
         out.append(d)
     return out
+
+
+#: vertices of the polygon standing in for a conic in the umbra and penumbra outlines (chords within
+#: r (1 - cos(pi / 256)) = 7.5e-5 r of the exact curves)
+REGION_CONIC_VERTICES = 256
+
+
+def area_shadow_regions(camera: Camera, pose: Pose, item, light, hide: list) -> dict:
+    """An area light's umbra and penumbra of a clutter item on the board.  For a convex occluder O (each
+    outline of a planar item -- a rectangle, a convex polygon, a conic, a grid's element -- or a box) and
+    the light's square: a board point is in the umbra iff every light point is blocked, iff its 4 corners
+    are (the blocked part of the light is convex), so the umbra is the intersection of the 4 corners'
+    shadows; the penumbra (the points any light point's shadow covers) is their convex hull (the shadow of
+    O from a point p of the light moves by a linear-fractional map of p, so it stays in the hull of the
+    corners' shadows, and the union is convex).  Conics: ``REGION_CONIC_VERTICES``-gons.  A non-convex
+    polygon, or a light corner not further from the board than the item: not given (``regions_given``
+    false).  The irradiance between them: ``clutter_shadow_irradiance``."""
+    from edgetruth.render.scene.lights import area_corners_board
+    from edgetruth.render.scene.shapes import Outline, convex_hull, convex_intersection
+
+    lc = area_corners_board(light, pose)
+    if np.any(-lc[:, 2] <= item.top_m):
+        return {"regions_given": False, "regions_meaning": "a corner of the light is not further from the board "
+                "than the item's top: no bounded shadow from it"}
+    if item.is_box:
+        pieces = [("silhouette", [item.shape.shadow_polygon(c) for c in lc])]
+        exact = True
+    else:
+        pieces, exact = [], True
+        for o in item.shape.outlines():
+            if o.kind == "ellipse":
+                v = o.local_xy(np.arange(REGION_CONIC_VERTICES) / REGION_CONIC_VERTICES)
+                exact = False
+            else:
+                v = np.asarray(o.vertices, float)
+                if len(convex_hull(v)) != len(v):
+                    return {"regions_given": False, "regions_meaning": "a non-convex polygon's umbra and penumbra are "
+                            "not given; edgetruth.render.scene.ground_truth.clutter_shadow_irradiance gives the "
+                            "irradiance"}
+            h = item.raised_m
+            pieces.append((o.name, [c[:2] + (-c[2] / (-c[2] - h)) * (v - c[:2]) for c in lc]))
+    umbra, penumbra = [], []
+    for name, shadows in pieces:
+        pts = np.concatenate(shadows)
+        penumbra.append(Outline(name, "polygon", vertices=tuple(map(tuple, pts[convex_hull(pts)]))))
+        u = shadows[0]
+        for sh in shadows[1:]:
+            u = convex_intersection(u, sh)
+        if len(u) >= 3 and abs(float(np.sum(u[:, 0] * np.roll(u[:, 1], -1) - np.roll(u[:, 0], -1) * u[:, 1]))) > 1e-18:
+            umbra.append(Outline(name, "polygon", vertices=tuple(map(tuple, u))))
+    return {"regions_given": True, "regions_exact": exact,
+            "umbra": outline_truth(camera, pose, umbra, 0.0, hide),
+            "penumbra": outline_truth(camera, pose, penumbra, 0.0, hide),
+            "regions_meaning": "umbra: board points no part of the light reaches past this item (the intersection of "
+                               "the shadows cast from the light's 4 corners; an outline per convex piece, none where "
+                               "the light is too large to be hidden); penumbra: points some part of it is hidden "
+                               "from (their convex hull); both exact for straight-sided items (regions_exact), "
+                               f"conics as {REGION_CONIC_VERTICES}-gons; visible parts as for outlines"}
+
+
+def clutter_shadow_irradiance(pose: Pose, scene, item_index: int, light_index: int, irradiance_w_m2: float,
+                              points_board: np.ndarray) -> np.ndarray:
+    """Irradiance (W/m^2) that light ``light_index`` gives at board points (N, 2) (z = 0) with clutter item
+    ``item_index`` in its way (the others ignored).  Point and spot lights: 0 inside the item's exact shadow.
+    Area lights and planar items: exact (``lights.unit_irradiance_occluded``: the light's projected solid
+    angle minus its blocked part; conics as ``shapes.CONIC_POLYGON_VERTICES``-gons); boxes too (exact: the
+    faces that face the point tile the blocked part)."""
+    from edgetruth.render.scene.lights import unit_irradiance_occluded
+    from edgetruth.render.scene.shapes import occluder_polygons, point_in_polygon, shadow_outline
+
+    item, lt = scene.clutter[item_index], scene.lights[light_index]
+    xy = np.atleast_2d(np.asarray(points_board, float))
+    if lt.type == "area":
+        if item.is_box:  # a convex solid: its faces that face the point tile its projection
+            return lt.emission_for(irradiance_w_m2, pose) * unit_irradiance_occluded(
+                lt, pose, xy, [], item.top_m, faces_3d=list(item.shape.quads()))
+        polys, _ = occluder_polygons(item.shape)
+        return lt.emission_for(irradiance_w_m2, pose) * unit_irradiance_occluded(lt, pose, xy, polys, item.raised_m)
+    e = lt.irradiance_at(irradiance_w_m2, pose, pose.to_camera(np.column_stack([xy, np.zeros(len(xy))])))
+    lb = pose.rotation.T @ (np.asarray(lt.position_m, float) - pose.translation_m)
+    if item.is_box:
+        poly = item.shape.shadow_polygon(lb)
+        inside = point_in_polygon(poly, xy) if poly is not None else np.zeros(len(xy), bool)
+    else:
+        inside = np.zeros(len(xy), bool)
+        for o in item.shape.outlines():
+            sh = shadow_outline(o, item.raised_m, lb)
+            if sh is not None:
+                inside |= (point_in_polygon(np.asarray(sh.vertices, float), xy) if sh.kind == "polygon" else
+                           np.hypot(*((xy - sh.conic[:2]) @ _rot2(sh.conic[4]) / [sh.conic[2], sh.conic[3]]).T) < 1)
+    return np.where(inside, 0.0, e)
+
+
+def _rot2(theta: float) -> np.ndarray:
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+def _clutter_top(c: dict) -> float:
+    """How far a clutter item's truth puts its nearest point in front of the board (a box: base + height)."""
+    return float(c["raised_m"]) if "raised_m" in c else float(c["base_m"]) + float(c["size_m"][2])
 
 
 class SceneOutline:
@@ -383,7 +516,7 @@ class SceneOutline:
         # clutter item c is layer n + c, above every shape; nearer items (higher) hide further ones
         layers = [(s, int(s["index"])) for s in gt["shapes"]] + \
             [(c, n + int(c["index"])) for c in gt.get("clutter", [])]
-        self._top_first = [n + int(c["index"]) for c in sorted(gt.get("clutter", []), key=lambda c: -c["raised_m"])] \
+        self._top_first = [n + int(c["index"]) for c in sorted(gt.get("clutter", []), key=lambda c: -_clutter_top(c))] \
             + list(range(n - 1, -1, -1))
         for s, layer in layers:
             for o in s["outlines"]:

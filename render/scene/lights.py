@@ -5,6 +5,8 @@ point on the board (``share`` x the group's ``irradiance_w_m2``), so a design's 
 radiance units (which scale a render by irradiance) keep their meaning with any set of lights.  Each
 image's ground truth records every light with its emission and the irradiance it gives at the board
 centre and at every shape's centre (``irradiance_at``; nothing on the flat board can shadow it).
+``unit_irradiance_occluded`` gives an area light's exact irradiance where planar clutter hides part of it
+(Lambert's contour formula for the visible part of its square).
 """
 from __future__ import annotations
 
@@ -157,3 +159,101 @@ def lights_from_list(items: list, where: str) -> tuple:
                              "fully lit core narrower than the cone")
         out.append(Light(**v))
     return tuple(out)
+
+
+# --- exact area-light shadows of planar occluders -------------------------------------------------------
+def lambert_sum(a: np.ndarray, b: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Lambert's contour sum over segments a -> b (..., S, 3), given relative to the lit point: sum of
+    theta (n . (a x b) / |a x b|), theta the angle the segment subtends.  For a closed polygon of uniform
+    radiance L the irradiance is L / 2 x |sum| (the projected solid angle; exact).  Zero-length segments
+    add nothing."""
+    c = np.cross(a, b)
+    cn = np.linalg.norm(c, axis=-1)
+    theta = np.arctan2(cn, np.sum(a * b, axis=-1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(cn > 0, theta * (c @ normal) / cn, 0.0)
+    return np.sum(t, axis=-1)
+
+
+def _clip_segments(p0: np.ndarray, p1: np.ndarray, q: np.ndarray):
+    """Clip segments p0 -> p1 (..., S, 2) to the convex polygon q (..., m, 2), counter-clockwise (x right,
+    y up sense: cross > 0 inside); returns the clipped ends (..., S, 2) and whether anything is left."""
+    e = np.roll(q, -1, axis=-2) - q  # (..., m, 2)
+    lo = np.zeros(p0.shape[:-1])
+    hi = np.ones(p0.shape[:-1])
+
+    def side(p):  # (..., S, m): cross(e, p - q) > 0 inside
+        d = p[..., :, None, :] - q[..., None, :, :]
+        return e[..., None, :, 0] * d[..., 1] - e[..., None, :, 1] * d[..., 0]
+
+    f0, f1 = side(p0), side(p1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = f0 / (f0 - f1)
+    enter = (f0 < 0) & (f1 >= 0)
+    leave = (f0 >= 0) & (f1 < 0)
+    outside = (f0 < 0) & (f1 < 0)
+    lo = np.max(np.where(enter, t, 0.0), axis=-1)
+    hi = np.min(np.where(leave, t, 1.0), axis=-1)
+    ok = (hi > lo) & ~np.any(outside, axis=-1)
+    d = p1 - p0
+    return p0 + lo[..., None] * d, p0 + hi[..., None] * d, ok
+
+
+def _ccw(poly: np.ndarray) -> np.ndarray:
+    """The polygons (..., n, 2) ordered counter-clockwise (positive shoelace area)."""
+    x, y = poly[..., 0], poly[..., 1]
+    area = np.sum(x * np.roll(y, -1, axis=-1) - np.roll(x, -1, axis=-1) * y, axis=-1)
+    rev = poly[..., ::-1, :]
+    return np.where((area < 0)[..., None, None], rev, poly)
+
+
+def area_corners_board(light: "Light", pose) -> np.ndarray:
+    """(4, 3) board-frame corners of an area light, in order around it."""
+    m = light.to_world(pose)
+    c = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [1, 1, 0, 1], [-1, 1, 0, 1]], float) @ m.T
+    return (c[:, :3] - pose.translation_m) @ pose.rotation  # R^T (p - t), row vectors
+
+
+def unit_irradiance_occluded(light: "Light", pose, points_board: np.ndarray, convex_polys: list,
+                             height_m: float, faces_3d: list | None = None) -> np.ndarray:
+    """Irradiance (per unit radiance) that an area light gives at board points (N, 2), z = 0, when the
+    convex polygons ``convex_polys`` (each (m, 2), board frame, disjoint) held ``height_m`` in front of the
+    board block it -- or, ``faces_3d``, a convex solid given by its faces ((m, 3) board-frame convex
+    polygons, each wound counter-clockwise seen from outside; ``height_m``: its top's height).  Exact: the
+    light's projected solid angle (Lambert's contour formula over its square) minus that of the blocked
+    part.  From the point, that part is the cone over (the light's central projection onto the plane
+    z = -height_m) n (the occluder's projection there): two convex polygons, whose common boundary is
+    their edges clipped to each other; a solid's projection is tiled by its faces that face the point.
+    Assumes the points see the light's emitting side and the light stands further from the board than
+    ``height_m``."""
+    x = np.column_stack([np.atleast_2d(points_board), np.zeros(len(np.atleast_2d(points_board)))])
+    n = np.array([0.0, 0.0, -1.0])  # the board's normal towards the light (board frame: z into the board)
+    lc = area_corners_board(light, pose)
+    full = np.abs(lambert_sum(lc[None] - x[:, None], np.roll(lc, -1, 0)[None] - x[:, None], n))
+    if np.any(-lc[:, 2] <= height_m):
+        raise InputError(f"an area light at {list(light.position_m)} m does not stand further from the board than "
+                         f"clutter {height_m:g} m high; raise the light or lower the item")
+
+    def project(p3):  # points (..., 3) seen from each x, onto the plane z = -height_m: (N, ..., 2)
+        k = height_m / -p3[..., 2]
+        x2 = x[:, :2].reshape((len(x),) + (1,) * (p3.ndim - 1) + (2,))
+        return x2 + k[None, ..., None] * (p3[None, ..., :2] - x2)
+
+    q = _ccw(project(lc))  # (N, 4, 2): the light's image
+    pieces = [(np.broadcast_to(_ccw(np.asarray(p, float)), (len(x),) + np.shape(p)), None) for p in convex_polys]
+    for f in faces_3d or ():
+        f = np.asarray(f, float)
+        normal = np.cross(f[1] - f[0], f[2] - f[0])
+        facing = (x - f.mean(axis=0)) @ normal > 0  # its projections tile the solid's: count each point once
+        pieces.append((_ccw(project(f)), facing))
+    blocked = np.zeros(len(x))
+    for o, mask in pieces:
+        a1, b1, ok1 = _clip_segments(o, np.roll(o, -1, axis=1), q)  # the occluder's edges inside the light's image
+        a2, b2, ok2 = _clip_segments(q, np.roll(q, -1, axis=1), o)  # the light's edges inside the occluder's
+        okk = np.concatenate([ok1, ok2], axis=1)
+        z = np.full(okk.shape + (1,), -height_m)
+        a3 = np.concatenate([np.concatenate([a1, a2], axis=1), z], axis=-1) - x[:, None]
+        b3 = np.concatenate([np.concatenate([b1, b2], axis=1), z], axis=-1) - x[:, None]
+        part = np.abs(lambert_sum(np.where(okk[..., None], a3, 0.0), np.where(okk[..., None], b3, 0.0), n))
+        blocked += part if mask is None else np.where(mask, part, 0.0)
+    return 0.5 * (full - blocked)

@@ -33,20 +33,37 @@ class Material:
     eta: float = 1.5
     specular_reflectance: float = 1.0
     label: str = ""
-    #: diffuse only: an image printed on the surface (a rectangle shape or the board), its gray level times
-    #: ``albedo``; the absolute path and its SHA-256 once the spec is loaded (``with_texture_file``)
+    #: diffuse only: an image printed on the surface (any shape, over its bounding box, or the board), its
+    #: gray level times ``albedo``; the absolute path and its SHA-256 once the spec is loaded
+    #: (``with_texture_file``)
     texture: str = ""
     texture_sha256: str = ""
 
-    def to_bsdf(self) -> dict:
-        """The Mitsuba BSDF dict (the same dicts the fixed T1-T4 scene used)."""
+    def to_bsdf(self, uv_map: tuple | None = None) -> dict:
+        """The Mitsuba BSDF dict (the same dicts the fixed T1-T4 scene used).  ``uv_map`` places a texture on a
+        primitive that does not carry the whole image in its own uv square: ("rect", m) for a Mitsuba
+        rectangle or a mesh with texture coordinates, ("polar", m) for a disk (whose uv is polar: radius,
+        angle / 2 pi), m = (u0, ux, uy, v0, vx, vy) the texture coordinates u = u0 + ux x + uy y,
+        v = v0 + vx x + vy y of its local point (x, y) in [-1, 1]^2 (a mesh's own texture coordinates: the
+        identity, ("rect", (0.5, 0.5, 0, 0.5, 0, 0.5))); None: the image over the primitive's uv square (a
+        rectangle shape, the board)."""
         if self.type == "diffuse" and self.texture:
             import mitsuba as mi
 
             # nearest texel: the print's texels are squares with sharp edges (the ground truth's placement)
             data = (self.albedo * texture_levels(self.texture, self.texture_sha256))[::-1, :, None]
-            return {"type": "diffuse", "reflectance": {"type": "bitmap", "data": mi.TensorXf(data.copy()),
-                                                       "raw": True, "filter_type": "nearest", "wrap_mode": "clamp"}}
+            # the placed prints hand Mitsuba a Bitmap (its tensor form makes nanobind print failed overloads when
+            # loaded on its own); the rectangle's and the board's keep the tensor (their renders unchanged)
+            image = {"bitmap": mi.Bitmap(data.copy())} if uv_map is not None else {"data": mi.TensorXf(data.copy())}
+            bitmap = {"type": "bitmap", **image, "raw": True, "filter_type": "nearest", "wrap_mode": "clamp"}
+            if uv_map is not None and uv_map[0] == "rect":  # rectangle uv (x + 1) / 2, (y + 1) / 2
+                u0, ux, uy, v0, vx, vy = uv_map[1]
+                bitmap["to_uv"] = mi.ScalarTransform3f(mi.ScalarMatrix3f(
+                    [[2 * ux, 2 * uy, u0 - ux - uy], [2 * vx, 2 * vy, v0 - vx - vy], [0.0, 0.0, 1.0]]))
+            elif uv_map is not None:
+                bitmap = {"type": polar_print_plugin(), "texture": mi.load_dict(bitmap),
+                          **dict(zip(("u0", "ux", "uy", "v0", "vx", "vy"), map(float, uv_map[1])))}
+            return {"type": "diffuse", "reflectance": bitmap}
         if self.type == "diffuse":
             return {"type": "diffuse", "reflectance": float(self.albedo)}
         if self.type == "roughplastic":
@@ -89,10 +106,14 @@ MATERIAL_KEYS = [
     Key("specular_reflectance", "float", _M.specular_reflectance, "", "the metal's reflectance (roughconductor: a "
         "perfect conductor scaled by it)", 0.0, 1.0),
     Key("label", "str", "", "", "free text name recorded in the ground truth (e.g. black_matte)"),
-    Key("texture", "str", "", "", "diffuse, on a rectangle shape or the board: an image file (PNG, TIFF, ...; "
-        "relative to the spec) printed over the whole surface, its top-left pixel at the surface's top-left "
-        "corner; reflectance = albedo x the pixel's gray level / full scale (linear, no sRGB decoding); "
-        f"at most {MAX_TEXTURE_PX} px a side; the truth records its corners on the board and in the image"),
+    Key("texture", "str", "", "", "diffuse, on any shape or the board: an image file (PNG, TIFF, ...; "
+        "relative to the spec) printed over the shape's bounding box in its own frame (rectangle: itself; "
+        "circle, ring: the outer diameter's square; ellipse: its axes; polygon: its vertices' extent; grid: "
+        "the outer element edges, each element showing its part; the board: the whole board), stretched to "
+        "it, its top-left pixel at the box's top-left corner (turned with the shape), seen only inside the "
+        "shape (not in a ring's hole); reflectance = albedo x the pixel's gray level / full scale (linear, "
+        f"no sRGB decoding); at most {MAX_TEXTURE_PX} px a side; the truth records its corners on the board "
+        "and in the image"),
 ]
 assert {f.name for f in fields(Material)} - {"texture_sha256"} == {k.name for k in MATERIAL_KEYS}
 
@@ -147,3 +168,61 @@ def with_texture_file(m: Material, base_dir, where: str) -> Material:
     except InputError as e:
         raise InputError(f"{where}: texture: {e}") from None
     return replace(m, texture=str(p), texture_sha256=sha)
+
+
+_POLAR_REGISTERED: set = set()
+
+
+def polar_print_plugin() -> str:
+    """The name of a Mitsuba texture (a Python plugin, registered once per variant) that prints an image on a
+    disk: Mitsuba's disk gives polar uv = (r, angle / 2 pi), which this turns into the disk's local point
+    (x, y) = r (cos, sin)(2 pi v) and then into the image's uv by the affine map of ``Material.to_bsdf``.
+    (Python plugins are traced into the kernel on the JIT variants: no per-sample cost there.)"""
+    import drjit as dr
+    import mitsuba as mi
+
+    name = "edgetruth_polar_print"
+    if mi.variant() in _POLAR_REGISTERED:
+        return name
+
+    class PolarPrint(mi.Texture):
+        def __init__(self, props):
+            mi.Texture.__init__(self, props)
+            self.inner = props["texture"]
+            self.m = [float(props[k]) for k in ("u0", "ux", "uy", "v0", "vx", "vy")]
+
+        def _si(self, si):
+            out = mi.SurfaceInteraction3f(si)
+            ang = dr.two_pi * si.uv.y
+            x, y = si.uv.x * dr.cos(ang), si.uv.x * dr.sin(ang)
+            u0, ux, uy, v0, vx, vy = self.m
+            out.uv = mi.Point2f(u0 + ux * x + uy * y, v0 + vx * x + vy * y)
+            return out
+
+        def eval(self, si, active=True):
+            return self.inner.eval(self._si(si), active)
+
+        def eval_1(self, si, active=True):
+            return self.inner.eval_1(self._si(si), active)
+
+        def eval_3(self, si, active=True):
+            return self.inner.eval_3(self._si(si), active)
+
+        def mean(self):
+            return self.inner.mean()
+
+        def max(self):
+            return self.inner.max()
+
+        def is_spatially_varying(self):
+            return True
+
+        def traverse(self, callback):
+            pass
+
+        def to_string(self):
+            return "PolarPrint"
+
+    mi.register_texture(name, lambda props: PolarPrint(props))
+    _POLAR_REGISTERED.add(mi.variant())
+    return name

@@ -268,16 +268,29 @@ def _shape_local(cx: float, cy: float, a: float, b: float, theta_rad: float, z_m
     return m
 
 
-def _make_mesh(mi, name: str, verts: np.ndarray, faces: np.ndarray, bsdf: dict):
-    """A triangle mesh with its own BSDF (without one a mesh gets Mitsuba's default diffuse 0.5)."""
+def _board_uv(cx: float, cy: float, a: float, b: float, theta_rad: float) -> tuple:
+    """The board texture's (u0, ux, uy, v0, vx, vy) on a disk of ``_shape_local(cx, cy, a, b, theta)`` (a
+    ring's hole, which shows the board): the board point of local (x, y) is R(theta) (a x, -b y) + (cx, cy),
+    the board's image spans it from (-hx, -hy) (top-left) to (hx, hy)."""
+    hx, hy = BOARD_HALF_SIZE_M
+    c, s = np.cos(theta_rad), np.sin(theta_rad)
+    return ((cx + hx) / (2 * hx), c * a / (2 * hx), s * b / (2 * hx),
+            (hy - cy) / (2 * hy), -s * a / (2 * hy), c * b / (2 * hy))
+
+
+def _make_mesh(mi, name: str, verts: np.ndarray, faces: np.ndarray, bsdf: dict, texcoords=None):
+    """A triangle mesh with its own BSDF (without one a mesh gets Mitsuba's default diffuse 0.5) and,
+    optionally, per-vertex texture coordinates (N, 2)."""
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf)
     mesh = mi.Mesh(name, vertex_count=len(verts), face_count=len(faces), has_vertex_normals=False,
-                   has_vertex_texcoords=False, props=props)
+                   has_vertex_texcoords=texcoords is not None, props=props)
     params = mi.traverse(mesh)
     vtype = type(params["vertex_positions"])  # mi.Float on JIT, drjit.scalar.ArrayXf on scalar
     params["vertex_positions"] = vtype(np.asarray(verts, np.float32).ravel())
     params["faces"] = type(params["faces"])(np.asarray(faces, np.uint32).ravel())
+    if texcoords is not None:
+        params["vertex_texcoords"] = vtype(np.asarray(texcoords, np.float32).ravel())
     params.update()
     return mesh, vtype
 
@@ -286,8 +299,11 @@ class SceneRig(_Rig):
     """The target scene of a ``TargetScene``: the board, the catalogue's shapes (rectangles as Mitsuba
     rectangles, conics as affinely mapped disks -- both exact --, polygons as triangle meshes, a ring as
     its outer disk with a disk of the board's material on its hole), each with its own material, shape k
-    ``(k + 1) x TARGET_STANDOFF_M`` in front of the board; its lights and an optional constant ambient
-    emitter.  Materials and the set of lights are fixed per loaded scene; poses and powers are updated."""
+    ``(k + 1) x TARGET_STANDOFF_M`` in front of the board; clutter (raised shapes, boxes as meshes of their
+    top and sides); its lights and an optional constant ambient emitter.  A printed texture fills each
+    shape's bounding box (``Shape.texture_frame``): a rectangle's own uv, a grid square's ``to_uv``, a
+    polygon's vertex texture coordinates, a disk's polar uv through ``materials.polar_print_plugin``.
+    Materials and the set of lights are fixed per loaded scene; poses and powers are updated."""
 
     #: no merging: the loader would fuse shapes of one material (two rectangles, a grid's squares) into one
     #: mesh, whose per-shape ``to_world`` keys ``set_state`` needs would then be gone
@@ -323,23 +339,34 @@ class SceneRig(_Rig):
         items = [(f"shape{k}", shape, -(k + 1) * TARGET_STANDOFF_M) for k, shape in enumerate(sc.shapes)]
         items += [(f"clutter{c}", item.shape, -item.raised_m) for c, item in enumerate(sc.clutter)]
         for key, shape, z in items:
+            if shape.type == "box":  # a closed solid but its base: a mesh of its top and sides
+                verts = shape.corners()
+                mesh, vtype = _make_mesh(self.mi, key, verts, shape.faces(), shape.material.to_bsdf())
+                self._meshes[key] = (verts, vtype)
+                d[key] = mesh
+                continue
             outs = shape.outlines()
             o = outs[0]
+            printed = bool(shape.material.texture)
             if shape.type == "grid":  # each element a Mitsuba rectangle or disk: exact, like the single shapes
                 h = shape.element_size_m / 2
-                for e, oe in enumerate(outs):
+                for e, (oe, (lx, ly)) in enumerate(zip(outs, shape.grid_centres_local())):
                     ex, ey = oe.conic[:2] if oe.kind == "ellipse" else np.mean(np.asarray(oe.vertices), axis=0)
                     self._locals[f"{key}_{e}"] = _shape_local(ex, ey, h, h, np.radians(shape.rotation_deg), z)
+                    uv = (("rect" if oe.kind == "polygon" else "polar"), shape.texture_uv(lx, ly, h, h)) \
+                        if printed else None  # each element shows its part of the grid's image
                     d[f"{key}_{e}"] = {"type": "rectangle" if oe.kind == "polygon" else "disk", "to_world": T,
-                                          "bsdf": shape.material.to_bsdf()}
+                                          "bsdf": shape.material.to_bsdf(uv)}
             elif o.kind == "ellipse":
                 cx, cy, a, b, th = o.conic
                 self._locals[key] = _shape_local(cx, cy, a, b, th, z)
-                d[key] = {"type": "disk", "to_world": T, "bsdf": shape.material.to_bsdf()}
+                uv = ("polar", shape.texture_uv(0.0, 0.0, a, b)) if printed else None
+                d[key] = {"type": "disk", "to_world": T, "bsdf": shape.material.to_bsdf(uv)}
                 if shape.type == "ring":  # the hole: the board's material, half a stand-off in front
                     cx, cy, a, b, th = outs[1].conic
                     self._locals[f"{key}_hole"] = _shape_local(cx, cy, a, b, th, z - 0.5 * TARGET_STANDOFF_M)
-                    d[f"{key}_hole"] = {"type": "disk", "to_world": T, "bsdf": sc.board.to_bsdf()}
+                    d[f"{key}_hole"] = {"type": "disk", "to_world": T, "bsdf": sc.board.to_bsdf(
+                        ("polar", _board_uv(cx, cy, a, b, th)) if sc.board.texture else None)}
             elif shape.type == "rectangle":
                 w, h = shape.width_m / 2, shape.height_m / 2
                 self._locals[key] = _shape_local(*shape.offset_m, w, h, np.radians(shape.rotation_deg), z)
@@ -348,7 +375,13 @@ class SceneRig(_Rig):
                 v = np.asarray(o.vertices, float)
                 tris = triangulate(v)[:, ::-1]  # reversed: the face normal points to the camera (as the checker)
                 verts = np.column_stack([v, np.full(len(v), z)])
-                mesh, vtype = _make_mesh(self.mi, key, verts, tris, shape.material.to_bsdf())
+                uv = None
+                if printed:  # texture coordinates of the vertices in the polygon's bounding box (exact: affine)
+                    x0, y0, x1, y1 = shape.texture_frame()
+                    vm = np.asarray(shape.vertices_m, float)
+                    uv = np.column_stack([(vm[:, 0] - x0) / (x1 - x0), (y1 - vm[:, 1]) / (y1 - y0)])
+                bsdf = shape.material.to_bsdf(("rect", (0.5, 0.5, 0.0, 0.5, 0.0, 0.5)) if printed else None)  # own uv
+                mesh, vtype = _make_mesh(self.mi, key, verts, tris, bsdf, texcoords=uv)
                 self._meshes[key] = (verts, vtype)
                 d[key] = mesh
         return d

@@ -83,10 +83,13 @@ class OutlineCurve:
 
     @classmethod
     def of(cls, camera: Camera, pose: Pose, outline, standoff_m: float) -> "OutlineCurve":
-        """The curve of a catalogue ``Outline`` (``edgetruth.render.scene.shapes``) at z = -standoff_m."""
+        """The curve of a catalogue ``Outline`` (``edgetruth.render.scene.shapes``) at z = -standoff_m (a
+        ``SpaceOutline``'s 3-D corners as they are)."""
         if outline.kind == "ellipse":
             return cls.ellipse(camera, pose, outline.conic, standoff_m)
         v = np.asarray(outline.vertices, float)
+        if v.shape[1] == 3:  # a 3-D polygon (a box's silhouette): its corners at their own heights
+            return cls.polygon(camera, pose, v)
         return cls.polygon(camera, pose, np.column_stack([v, np.full(len(v), -float(standoff_m))]))
 
     def _pieces(self) -> int:

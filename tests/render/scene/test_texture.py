@@ -1,5 +1,6 @@
 """Printed textures: an image file on a rectangle shape or the board (nearest texel, reflectance = albedo x
-gray level / full scale); its placement in the truth; the file checked at load with one-line errors."""
+gray level / full scale); its placement in the truth; the file checked at load with one-line errors.  The
+other shapes' prints: test_texture_shapes.py."""
 from __future__ import annotations
 
 import math
@@ -87,8 +88,8 @@ from tests.support.scenes import GROUP_SPEC as SPEC
     ('board_material = { texture = "big.png" }', ("big.png", (2, 9000)), "at most 8192"),
     ('board_material = { texture = "bad.png" }', ("bad.png", None), "bad.png"),
     ('target_material = { type = "roughplastic", texture = "t.png" }', ("t.png", (4, 4)), "texture"),
-    ('shapes = [{ type = "circle", material = { albedo = 1.0, texture = "t.png" } }]', ("t.png", (4, 4)),
-     "rectangle"),
+    ('clutter = [{ type = "box", size_m = [0.1, 0.1, 0.1], material = { texture = "t.png" } }]', ("t.png", (4, 4)),
+     "not printed"),
 ])
 def test_bad_textures_are_one_line_errors(tmp_path, extra, make, needle):
     from edgetruth.render.dataset.spec import load_spec
