@@ -29,6 +29,9 @@ from edgetruth.render.scene.lights import Light
 from edgetruth.render.scene.materials import BOARD_MATERIAL, Material
 from edgetruth.render.schema import REQUIRED, Key, parse_table
 
+#: Targets are mounted flush on the board: 10 um stand-off, only to avoid coplanar surfaces
+#: (a real stand-off casts ambient-occlusion shading that moves the edge; BRIEF §1).
+TARGET_STANDOFF_M = 10e-6
 SHAPE_TYPES = ("rectangle", "circle", "ellipse", "ring", "polygon", "grid")
 GRID_ELEMENTS = ("square", "circle")
 MAX_GRID_ELEMENTS = 10000
@@ -886,8 +889,6 @@ def scene_from_group(g: dict, raw: dict, size_m: float, light_position_m, where:
         lights = lights_from_list(g["lights"], f"{where} lights")
     else:
         lights = (Light(position_m=tuple(light_position_m)),)
-    from edgetruth.render.scene.targets import TARGET_STANDOFF_M
-
     # a box stands on the prints: its base just in front of the top shape (nothing printed pokes through it)
     clutter = () if raw.get("clutter") is None else clutter_from_list(
         g["clutter"], size_m, f"{where} clutter", box_base_m=(len(shapes) + 1) * TARGET_STANDOFF_M)

@@ -14,11 +14,7 @@ import numpy as np
 
 from edgetruth.errors import InputError
 from edgetruth.render.schema import Key, parse_table
-from edgetruth.render.scene.shapes import legacy_targets
-
-#: Targets are mounted flush on the board: 10 um stand-off, only to avoid coplanar surfaces
-#: (a real stand-off casts ambient-occlusion shading that moves the edge; BRIEF §1).
-TARGET_STANDOFF_M = 10e-6
+from edgetruth.render.scene.shapes import TARGET_STANDOFF_M, legacy_targets  # noqa: F401 -- the stand-off lives with the shapes
 BOARD_HALF_SIZE_M = (1.8, 1.5)  # fills the frame at 3 m with room for lateral offsets
 BOARD_REFLECTANCE = 0.8  # white matte board (Lambertian albedo)
 CHECKER_BLACK_REFLECTANCE = 0.04  # the checkerboard's black squares: matte black print
