@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth.evaluate.board import figures
+from edgetruth.evaluate.board import locator_fit as LF
 from edgetruth.evaluate.board.measure import REFERENCE_LABEL, REFERENCE_ROW
 from edgetruth.evaluate.board.summary import INTRINSICS
 from edgetruth.evaluate.report_format import ci, num, table
@@ -226,7 +227,7 @@ def reading(sums, comparisons, reference) -> list[str]:
 
 
 def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_table: list[dict], rows, summaries,
-                  comparisons, reference, model, photo_names, per_side) -> Path:
+                  comparisons, reference, model, photo_names, per_side, locator=None) -> Path:
     """Every output file of the study; returns report.md's path."""
     (out / "calibration").mkdir(exist_ok=True)
     (out / "figures").mkdir(exist_ok=True)
@@ -247,6 +248,8 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
             "mean_difference_ci_lo", "mean_difference_ci_hi", "rank_biserial", "p_value", "p_holm", "significant",
             "friedman_p", "kendall_w")
     atomic_write_text(out / "paired_tests.csv", _csv_text(cols, tests))
+    if locator:
+        write_json(out / "locator.json", _json_safe(locator))
     for row, s in zip(rows, summaries):
         write_json(out / "calibration" / f"{row.label}.json", calibration_json(row, s, photo_names))
     errors_px = {r.label: np.concatenate([e.ravel() for e in r.lengths["error_px"]]) for r in rows if r.lengths}
@@ -286,6 +289,7 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
               "rank-biserial > 0: the row's values tend to be larger (worse) than the baseline's.", "",
               *_paired_tables(comparisons, labels),
               "## Reading", "", *reading(summaries, comparisons, reference), "",
+              *([*LF.reading_lines(locator), ""] if locator else []),
               "## Figures", ""]
     for f, cap in zip(figs, ("straightness per method", "calibration and leave-one-out RMS",
                              "side-length errors")):
@@ -293,7 +297,9 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
     lines += ["## Files", "",
               "`summary.csv` (one line per row, every figure above), `per_side.csv` (one line per photo, square, side "
               "and row; squares and sides numbered from 0 in the model's order), `per_photo.csv`, `paired_tests.csv`, "
-              "`calibration/<row>.json` (intrinsics, poses, per-photo and LOO RMS, the corners used), `figures/`.",
+              "`calibration/<row>.json` (intrinsics, poses, per-photo and LOO RMS, the corners used), `figures/`"
+              + (", `locator.json` (edgetruth's locator against the best method, its misfit per photo)" if locator
+                 else "") + ".",
               ""]
     report = out / "report.md"
     atomic_write_text(report, "\n".join(lines))

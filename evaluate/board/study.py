@@ -30,6 +30,7 @@ import numpy as np
 from edgetruth import console, locate
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.board import locator_fit as LF
 from edgetruth.evaluate.board.compare import compare_all
 from edgetruth.evaluate.board.correspond import match_squares
 from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, resolve_inputs
@@ -104,6 +105,8 @@ class BoardRun:
     reference: dict | None
     has_reference_corners: bool
     elapsed_s: float
+    #: edgetruth's locator against the best method and its model misfit (``locator_fit``), when it ran
+    locator: dict | None = None
 
 
 def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, channel: str = "luma",
@@ -141,8 +144,15 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
     summaries = [row_summary(r, inp.model, reference, ref_corners) for r in rows]
     comparisons = compare_all(rows)
     per_side = per_side_rows(rows, inp.model, names)
+    locator = None
+    for label in methods:
+        method, kw = mo.resolve(label, options)
+        if method == LF.METHOD and any(r.label == label and r.cal is not None for r in rows):
+            misfit = LF.locator_misfit(used_images, cands, inp.model, names, **kw)
+            locator = LF.locator_summary(rows, summaries, label, misfit)
+            break
     return BoardRun(inp, names, (w, h), rows, summaries, comparisons, per_side, photo_table, reference,
-                    ref_corners is not None, time.perf_counter() - t0)
+                    ref_corners is not None, time.perf_counter() - t0, locator)
 
 
 def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], options: dict, thresholds,
@@ -156,7 +166,7 @@ def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], 
     title = title or f"Board study — {inp.set_name or f'{len(inp.photos)} photos'}"
     return write_outputs(out, title=title, header_lines=header, photos_table=run.photo_table, rows=run.rows,
                          summaries=run.summaries, comparisons=run.comparisons, reference=run.reference,
-                         model=inp.model, photo_names=run.names, per_side=run.per_side)
+                         model=inp.model, photo_names=run.names, per_side=run.per_side, locator=run.locator)
 
 
 def run_board_study(items: list[str], out, model: str | None = None, methods=None, channel: str = "luma",

@@ -9,7 +9,7 @@ import pytest
 from edgetruth.cli import main
 from edgetruth.resources import real_set
 
-METHODS = "canny_devernay,dynamic_erf_4p"
+METHODS = "canny_devernay,dynamic_erf_4p,patch_psf_fit"
 
 
 def _rows(path):
@@ -42,7 +42,7 @@ def test_reference_row_reproduces_opencv_on_zhangs_corners(zhang_run):
 def test_method_rows_are_finite_and_cover_every_side(zhang_run):
     _, out = zhang_run
     rows = {r["row"]: r for r in _rows(out / "summary.csv")}
-    assert list(rows) == ["canny_devernay", "dynamic_erf_4p", "zhang_corners"]
+    assert list(rows) == ["canny_devernay", "dynamic_erf_4p", "patch_psf_fit", "zhang_corners"]
     for m in ("canny_devernay", "dynamic_erf_4p"):
         r = rows[m]
         for k in ("straightness_px", "straightness_ci_lo", "straightness_ci_hi", "calib_rms_px", "loo_rms_px", "fx",
@@ -65,7 +65,7 @@ def test_files_figures_and_report(zhang_run):
               "figures/straightness.png", "CalibIm5.png", "options"):
         assert s in text
     per_side = _rows(out / "per_side.csv")
-    assert len(per_side) == 5 * 64 * 4 * 3
+    assert len(per_side) == 5 * 64 * 4 * 4
     assert set(per_side[0]) >= {"image", "square", "side", "method", "n_points", "rms_px", "length_model", "length_err"}
     dev = [r for r in per_side if r["method"] == "canny_devernay"]
     assert all(int(r["n_points"]) >= 5 and float(r["rms_px"]) >= 0 for r in dev)
@@ -77,6 +77,19 @@ def test_files_figures_and_report(zhang_run):
     assert {t["family"] for t in tests} == {"straightness", "reprojection", "loo", "side_length"}
     assert all(0 <= float(t["p_holm"]) <= 1 for t in tests)
     assert json.loads((out / "run.json").read_text())["kind"] == "study board"
+
+
+def test_the_report_says_how_far_the_photos_are_from_the_locators_model(zhang_run):
+    """A finding on real data, pinned as measured (2026-12-02): patch_psf_fit's residual is 1.28-2.01x the photos'
+    flat-region noise (1 where its blurred-step model holds: tests/evaluate/board/test_locator_fit.py), and it is
+    not the straightest method (Canny-Devernay 0.048 px, it 0.052 px)."""
+    _, out = zhang_run
+    loc = json.loads((out / "locator.json").read_text())
+    assert [m["photo"] for m in loc["misfit"]] == [f"CalibIm{k}.png" for k in range(1, 6)]
+    assert all(1.2 < m["misfit_ratio"] < 2.3 and m["points"] > 5000 for m in loc["misfit"])
+    s = loc["straightness"]
+    assert (s["rank"], s["best_row"]) == (2, "canny_devernay") and s["p_value"] < 1e-6
+    assert "**edgetruth's own locator (PatchPSFFit).**" in (out / "report.md").read_text()
 
 
 def test_rerun_remakes_and_other_settings_are_refused(zhang_run, capsys):
