@@ -121,6 +121,9 @@ GROUP_KEYS = [
         "and, per light, their shadows' outlines"),
     Key("ambient", "float", 0.0, "", "kind = target: a constant environment light giving ambient x "
         "irradiance_w_m2 on the open board (adds Monte-Carlo noise: it is sampled over the sphere)", 0.0, 100.0),
+    Key("board_size_m", "vec2", None, "m", "kind = target: [width, height] of the board, centred on the board "
+        "frame (default 3.6 x 3.0 m: it fills the frame at 3 m); every shape must lie on it; beyond it the "
+        "background is black; the truth records board.half_size_m and, when set, the board's outline", 1e-3, 100.0),
 ]
 
 

@@ -113,6 +113,20 @@ def scene_section() -> list[str]:
         "through the lens), its corners, and the parts later shapes leave visible "
         "(`visible_intervals`, `visible_polylines_distorted_px`, `occlusion_points_distorted_px`; the "
         "JSON's `shapes_meaning` says how to read them).", "",
+        "A `checkerboard` shape is `rows` x `cols` squares of `square_m` centred on `offset_m`: the dark "
+        "squares (row + col even, row 0 col 0 at the top-left of the unturned board) are printed in its "
+        "`material`, the light squares are not printed (they show the board).  Each dark square is its own "
+        "closed outline `r<row>c<col>` (corners top-left, top-right, bottom-right, bottom-left); where two "
+        "dark squares touch at a corner both outlines pass through it, so the outline is split there per "
+        "square.  Its `inner_corners` (where four squares meet) come in the shape's truth, row-major with "
+        "x fastest (`cv2.findChessboardCorners`' order), distorted and undistorted.  The shipped preset "
+        "`assets/targets.toml [checkerboard]` is the board of `kind = \"checkerboard\"` groups.", "",
+        "`board_size_m = [w, h]` sets the board's size (default 3.6 x 3.0 m); beyond it the background is black (with "
+        "`ambient`: its radiance).  Every shape must lie on the board.  The truth's `board.half_size_m` records it and, when "
+        "set, `board.outline` gives the board's own edge (its exact distorted curve); the reader's "
+        "`Sample.outline` counts it as a visible edge (shape index -1, the board's side positive).", "",
+        "```toml", "[[group]]", 'name = "small_board"', "board_size_m = [0.5, 0.4]",
+        'shapes = [{ type = "checkerboard", rows = 7, cols = 10, square_m = 0.03, rotation_deg = 10 }]', "```", "",
         table(SHAPE_KEYS), "",
         "**Materials** (a shape's `material`, `target_material`, `board_material`): achromatic; keys that a "
         "type does not use are refused.  `target_material` changes only the keys it gives over shape 0's "
@@ -143,7 +157,11 @@ def spec_markdown() -> str:
     shipped = ", ".join(f"`{n}`" for n in shipped_spec_names())
     parts = [INTRO.replace("{SHIPPED}", shipped),
              "## `[spec]`", "", table(SPEC_KEYS), "",
-             "### `[spec] checkerboard = {...}`", "", table(CHECKERBOARD_KEYS), "",
+             "### `[spec] checkerboard = {...}`", "",
+             "The board of `kind = \"checkerboard\"` groups: the catalogue's `checkerboard` shape (\"Shapes\" "
+             "below) on a white plate `margin_m` wider than its squares.  Its defaults are the shipped preset "
+             "`assets/targets.toml [checkerboard]` (10 x 7 squares of 30 mm, black matte 0.04); the mesh is that "
+             "shape's dark squares, bit for bit.", "", table(CHECKERBOARD_KEYS), "",
              "### `[spec] squares = {...}` (or a `[spec.squares]` table)", "",
              "The board of `kind = \"squares\"` groups: dark squares (any convex quads) printed flush on a "
              "white plate, rendered like the checkerboard (one mesh on the plate).  The squares come from a "

@@ -156,8 +156,8 @@ def squares_ground_truth(camera: Camera, pose: Pose, board: SquareBoard) -> dict
     }
 
 
-def _board_corners() -> np.ndarray:
-    hx, hy = BOARD_HALF_SIZE_M
+def _board_corners(half_size_m=BOARD_HALF_SIZE_M) -> np.ndarray:
+    hx, hy = half_size_m
     return np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
 
 
@@ -290,7 +290,7 @@ def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.
     pts_cam = pose.to_camera(np.column_stack([corners_xy, np.full(len(corners_xy), -standoff)]))
     m = p.material
     size = {"rectangle": p.width_m, "circle": p.diameter_m, "ring": p.outer_diameter_m, "ellipse": max(p.axes_m),
-            "grid": (p.cols - 1) * p.pitch_m[0] + p.element_size_m}.get(
+            "grid": (p.cols - 1) * p.pitch_m[0] + p.element_size_m, "checkerboard": p.cols * p.square_m}.get(
         p.type, float(2 * np.max(np.linalg.norm(corners_xy - p.offset_m, axis=1))))
     extra = {}
     if camera.moving:
@@ -300,15 +300,18 @@ def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.
                    "type": p.type, "material": m.label or m.type, "material_params": m.to_dict(),
                    "size_m": size,
                    "size_meaning": {"rectangle": "width", "circle": "diameter", "ring": "outer diameter",
-                                    "ellipse": "longer axis", "grid": "width along its x (outer element edges)"
+                                    "ellipse": "longer axis", "grid": "width along its x (outer element edges)",
+                                    "checkerboard": "width along its x (cols x square_m)"
                                     }.get(p.type, "largest extent"),
                    "reflectance": m.albedo if m.type != "roughconductor" else None, "standoff_m": standoff,
                    "offset_m": list(p.offset_m), "rotation_deg": p.rotation_deg,
                    **({"ggx_alpha": m.alpha, "ior": m.eta} if m.type == "roughplastic" else {})},
         "board": {"material": scene.board.label or scene.board.type, "material_params": scene.board.to_dict(),
-                  "reflectance": scene.board.albedo, "half_size_m": list(BOARD_HALF_SIZE_M),
-                  **({"texture": texture_placement(camera, pose, _board_corners(), 0.0, scene.board)}
-                     if scene.board.texture else {})},
+                  "reflectance": scene.board.albedo, "half_size_m": list(scene.board_half_size_m),
+                  **({"texture": texture_placement(camera, pose, _board_corners(scene.board_half_size_m), 0.0,
+                                                   scene.board)} if scene.board.texture else {}),
+                  **({"outline": board_outline_truth(camera, pose, scene)}
+                     if tuple(scene.board_half_size_m) != BOARD_HALF_SIZE_M else {})},
         "true_distance_m": float(centre_cam[0, 2]),
         "true_range_m": float(np.linalg.norm(centre_cam)),
         "centre": _project_both(camera, centre_cam),
@@ -325,7 +328,9 @@ def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.
                     "outlines": shape_outline_truth(camera, pose, scene, k),
                     **({"texture": texture_placement(camera, pose, s.texture_corners(),
                                                      -(k + 1) * TARGET_STANDOFF_M, s.material)}
-                       if s.material.texture else {})} for k, s in enumerate(scene.shapes)],
+                       if s.material.texture else {}),
+                    **({"inner_corners": checker_inner_corners_truth(camera, pose, scene, k)}
+                       if s.type == "checkerboard" else {})} for k, s in enumerate(scene.shapes)],
         "shapes_meaning": "shape k lies (k + 1) x 10 um in front of the board and covers shapes 0..k-1 (a ring covers "
                           "its whole outer disk: its hole shows the board); per outline: the exact distorted curve "
                           "(edgetruth.render.scene.outline.OutlineCurve.of), visible_intervals [t0, t1] of its parameter "
@@ -335,6 +340,35 @@ def scene_ground_truth(camera: Camera, pose: Pose, scene, exposure_s: float = 0.
         **({"clutter": clutter_truth(camera, pose, scene)} if getattr(scene, "clutter", ()) else {}),
         **extra,
     }
+
+
+def checker_inner_corners_truth(camera: Camera, pose: Pose, scene, k: int) -> dict:
+    """The inner corners of checkerboard shape ``k`` (where four of its squares meet; two dark squares touch
+    there): board frame, distorted and undistorted px, and whether each is visible (no later shape or
+    clutter covers it)."""
+    shape = scene.shapes[k]
+    standoff = (k + 1) * TARGET_STANDOFF_M
+    xy = shape.inner_corners()
+    cam = pose.to_camera(np.column_stack([xy, np.full(len(xy), -standoff)]))
+    hidden = np.zeros(len(xy), bool)
+    for occ in list(scene.shapes[k + 1:]) + raised_covers(pose, scene, standoff):
+        hidden |= occ.covers(xy)
+    return {"order": "row-major, x fastest along the board's (turned) x: cv2.findChessboardCorners' order for an "
+                     "untilted, unturned board; pattern_size [cols - 1, rows - 1]",
+            "pattern_size": [shape.cols - 1, shape.rows - 1],
+            "board_m": xy.tolist(), **_project_both(camera, cam), "visible": (~hidden).tolist(),
+            "meaning": "each inner corner is where two dark squares touch at a corner; their outlines (r<row>c<col>, "
+                       "one closed outline per dark square) both pass through it, so the outline is split there per "
+                       "square: each dark square's 4 corners are its outline's corners"}
+
+
+def board_outline_truth(camera: Camera, pose: Pose, scene) -> list[dict]:
+    """The board's own outline (a group's ``board_size_m``): the edge between the board and the dark
+    background beyond it, its exact distorted curve, the parts clutter leaves visible."""
+    from edgetruth.render.scene.shapes import Outline
+
+    o = Outline("board", "polygon", vertices=tuple(map(tuple, _board_corners(scene.board_half_size_m))))
+    return outline_truth(camera, pose, [o], 0.0, raised_covers(pose, scene, 0.0))
 
 
 def clutter_truth(camera: Camera, pose: Pose, scene) -> list[dict]:
@@ -499,7 +533,7 @@ class SceneOutline:
     - ``signed_distance(x, y)``: px to the nearest visible edge, > 0 on that outline's board side (outside
       its shape, inside a ring's hole);
     - ``edge_index(x, y)``: which outline that is (an index into ``outlines``, (shape index, outline name)
-      pairs); ``edge_shape(x, y)``: its shape index;
+      pairs; a ``board_size_m`` board's own edge is (-1, "board")); ``edge_shape(x, y)``: its shape index;
     - ``corner_distance(x, y)``: px to the nearest corner of the visible edges (``corners_px``: the visible
       polygon corners and the points where a covering shape cuts an outline);
     - ``shape_at(x, y)``: which shape the image shows at the point (-1: the board, a ring's hole included).
@@ -516,6 +550,8 @@ class SceneOutline:
         # clutter item c is layer n + c, above every shape; nearer items (higher) hide further ones
         layers = [(s, int(s["index"])) for s in gt["shapes"]] + \
             [(c, n + int(c["index"])) for c in gt.get("clutter", [])]
+        if gt.get("board", {}).get("outline"):  # a board_size_m board: its edge against the background, layer -1
+            layers.append(({"outlines": gt["board"]["outline"]}, -1))
         self._top_first = [n + int(c["index"]) for c in sorted(gt.get("clutter", []), key=lambda c: -_clutter_top(c))] \
             + list(range(n - 1, -1, -1))
         for s, layer in layers:
@@ -523,7 +559,8 @@ class SceneOutline:
                 self.outlines.append((layer, o["name"]))
                 self._full.append(np.asarray(o["polyline_distorted_px"], float))
                 self._pieces.append([np.asarray(p, float).reshape(-1, 2) for p in o["visible_polylines_distorted_px"]])
-                self._flip.append(o["name"] == "inner")  # a ring's hole: the board is inside
+                # a ring's hole and the board's own outline: the board is inside
+                self._flip.append(o["name"] == "inner" or layer == -1)
                 if "corners_distorted_px" in o:
                     corners += [c for c, v in zip(o["corners_distorted_px"], o["corners_visible"]) if v]
                 corners += list(o.get("occlusion_points_distorted_px", []))

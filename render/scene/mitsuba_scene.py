@@ -268,11 +268,11 @@ def _shape_local(cx: float, cy: float, a: float, b: float, theta_rad: float, z_m
     return m
 
 
-def _board_uv(cx: float, cy: float, a: float, b: float, theta_rad: float) -> tuple:
+def _board_uv(cx: float, cy: float, a: float, b: float, theta_rad: float, half_size_m=BOARD_HALF_SIZE_M) -> tuple:
     """The board texture's (u0, ux, uy, v0, vx, vy) on a disk of ``_shape_local(cx, cy, a, b, theta)`` (a
     ring's hole, which shows the board): the board point of local (x, y) is R(theta) (a x, -b y) + (cx, cy),
-    the board's image spans it from (-hx, -hy) (top-left) to (hx, hy)."""
-    hx, hy = BOARD_HALF_SIZE_M
+    the board's image spans it from (-hx, -hy) (top-left) to (hx, hy) (``half_size_m``)."""
+    hx, hy = half_size_m
     c, s = np.cos(theta_rad), np.sin(theta_rad)
     return ((cx + hx) / (2 * hx), c * a / (2 * hx), s * b / (2 * hx),
             (hy - cy) / (2 * hy), -s * a / (2 * hy), c * b / (2 * hy))
@@ -333,7 +333,7 @@ class SceneRig(_Rig):
                                   "beam_width": lt.beam_deg}
         if sc.ambient > 0:
             d["ambient"] = {"type": "constant", "radiance": {"type": "uniform", "value": 999.5}}  # as above
-        d["board"] = {"type": "rectangle", "to_world": self._T(_rect_local(*BOARD_HALF_SIZE_M, 0.0)),
+        d["board"] = {"type": "rectangle", "to_world": self._T(_rect_local(*sc.board_half_size_m, 0.0)),
                       "bsdf": sc.board.to_bsdf()}
         self._locals, self._meshes = {}, {}
         items = [(f"shape{k}", shape, -(k + 1) * TARGET_STANDOFF_M) for k, shape in enumerate(sc.shapes)]
@@ -366,7 +366,22 @@ class SceneRig(_Rig):
                     cx, cy, a, b, th = outs[1].conic
                     self._locals[f"{key}_hole"] = _shape_local(cx, cy, a, b, th, z - 0.5 * TARGET_STANDOFF_M)
                     d[f"{key}_hole"] = {"type": "disk", "to_world": T, "bsdf": sc.board.to_bsdf(
-                        ("polar", _board_uv(cx, cy, a, b, th)) if sc.board.texture else None)}
+                        ("polar", _board_uv(cx, cy, a, b, th, sc.board_half_size_m)) if sc.board.texture else None)}
+            elif shape.type == "checkerboard":  # the dark squares as one mesh, wound as CheckerRig's
+                q = np.asarray([oe.vertices for oe in outs], float)  # (n, 4, 2) TL, TR, BR, BL
+                n = len(q)
+                verts = np.column_stack([q.reshape(-1, 2), np.full(4 * n, z)])
+                k4 = 4 * np.arange(n)
+                tris = np.concatenate([np.stack([k4, k4 + 2, k4 + 1], 1), np.stack([k4, k4 + 3, k4 + 2], 1)])
+                uv = None
+                if printed:  # the print spans the whole board of squares (texture_frame); exact: affine
+                    x0, y0, x1, y1 = shape.texture_frame()
+                    ql = shape.checker_quads_local().reshape(-1, 2)
+                    uv = np.column_stack([(ql[:, 0] - x0) / (x1 - x0), (y1 - ql[:, 1]) / (y1 - y0)])
+                bsdf = shape.material.to_bsdf(("rect", (0.5, 0.5, 0.0, 0.5, 0.0, 0.5)) if printed else None)
+                mesh, vtype = _make_mesh(self.mi, key, verts, tris, bsdf, texcoords=uv)
+                self._meshes[key] = (verts, vtype)
+                d[key] = mesh
             elif shape.type == "rectangle":
                 w, h = shape.width_m / 2, shape.height_m / 2
                 self._locals[key] = _shape_local(*shape.offset_m, w, h, np.radians(shape.rotation_deg), z)
@@ -387,7 +402,7 @@ class SceneRig(_Rig):
         return d
 
     def set_state(self, scene, pose: Pose, irradiance_w_m2: float, light_position_m=None) -> float:
-        self._set_transform("board.to_world", pose.matrix @ _rect_local(*BOARD_HALF_SIZE_M, 0.0))
+        self._set_transform("board.to_world", pose.matrix @ _rect_local(*self.target_scene.board_half_size_m, 0.0))
         for key, m in self._locals.items():
             self._set_transform(f"{key}.to_world", pose.matrix @ m)
         for key, (verts, vtype) in self._meshes.items():

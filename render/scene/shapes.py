@@ -32,7 +32,10 @@ from edgetruth.render.schema import REQUIRED, Key, parse_table
 #: Targets are mounted flush on the board: 10 um stand-off, only to avoid coplanar surfaces
 #: (a real stand-off casts ambient-occlusion shading that moves the edge; BRIEF §1).
 TARGET_STANDOFF_M = 10e-6
-SHAPE_TYPES = ("rectangle", "circle", "ellipse", "ring", "polygon", "grid")
+#: the board's default half width and height: fills the frame at 3 m with room for lateral offsets (a target
+#: group's ``board_size_m`` sets its own: ``TargetScene.board_half_size_m``)
+BOARD_HALF_SIZE_M = (1.8, 1.5)
+SHAPE_TYPES = ("rectangle", "circle", "ellipse", "ring", "polygon", "grid", "checkerboard")
 GRID_ELEMENTS = ("square", "circle")
 MAX_GRID_ELEMENTS = 10000
 MAX_SHAPES = 1000
@@ -42,9 +45,10 @@ VISIBILITY_SAMPLES = 4096
 
 _SIZE_KEYS = {"rectangle": ("width_m", "height_m"), "circle": ("diameter_m",), "ellipse": ("axes_m",),
               "ring": ("outer_diameter_m", "inner_diameter_m"), "polygon": ("vertices_m",),
-              "grid": ("element_size_m", "pitch_m")}
-#: a grid's own keys besides its sizes (refused on other types)
+              "grid": ("element_size_m", "pitch_m"), "checkerboard": ("square_m",)}
+#: a grid's (and a checkerboard's: rows, cols) own keys besides its sizes (refused on other types)
 _GRID_KEYS = ("rows", "cols", "element")
+_CHECKER_KEYS = ("rows", "cols")
 
 
 def _rot(theta_rad: float) -> np.ndarray:
@@ -99,6 +103,40 @@ class Shape:
     pitch_m: tuple = (0.02, 0.02)
     element: str = "square"
     element_size_m: float = 0.01
+    # checkerboard: rows x cols squares of side square_m, centred on offset_m; the dark squares are (row + col)
+    # even (row 0, col 0 at the top-left of the unturned board), the light squares are not printed: the board
+    square_m: float = 0.03
+
+    def checker_cells(self) -> np.ndarray:
+        """(n, 2) (row, col) of a checkerboard's dark squares, row-major from the top-left square."""
+        r, c = np.divmod(np.arange(self.rows * self.cols), self.cols)
+        even = (r + c) % 2 == 0
+        return np.column_stack([r[even], c[even]])
+
+    def checker_quads_local(self) -> np.ndarray:
+        """(n, 4, 2) corners of a checkerboard's dark squares in its own frame (before its turn and offset),
+        ``checker_cells`` order, each top-left, top-right, bottom-right, bottom-left.  The arithmetic is
+        ``targets.Checkerboard``'s (x0 = (col - cols/2) s, x0 + s): the same floats to the bit, so a
+        ``kind = "checkerboard"`` group's mesh is this preset's geometry exactly."""
+        s = self.square_m
+        quads = []
+        for j, i in self.checker_cells():
+            x0 = (int(i) - self.cols / 2) * s
+            y0 = (int(j) - self.rows / 2) * s
+            quads.append([[x0, y0], [x0 + s, y0], [x0 + s, y0 + s], [x0, y0 + s]])
+        return np.asarray(quads, dtype=np.float64).reshape(-1, 4, 2)
+
+    def inner_corners_local(self) -> np.ndarray:
+        """((rows - 1) x (cols - 1), 2) a checkerboard's inner corners (where four squares meet) in its own
+        frame, row-major, x fastest (``cv2.findChessboardCorners``'s order for an untilted board)."""
+        xs = (np.arange(1, self.cols) - self.cols / 2) * self.square_m
+        ys = (np.arange(1, self.rows) - self.rows / 2) * self.square_m
+        gx, gy = np.meshgrid(xs, ys)
+        return np.column_stack([gx.ravel(), gy.ravel()])
+
+    def inner_corners(self) -> np.ndarray:
+        """A checkerboard's inner corners on the board (board frame), ``inner_corners_local`` order."""
+        return self._place(self.inner_corners_local())
 
     def grid_centres(self) -> np.ndarray:
         """(rows x cols, 2) board-frame element centres of a grid, row-major from the top-left element of
@@ -123,6 +161,8 @@ class Shape:
         elif self.type == "grid":
             w = ((self.cols - 1) * self.pitch_m[0] + self.element_size_m) / 2
             h = ((self.rows - 1) * self.pitch_m[1] + self.element_size_m) / 2
+        elif self.type == "checkerboard":
+            w, h = self.cols * self.square_m / 2, self.rows * self.square_m / 2
         else:
             v = np.asarray(self.vertices_m, float)
             return (float(v[:, 0].min()), float(v[:, 1].min()), float(v[:, 0].max()), float(v[:, 1].max()))
@@ -163,6 +203,11 @@ class Shape:
                 else:
                     out.append(Outline(name, "ellipse", conic=(float(ex), float(ey), h, h, th)))
             return out
+        if self.type == "checkerboard":  # one closed outline per dark square, named r<row>c<col>
+            q = self.checker_quads_local()
+            placed = self._place(q.reshape(-1, 2)).reshape(q.shape)
+            return [Outline(f"r{j}c{i}", "polygon", vertices=tuple(map(tuple, v)))
+                    for (j, i), v in zip(self.checker_cells(), placed)]
         if self.type == "rectangle":
             w, h = self.width_m / 2, self.height_m / 2
             v = self._place([[-w, -h], [w, -h], [w, h], [-w, h]])  # TL, TR, BR, BL of the unturned shape
@@ -182,6 +227,11 @@ class Shape:
         """Which board points (N, 2) this shape hides from view (a ring: its whole outer disk, the hole
         showing the board)."""
         xy = np.atleast_2d(np.asarray(xy, float))
+        if self.type == "checkerboard":  # the dark squares only: the light ones show what lies under them
+            q = (xy - np.asarray(self.offset_m, float)) @ _rot(math.radians(self.rotation_deg))
+            c = np.floor(q[:, 0] / self.square_m + self.cols / 2)
+            r = np.floor(q[:, 1] / self.square_m + self.rows / 2)
+            return (c >= 0) & (c < self.cols) & (r >= 0) & (r < self.rows) & ((r + c) % 2 == 0)
         if self.type == "grid":
             out = np.zeros(len(xy), dtype=bool)
             for e in self.outlines():
@@ -197,6 +247,8 @@ class Shape:
 
     def sample_points(self, n: int = 64) -> np.ndarray:
         """(M, 2) points on the outer outline (corners included; a grid: every element's): for view checks."""
+        if self.type == "checkerboard":
+            return np.concatenate([np.asarray(e.vertices, float) for e in self.outlines()])
         if self.type == "grid":
             return np.concatenate([np.asarray(e.vertices, float) if e.kind == "polygon" else
                                    e.local_xy(np.arange(16) / 16) for e in self.outlines()])
@@ -212,6 +264,10 @@ class Shape:
             d[k] = [list(p) for p in v] if k == "vertices_m" else (list(v) if isinstance(v, tuple) else v)
         if self.type == "grid":
             d.update(rows=self.rows, cols=self.cols, element=self.element)
+        if self.type == "checkerboard":
+            d.update(rows=self.rows, cols=self.cols, pattern_size=[self.cols - 1, self.rows - 1],
+                     dark_squares="(row + col) even, row 0 col 0 at the top-left of the unturned board; the light "
+                                  "squares are not printed (they show the board)")
         d["material"] = self.material.to_dict()
         return d
 
@@ -333,7 +389,10 @@ def visible_intervals(outline: Outline, occluders: list[Shape], n: int = VISIBIL
 # --- spec keys ------------------------------------------------------------------------------------
 SHAPE_KEYS = [
     Key("type", "str", "rectangle", "", "rectangle, circle, ellipse, ring (annulus; its hole shows the board), "
-        "polygon or grid (rows x cols squares or circles, each element its own outline in the truth)",
+        "polygon, grid (rows x cols squares or circles, each element its own outline in the truth) or "
+        "checkerboard (rows x cols squares of square_m, the dark ones (row + col even) printed in its material, "
+        "the light ones showing the board; each dark square its own outline r<row>c<col>, the inner corners in "
+        "the truth)",
         choices=SHAPE_TYPES),
     Key("offset_m", "vec2", (0.0, 0.0), "m", "the shape's centre (polygon: its vertices' origin) on the board, "
         "board frame (x right, y down from the board centre)", -100.0, 100.0),
@@ -347,8 +406,8 @@ SHAPE_KEYS = [
     Key("inner_diameter_m", "float", None, "m", "ring: hole diameter (required, < outer_diameter_m)", 1e-5, 100.0),
     Key("vertices_m", "points2", None, "m", "polygon: [[x, y], ...] corners in order around a simple polygon, "
         "in the shape's frame (turned by rotation_deg, moved by offset_m)", -100.0, 100.0),
-    Key("rows", "int", 1, "", "grid: rows of elements", 1, 1000),
-    Key("cols", "int", 1, "", "grid: columns of elements", 1, 1000),
+    Key("rows", "int", 1, "", "grid: rows of elements; checkerboard: rows of squares (>= 2)", 1, 1000),
+    Key("cols", "int", 1, "", "grid: columns of elements; checkerboard: columns of squares (>= 2)", 1, 1000),
     Key("element", "str", "square", "", "grid: its elements, squares or circles (as on Zhang's board)",
         choices=GRID_ELEMENTS),
     Key("element_size_m", "float", None, "m", "grid: an element's side (square) or diameter (circle) (required)",
@@ -356,8 +415,10 @@ SHAPE_KEYS = [
     Key("pitch_m", "vec2", None, "m", "grid: [x, y] spacing of the element centres along the grid's (turned) "
         "axes, each > element_size_m (required); elements row-major from the top-left, outlines r<row>c<col>",
         1e-5, 100.0),
+    Key("square_m", "float", None, "m", "checkerboard: side of one square (required); the board spans cols x "
+        "rows squares centred on offset_m", 1e-5, 100.0),
     Key("material", "table", {}, "", "the shape's material {type, albedo, alpha, eta, specular_reflectance, "
-        "label} (default: black matte, albedo 0.04)"),
+        "label} (default: black matte, albedo 0.04; checkerboard: its dark squares')"),
 ]
 
 
@@ -367,7 +428,7 @@ def shape_from_dict(d: dict, size_m: float, where: str, base_material: Material 
     typ = v["type"]
     wrong = sorted(k for k in d if k.endswith("_m") and k not in ("offset_m",) and k not in _SIZE_KEYS[typ])
     if typ != "grid":
-        wrong += sorted(k for k in _GRID_KEYS if k in d)
+        wrong += sorted(k for k in _GRID_KEYS if k in d and not (typ == "checkerboard" and k in _CHECKER_KEYS))
     if wrong:
         raise InputError(f"{where}: {', '.join(wrong)} does not apply to type = {typ!r} (its size: "
                          f"{', '.join(_SIZE_KEYS[typ])}); remove it")
@@ -386,6 +447,15 @@ def shape_from_dict(d: dict, size_m: float, where: str, base_material: Material 
             raise InputError(f"{where}: rows x cols = {v['rows'] * v['cols']} elements; at most {MAX_GRID_ELEMENTS}")
         kw.update(rows=v["rows"], cols=v["cols"], element=v["element"], element_size_m=v["element_size_m"],
                   pitch_m=v["pitch_m"])
+    elif typ == "checkerboard":
+        if v["square_m"] is None:
+            raise InputError(f"{where}: a checkerboard needs square_m (the side of one square, m); add it")
+        if v["rows"] < 2 or v["cols"] < 2:
+            raise InputError(f"{where}: a checkerboard of rows = {v['rows']}, cols = {v['cols']} squares has no "
+                             "inner corner; give rows >= 2 and cols >= 2")
+        if v["rows"] * v["cols"] > MAX_GRID_ELEMENTS:
+            raise InputError(f"{where}: rows x cols = {v['rows'] * v['cols']} squares; at most {MAX_GRID_ELEMENTS}")
+        kw.update(rows=v["rows"], cols=v["cols"], square_m=v["square_m"])
     elif typ == "ellipse":
         if v["axes_m"] is None:
             raise InputError(f"{where}: an ellipse needs axes_m = [diameter along x, along y]; add it")
@@ -408,7 +478,8 @@ def shape_from_dict(d: dict, size_m: float, where: str, base_material: Material 
 
 
 # --- clutter: raised planar shapes in front of the board ------------------------------------------
-CLUTTER_TYPES = ("rectangle", "circle", "ellipse", "polygon", "grid")  # a ring's hole would need to be see-through
+#: a ring's hole, a checkerboard's light squares would need to be see-through
+CLUTTER_TYPES = ("rectangle", "circle", "ellipse", "polygon", "grid")
 MIN_CLUTTER_HEIGHT_M = 1e-3
 
 
@@ -772,8 +843,8 @@ def clutter_from_list(items: list, size_m: float, where: str, box_base_m: float 
             raise InputError(f"{w}: raised_m = {h!r}: give a number of metres in [{MIN_CLUTTER_HEIGHT_M:g}, 10]")
         shape = shape_from_dict({k: v for k, v in d.items() if k != "raised_m"}, size_m, w)
         if shape.type not in CLUTTER_TYPES:
-            raise InputError(f"{w}: type = {shape.type!r} cannot stand as clutter (its hole would show the "
-                             f"board's material); use one of {', '.join(CLUTTER_TYPES)} or box")
+            raise InputError(f"{w}: type = {shape.type!r} cannot stand as clutter (its hole or light "
+                             f"squares would show the board's material); use one of {', '.join(CLUTTER_TYPES)} or box")
         if shape.material.texture:
             raise InputError(f"{w}: texture: clutter is not printed; remove it")
         out.append(Clutter(shape, float(h)))
@@ -791,6 +862,8 @@ class TargetScene:
     lights: tuple = (Light(),)
     ambient: float = 0.0  # constant environment: irradiance on the open board, x the group's irradiance_w_m2
     clutter: tuple = ()  # ``Clutter`` items in front of the board (raised planar shapes and boxes)
+    #: the board's half width and height (a group's ``board_size_m`` / 2); the board is centred on the board frame
+    board_half_size_m: tuple = BOARD_HALF_SIZE_M
 
     @property
     def primary(self) -> Shape:
@@ -808,22 +881,42 @@ class TargetScene:
                "lights": [lt.to_dict() for lt in self.lights], "ambient": self.ambient}
         if self.clutter:  # only when set: a scene without clutter keeps its identity
             out["clutter"] = [c.to_dict() for c in self.clutter]
+        if tuple(self.board_half_size_m) != BOARD_HALF_SIZE_M:  # likewise: the default board keeps it
+            out["board_half_size_m"] = list(self.board_half_size_m)
         return out
 
 
-def _load_presets() -> dict:
-    """T1-T4 (and any other preset) from the shipped ``assets/targets.toml``: name -> (description, list of
-    shape tables)."""
+def _read_presets() -> dict:
     from importlib import resources
 
     from edgetruth.fileio import read_toml
 
-    path = resources.files("edgetruth.assets") / "targets.toml"
-    data = read_toml(path)
-    return {name: (t.get("description", ""), t["shape"]) for name, t in data.items()}
+    return read_toml(resources.files("edgetruth.assets") / "targets.toml")
+
+
+def _load_presets() -> dict:
+    """T1-T4, the checkerboard (and any other preset) from the shipped ``assets/targets.toml``: name ->
+    (description, list of shape tables)."""
+    return {name: (t.get("description", ""), t["shape"]) for name, t in _read_presets().items()}
 
 
 PRESETS = _load_presets()
+#: the preset that describes ``kind = "checkerboard"`` groups (``targets.Checkerboard``'s defaults)
+CHECKERBOARD_PRESET = "checkerboard"
+
+
+def checkerboard_preset() -> tuple[Shape, float]:
+    """The shipped checkerboard preset: its catalogue shape (the dark squares, their material) and its
+    white margin around the squares (``margin_m``, m)."""
+    t = _read_presets()[CHECKERBOARD_PRESET]
+    where = f"assets/targets.toml [{CHECKERBOARD_PRESET}]"
+    if len(t["shape"]) != 1:
+        raise InputError(f"{where}: shape must hold one checkerboard")
+    shape = shape_from_dict(t["shape"][0], 0.13, f"{where} shape")
+    if shape.type != "checkerboard" or shape.material.type != "diffuse" or shape.material.texture:
+        raise InputError(f"{where}: shape must be a checkerboard of a diffuse, unprinted material (kind = "
+                         "\"checkerboard\" renders matte squares)")
+    return shape, float(t.get("margin_m", 0.0))
 
 
 def preset_scene(name: str, size_m: float) -> TargetScene:
@@ -838,6 +931,8 @@ def legacy_targets() -> dict:
     out = {}
     for name in PRESETS:
         s = preset_scene(name, 0.13).primary
+        if s.type not in ("rectangle", "circle") or len(PRESETS[name][1]) != 1:
+            continue  # not a fixed-scene target (the checkerboard: kind = "checkerboard")
         m = s.material
         d = {"shape": "square" if s.type == "rectangle" else "circle", "material": m.label,
              "reflectance": m.albedo}
@@ -847,7 +942,7 @@ def legacy_targets() -> dict:
     return out
 
 
-SCENE_GROUP_KEYS = ("shapes", "target_material", "board_material", "lights", "ambient", "clutter")
+SCENE_GROUP_KEYS = ("shapes", "target_material", "board_material", "lights", "ambient", "clutter", "board_size_m")
 
 
 def scene_from_group(g: dict, raw: dict, size_m: float, light_position_m, where: str,
@@ -892,6 +987,14 @@ def scene_from_group(g: dict, raw: dict, size_m: float, light_position_m, where:
     # a box stands on the prints: its base just in front of the top shape (nothing printed pokes through it)
     clutter = () if raw.get("clutter") is None else clutter_from_list(
         g["clutter"], size_m, f"{where} clutter", box_base_m=(len(shapes) + 1) * TARGET_STANDOFF_M)
+    half = BOARD_HALF_SIZE_M
+    if raw.get("board_size_m") is not None:
+        half = (0.5 * float(g["board_size_m"][0]), 0.5 * float(g["board_size_m"][1]))
+    for i, sh in enumerate(shapes):  # every print on the board: a shape past its edge would hang in the air
+        xy = np.abs(sh.sample_points())
+        if np.any(xy[:, 0] > half[0]) or np.any(xy[:, 1] > half[1]):
+            raise InputError(f"{where}: shapes[{i}] ({sh.type} at {list(sh.offset_m)} m) reaches past the board "
+                             f"({2 * half[0]:g} x {2 * half[1]:g} m, centred); enlarge board_size_m or move the shape")
     return TargetScene(id=sid, shapes=tuple(shapes), board=board, lights=lights, ambient=float(g.get("ambient", 0.0)),
-                       clutter=clutter)
+                       clutter=clutter, board_half_size_m=half)
 

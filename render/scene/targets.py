@@ -14,10 +14,13 @@ import numpy as np
 
 from edgetruth.errors import InputError
 from edgetruth.render.schema import Key, parse_table
-from edgetruth.render.scene.shapes import TARGET_STANDOFF_M, legacy_targets  # noqa: F401 -- the stand-off lives with the shapes
-BOARD_HALF_SIZE_M = (1.8, 1.5)  # fills the frame at 3 m with room for lateral offsets
+# the stand-off and the board's default size live with the shapes (re-exported here)
+from edgetruth.render.scene.shapes import (BOARD_HALF_SIZE_M, TARGET_STANDOFF_M, Shape,  # noqa: F401
+                                           checkerboard_preset, legacy_targets)
 BOARD_REFLECTANCE = 0.8  # white matte board (Lambertian albedo)
-CHECKER_BLACK_REFLECTANCE = 0.04  # the checkerboard's black squares: matte black print
+#: the shipped checkerboard preset (``assets/targets.toml [checkerboard]``): kind = "checkerboard" groups show it
+_PRESET, _PRESET_MARGIN_M = checkerboard_preset()
+CHECKER_BLACK_REFLECTANCE = _PRESET.material.albedo  # the checkerboard's black squares: matte black print (0.04)
 
 #: Target ids -> shape and material (Lambertian albedos): the presets of the shape catalogue, read from the
 #: shipped ``assets/targets.toml`` (``edgetruth.render.scene.shapes``).  A group showing a preset with no scene
@@ -27,12 +30,19 @@ TARGETS = legacy_targets()
 
 @dataclass(frozen=True)
 class Checkerboard:
-    """``cols`` x ``rows`` squares of ``square_m``; inner corners (cols-1) x (rows-1)."""
+    """``cols`` x ``rows`` squares of ``square_m``; inner corners (cols-1) x (rows-1).  Its squares are the
+    catalogue's ``checkerboard`` shape (``shape``; defaults: the shipped preset, 10 x 7 squares of 30 mm), on a
+    white plate with ``margin_m`` around them."""
 
-    cols: int = 10
-    rows: int = 7
-    square_m: float = 0.03
-    margin_m: float = 0.03
+    cols: int = _PRESET.cols
+    rows: int = _PRESET.rows
+    square_m: float = _PRESET.square_m
+    margin_m: float = _PRESET_MARGIN_M
+
+    def shape(self) -> Shape:
+        """The catalogue shape of its squares: centred on the plate, unturned, the preset's material."""
+        return Shape("checkerboard", rows=self.rows, cols=self.cols, square_m=self.square_m,
+                     material=_PRESET.material)
 
     @property
     def pattern_size(self) -> tuple[int, int]:
@@ -50,22 +60,15 @@ class Checkerboard:
 
     def inner_corners_local(self, z_m: float = 0.0) -> np.ndarray:
         """Inner corners, row-major (x fastest) like ``cv2.findChessboardCorners``; board centre at 0."""
-        xs = (np.arange(1, self.cols) - self.cols / 2) * self.square_m
-        ys = (np.arange(1, self.rows) - self.rows / 2) * self.square_m
-        gx, gy = np.meshgrid(xs, ys)
-        return np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, z_m)], axis=1)
+        xy = self.shape().inner_corners_local()
+        return np.column_stack([xy, np.full(len(xy), z_m)])
 
     def black_quads_local(self, z_m: float) -> np.ndarray:
-        """(n, 4, 3) corners of the black squares ((i + j) even is black)."""
-        quads = []
-        s = self.square_m
-        for j in range(self.rows):
-            for i in range(self.cols):
-                if (i + j) % 2 == 0:
-                    x0 = (i - self.cols / 2) * s
-                    y0 = (j - self.rows / 2) * s
-                    quads.append([[x0, y0, z_m], [x0 + s, y0, z_m], [x0 + s, y0 + s, z_m], [x0, y0 + s, z_m]])
-        return np.asarray(quads, dtype=np.float64)
+        """(n, 4, 3) corners of the black squares ((i + j) even is black): the catalogue shape's dark squares
+        (``Shape.checker_quads_local``, the same floats as before the catalogue held them: the renders are
+        byte-identical), each top-left, top-right, bottom-right, bottom-left, row-major."""
+        q = self.shape().checker_quads_local()
+        return np.concatenate([q, np.full(q.shape[:2] + (1,), float(z_m))], axis=2)
 
     def to_dict(self) -> dict:
         return {"cols": self.cols, "rows": self.rows, "square_m": self.square_m, "margin_m": self.margin_m,
