@@ -71,7 +71,9 @@ def _site(py, work) -> Path:
 def test_site_packages_holds_one_namespace(installed):
     py, work = installed
     site = _site(py, work)
-    assert (site / "edgetruth" / "render" / "spec.py").is_file()
+    assert (site / "edgetruth" / "render" / "dataset" / "spec.py").is_file()
+    for stage in ("synthetic", "optics", "scene", "sensor", "dataset"):  # every sub-package is in the wheel
+        assert (site / "edgetruth" / "render" / stage / "__init__.py").is_file(), stage
     assert (site / "edgetruth" / "scenes" / "quick.toml").is_file()
     assert (site / "edgetruth" / "assets" / "entropy_thresholds.json").is_file()
     assert (site / "edgetruth" / "assets" / "cameras" / "default.toml").is_file()
