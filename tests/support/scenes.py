@@ -1,5 +1,5 @@
 """Cameras, poses and a spec template shared by the own-scene tests (tests/render/scene/test_shapes_truth.py,
-test_scene_outline.py, test_texture.py)."""
+test_scene_outline.py, test_texture.py, the clutter tests)."""
 from __future__ import annotations
 
 from edgetruth.render.optics.camera import Camera
@@ -22,3 +22,17 @@ camera_scale = 16
 name = "g"
 {extra}
 """
+
+
+def polyline_region(poly, q):
+    """(inside, distance in px) of the points ``q`` (N, 2) to the closed polyline ``poly``: the exact distance to
+    every chord (not the k-d tree shortcut of ``closed_polyline_signed_distance``), for tests over whole images."""
+    import numpy as np
+    from matplotlib.path import Path
+
+    p = np.asarray(poly, float)
+    inside = Path(p).contains_points(q)
+    a, b = p, np.roll(p, -1, axis=0)
+    d = b - a
+    t = np.clip(((q[:, None] - a) * d).sum(2) / (d * d).sum(1), 0, 1)
+    return inside, np.min(np.linalg.norm(q[:, None] - (a + t[..., None] * d), axis=2), axis=1)

@@ -17,6 +17,7 @@ from edgetruth.render.scene.lights import Light
 from edgetruth.render.scene.materials import Material
 from edgetruth.render.scene.pose import Pose
 from edgetruth.render.scene.shapes import Box, Clutter, Shape, TargetScene, clutter_from_list
+from tests.support.scenes import polyline_region
 
 CAM = Camera(width_px=128, height_px=96, pitch_um=40.0, focal_length_mm=8.0, f_number=0.0, focus_distance_m=0.8,
              diffraction_wavelength_nm=0.0, natural_vignetting=False)  # fx = 200 px, no distortion, no PSF
@@ -151,7 +152,6 @@ def test_rendered_shadow_of_a_box_lies_where_the_truth_puts_it(fast_variant):
     """Point light to the left, no ambient: a board pixel wholly inside the recorded shadow (and off the
     box's image) is black, one wholly outside it, the box and the target shows 0.8 E / pi."""
     import mitsuba as mi
-    from matplotlib.path import Path
 
     from edgetruth.render.scene.mitsuba_scene import RenderSettings, TargetRig
 
@@ -167,12 +167,7 @@ def test_rendered_shadow_of_a_box_lies_where_the_truth_puts_it(fast_variant):
     q = np.column_stack([u.ravel(), v.ravel()])
 
     def region(poly):  # inside, and the distance to the closed polyline (px)
-        p = np.asarray(poly)
-        inside = Path(p).contains_points(q)
-        a, b = p, np.roll(p, -1, axis=0)
-        d = b - a
-        t = np.clip(((q[:, None] - a) * d).sum(2) / (d * d).sum(1), 0, 1)
-        return inside, np.min(np.linalg.norm(q[:, None] - (a + t[..., None] * d), axis=2), axis=1)
+        return polyline_region(poly, q)
 
     sh = gt["clutter"][0]["shadows"][0]
     assert sh["cast"] and sh["exact"]
