@@ -17,8 +17,10 @@ difference, computed by one FFT on a 1/64-px grid over ±512 px).  P_ψ and P'_�
 ψ in 0.25° steps (``angle_step_deg``) over [0, 90°] (T depends on |cos ψ|, |sin ψ| only) and
 interpolated: cubic Hermite in d, linear in ψ.  ``EdgeSpread.stack`` builds many bins at once with a
 third table, λ ∂P/∂λ, and ``means_and_derivatives`` evaluates the means and their derivatives by the
-chain rule through the tables in numba (``footprint_bounds`` uses it; ``jacobian``, central differences
-of ``unit_means``, stays as the reference).  The PSF may be scaled by λ (blur scale): OTF_psf(λν).
+chain rule through the tables in numba (the kernel is ``edgetruth.locate.esf_tables``, shared with the
+locator ``patch_esf_fit``; ``EdgeSpread.tables`` hands it the arrays; ``footprint_bounds`` uses it;
+``jacobian``, central differences of ``unit_means``, stays as the reference).  The PSF may be scaled by λ
+(blur scale): OTF_psf(λν).
 
 **Circle.**  Per pixel the tangent line (the true distance d and local normal ψ of the pixel
 centre), the circle's bend inside the pixel (1/(24 r), as ``evaluate.crb``) and the bend seen by
@@ -43,6 +45,8 @@ import numpy as np
 from scipy.special import ndtr
 
 from edgetruth.evaluate.crb import bound_from_fisher
+from edgetruth.locate.esf_tables import EsfTables
+from edgetruth.locate.esf_tables import means as esf_means
 from edgetruth.render.optics import mtf
 GRID_STEP_PX = 1.0 / 64.0
 FFT_LEN = 1 << 16  # x 1/64 px = ±512 px period: the Airy ESF tail beyond it is < 1e-3 of the contrast
@@ -172,6 +176,16 @@ class EdgeSpread:
             self._build(want)
         return self._stack
 
+    def tables(self, bins=None) -> EsfTables:
+        """The ``locate.esf_tables.EsfTables`` of this spread (the rows of ``bins`` built, default all): what
+        the shared kernel and the locator patch_esf_fit read."""
+        P, dP, L = self.stack(bins)
+        o = self.optics
+        lam2 = self.scale ** 2
+        return EsfTables(P, dP, L, math.radians(self.angle_step_deg), TABLE_HALF_PX, float(self._k),
+                         1.0 / GRID_STEP_PX, o.sigma_x_px ** 2 * lam2, o.sigma_y_px ** 2 * lam2,
+                         (o.defocus_px ** 2 / 4.0 + o.olpf_px ** 2 / 4.0) * lam2)
+
     def _build(self, bins, chunk: int = 48):
         n = self.fft_len
         h = GRID_STEP_PX
@@ -239,111 +253,9 @@ class EdgeSpread:
         return val, der
 
 
-# ---------------------------------------------------------------- the batched kernel
+# ---------------------------------------------------------------- the batched kernels
 #
-# Per point i and footprint pixel k: the unit mean M and its derivatives by the chain rule through
-# the tables -- dM/drho = P_d dd/drho + P_psi dpsi/drho, likewise for phi, and
-# dM/dlambda = L + P_d dd/dlambda (the circle's bend grows with the PSF's tangential variance) --
-# P_d from the cubic Hermite in d, P_psi the slope of the linear interpolation in psi (as a
-# central difference across a bin boundary gives), L linear in d.
-
-@numba.njit(cache=True, inline="always")
-def _hermite_row(P, dP, j, d, k0, inv_h):
-    x = d * inv_h + k0
-    i = int(math.floor(x))
-    if i < 0:
-        i = 0
-    if i > P.shape[1] - 2:
-        i = P.shape[1] - 2
-    t = x - i
-    h = 1.0 / inv_h
-    p0 = P[j, i]
-    p1 = P[j, i + 1]
-    m0 = dP[j, i] * h
-    m1 = dP[j, i + 1] * h
-    t2 = t * t
-    t3 = t2 * t
-    val = (2 * t3 - 3 * t2 + 1) * p0 + (t3 - 2 * t2 + t) * m0 + (-2 * t3 + 3 * t2) * p1 + (t3 - t2) * m1
-    der = ((6 * t2 - 6 * t) * p0 + (3 * t2 - 4 * t + 1) * m0 + (-6 * t2 + 6 * t) * p1
-           + (3 * t2 - 2 * t) * m1) * inv_h
-    return val, der, i, t
-
-
-@numba.njit(cache=True)
-def _means_kernel(kind, rho, phi, radius, sgn, offx, offy, use, P, dP, L, step_rad, half_px, k0, inv_h,
-                  sx2, sy2, vc, M, Jr, Jp, Jl):
-    """M, dM/drho, dM/dphi, lambda dM/dlambda at every (point, offset) where ``use``."""
-    n = rho.shape[0]
-    npx = offx.shape[0]
-    nb = P.shape[0] - 1
-    for i in range(n):
-        c = math.cos(phi[i])
-        s = math.sin(phi[i])
-        # a line's normal is the same at every pixel: its angle bin once per point
-        la = math.atan2(abs(s), abs(c))
-        lda = 1.0 if (s >= 0.0) == (c >= 0.0) else -1.0
-        lx = la / step_rad
-        lj = min(max(int(math.floor(lx)), 0), nb - 1)
-        lw = lx - lj
-        for k in range(npx):
-            if not use[i, k]:
-                continue
-            dx = offx[k]
-            dy = offy[k]
-            if kind[i] == 0:
-                d = dx * c + dy * s + rho[i]
-                d_r = 1.0
-                d_p = dy * c - dx * s
-                s_r = 0.0
-                s_p = 1.0
-                d_l = 0.0
-                j0 = lj
-                w = lw
-                da = lda
-            else:
-                g = sgn[i]
-                kk = g * radius[i] - rho[i]
-                vx = dx - kk * c
-                vy = dy - kk * s
-                r = math.sqrt(vx * vx + vy * vy)
-                if r < 1e-9:
-                    r = 1e-9
-                sn = vy / r
-                cs = vx / r
-                vt = sx2 * sn * sn + sy2 * cs * cs + vc
-                ct = 1.0 / 12.0 + vt
-                d = g * (radius[i] - r - ct / (2.0 * r))
-                r_r = (vx * c + vy * s) / r
-                r_p = kk * (vx * s - vy * c) / r
-                s_r = (vx * s - vy * c) / (r * r)
-                s_p = -kk * (vx * c + vy * s) / (r * r)
-                dd_r = g * (-1.0 + ct / (2.0 * r * r))
-                dd_s = -g * (2.0 * sn * cs * (sx2 - sy2)) / (2.0 * r)
-                d_r = dd_r * r_r + dd_s * s_r
-                d_p = dd_r * r_p + dd_s * s_p
-                d_l = -g * vt / r
-                a = math.atan2(abs(sn), abs(cs))
-                da = 1.0 if (sn >= 0.0) == (cs >= 0.0) else -1.0
-                x = a / step_rad
-                j0 = min(max(int(math.floor(x)), 0), nb - 1)
-                w = x - j0
-            if d <= -half_px or d >= half_px:
-                M[i, k] = 0.0 if d < 0 else 1.0
-                Jr[i, k] = 0.0
-                Jp[i, k] = 0.0
-                Jl[i, k] = 0.0
-                continue
-            v0, e0, ii, t = _hermite_row(P, dP, j0, d, k0, inv_h)
-            v1, e1, _, _ = _hermite_row(P, dP, j0 + 1, d, k0, inv_h)
-            l0 = L[j0, ii] * (1.0 - t) + L[j0, ii + 1] * t
-            l1 = L[j0 + 1, ii] * (1.0 - t) + L[j0 + 1, ii + 1] * t
-            pd = (1.0 - w) * e0 + w * e1
-            pa = (v1 - v0) / step_rad * da
-            M[i, k] = (1.0 - w) * v0 + w * v1
-            Jr[i, k] = pd * d_r + pa * s_r
-            Jp[i, k] = pd * d_p + pa * s_p
-            Jl[i, k] = (1.0 - w) * l0 + w * l1 + pd * d_l
-
+# The means and their derivatives: ``edgetruth.locate.esf_tables`` (shared with the locator patch_esf_fit).
 
 @numba.njit(cache=True)
 def _fisher_kernel(Jr, Jp, Jl, M, B, wgt, masks, npar, F):
@@ -454,33 +366,20 @@ def rho_bound(F: np.ndarray, drop_rel: float = 1e-9) -> np.ndarray:
 def means_and_derivatives(spread: EdgeSpread, geometry: dict, offsets, use=None):
     """(M, dM/drho, dM/dphi, lambda dM/dlambda), each (N, P), of the unit edge at pixel ``offsets``
     (P, 2) = (dx, dy) from each point (``crb.edge_geometry``), where ``use`` (N, P) (default all):
-    one pass of the batched kernel over the tables of the angle bins the points need."""
-    off = np.ascontiguousarray(np.asarray(offsets, float).reshape(-1, 2))
-    n = geometry["rho"].size
-    npx = off.shape[0]
-    use = np.ones((n, npx), bool) if use is None else np.ascontiguousarray(use, bool)
-    bc = lambda v, t=float: np.ascontiguousarray(np.broadcast_to(np.asarray(v, t), (n,)))
-    kind, rho, phi = bc(geometry["kind"], np.int64), bc(geometry["rho"]), bc(geometry["phi"])
-    radius, sgn = bc(geometry["radius"]), bc(geometry["sgn"])
+    one pass of the batched kernel (``locate.esf_tables.means``) over the tables of the angle bins
+    the points need."""
+    n = np.asarray(geometry["rho"]).size
+    kind = np.broadcast_to(np.asarray(geometry["kind"], np.int64), (n,))
     # the angle bins the points reach: lines at phi, circles all around
-    step = math.radians(spread.angle_step_deg)
     if n and np.any(kind == 1):
         bins = None
     else:
+        phi = np.broadcast_to(np.asarray(geometry["phi"], float), (n,))
+        step = math.radians(spread.angle_step_deg)
         a = np.arctan2(np.abs(np.sin(phi)), np.abs(np.cos(phi)))
         j = np.clip(np.floor(a / step).astype(np.int64), 0, spread.n_bins - 1)
         bins = np.concatenate([j, j + 1])
-    P, dP, L = spread.stack(bins)
-    o = spread.optics
-    lam2 = spread.scale ** 2
-    M = np.zeros((n, npx))
-    Jr, Jp, Jl = np.zeros_like(M), np.zeros_like(M), np.zeros_like(M)
-    if n and npx:
-        _means_kernel(kind, rho, phi, radius, sgn, off[:, 0].copy(), off[:, 1].copy(), use, P, dP, L, step,
-                      TABLE_HALF_PX, float(spread._k), 1.0 / GRID_STEP_PX, o.sigma_x_px ** 2 * lam2,
-                      o.sigma_y_px ** 2 * lam2, (o.defocus_px ** 2 / 4.0 + o.olpf_px ** 2 / 4.0) * lam2,
-                      M, Jr, Jp, Jl)
-    return M, Jr, Jp, Jl
+    return esf_means(spread.tables(bins), geometry, offsets, use)
 
 
 def unit_means(spread: EdgeSpread, geometry: dict, offsets, rho=None, phi=None) -> np.ndarray:

@@ -26,6 +26,9 @@ class Method:
     #: (``edgetruth.locate.footprints``); None: not declared (the Cramér-Rao bound then assumes every
     #: pixel within ``footprints.RADIUS``).
     footprint: Callable[..., np.ndarray] | None = None
+    #: the method needs the camera's model (e.g. ``patch_esf_fit``'s edge-spread tables): studies without one
+    #: (synthetic, board) leave it out of their default method list (``camera_free``).
+    needs_camera: bool = False
 
     def footprint_masks(self, cand: Candidates, **options) -> np.ndarray:
         """The pixels the method reads for each candidate (its declaration, or the whole neighbourhood)."""
@@ -63,7 +66,7 @@ def sort_registry() -> None:
 
 
 def register(method_id: str, label: str | None = None, family: str = "user", summary: str = "",
-             footprint: Callable[..., np.ndarray] | None = None):
+             footprint: Callable[..., np.ndarray] | None = None, needs_camera: bool = False):
     """Decorator: register ``fn(image, cand, **options) -> Refinement`` under ``method_id``.
 
     ``image`` is the float64 (H, W) image, ``cand`` the shared ``Candidates``; return one
@@ -71,7 +74,8 @@ def register(method_id: str, label: str | None = None, family: str = "user", sum
     along each normal).  Keyword options after ``cand`` become the method's options.
     Registering the same function again under its id is a no-op (a module imported twice);
     another function under a taken id is an error.  ``footprint``: the pixels the method reads
-    (``edgetruth.locate.footprints``), used by the per-point Cramér-Rao bound."""
+    (``edgetruth.locate.footprints``), used by the per-point Cramér-Rao bound.  ``needs_camera``: the
+    method needs options only a camera model gives (studies without one leave it out: ``camera_free``)."""
     if not (isinstance(method_id, str) and _ID.match(method_id)):
         raise InputError(f"method id {method_id!r}: use 1-64 lowercase letters, digits and '_', starting with a letter")
 
@@ -84,10 +88,18 @@ def register(method_id: str, label: str | None = None, family: str = "user", sum
             raise InputError(f"method {method_id!r} is registered twice (by {old.fn.__module__} and "
                              f"{getattr(fn, '__module__', '?')}); give the new one another id")
         doc = (fn.__doc__ or "").strip().split("\n")[0]
-        METHODS[method_id] = Method(method_id, label or method_id, family, fn, summary or doc, footprint)
+        METHODS[method_id] = Method(method_id, label or method_id, family, fn, summary or doc, footprint,
+                                    bool(needs_camera))
         return fn
 
     return deco
+
+
+def camera_free(ids=None) -> list[str]:
+    """The method ids of ``ids`` (default: every registered one) that run without a camera model: the
+    default method list of a study that has none (synthetic images, real photos of a board)."""
+    ids = list(METHODS) if ids is None else list(ids)
+    return [m for m in ids if not (m in METHODS and METHODS[m].needs_camera)]
 
 
 def get_method(method: str) -> Method:

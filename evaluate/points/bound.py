@@ -22,8 +22,9 @@ measures -- from exactly the pixels the method reads (its declared footprint,
   (DSNU, PRNU: per pixel independent, unknown to a method).  The renderer's Monte-Carlo noise is left
   out (measured at 0.07–0.38 of the temporal noise on edge pixels, tests/render/test_mc_noise.py):
   less noise, a smaller bound, so still a bound.
-- **Unknowns** (ρ, φ, A, B, λ): position, normal, the two levels and the PSF's scale (no method here is
-  told the PSF; a method given it, ``psf_sigma_px``, gets the bound with λ known).
+- **Unknowns** (ρ, φ, A, B, λ): position, normal, the two levels and the PSF's scale (patch_esf_fit is given
+  the PSF's tables, ``esf_for_points``, and still fits its scale; a method told the scale, ``psf_sigma_px`` or
+  patch_esf_fit's ``blur_known``, gets the bound with λ known).
 """
 from __future__ import annotations
 
@@ -82,6 +83,29 @@ def spread_for(optics):
     else:
         _CACHE.move_to_end(key)
     return sp
+
+
+def field_bins(gt: dict, x, y) -> tuple[list, np.ndarray]:
+    """(``EdgeSpread`` per field-height bin, (N,) bin index) of image points (x, y) in full-image pixel
+    coordinates: bins of the aberration σ(h) 4 % wide (``SIGMA_BIN_REL``), each with the optics at its
+    centre.  One rule for the bound (``point_bounds``) and the locator patch_esf_fit (``esf_for_points``)."""
+    h = field_heights(gt, x, y)
+    growth = float(gt["camera"].get("optics", {}).get("psf", {}).get("aberration_sigma_growth", 0.0))
+    key = np.round(np.log1p(growth * h * h) / SIGMA_BIN_REL).astype(np.int64)
+    keys, bin_of = np.unique(key, return_inverse=True)
+    spreads = []
+    for kb in keys:
+        hb = math.sqrt(max(math.expm1(kb * SIGMA_BIN_REL), 0.0) / growth) if growth else 0.0
+        spreads.append(spread_for(optics_at(gt, hb)))
+    return spreads, bin_of.reshape(-1).astype(np.int64)
+
+
+def esf_for_points(gt: dict, x, y) -> tuple[list, np.ndarray]:
+    """The camera's edge-spread tables for the locator patch_esf_fit at image points (x, y), full-image
+    pixel coordinates: (list of ``locate.esf_tables.EsfTables``, one per field-height bin, every angle
+    row built; (N,) bin index per point) -- its ``esf`` and ``bin_index`` options, binned as the bound."""
+    spreads, bin_of = field_bins(gt, x, y)
+    return [sp.tables() for sp in spreads], bin_of
 
 
 def outline_geometry(truth, x, y) -> dict:
@@ -202,14 +226,9 @@ def point_bounds(gt: dict, radiance: np.ndarray, truth, x, y, masks: dict, blur_
     use = np.stack(list(on.values())).any(axis=0)
     geo = outline_geometry(truth, x, y)
     var_fn = sensor_variance(gt)
-    # field-height bins of the aberration sigma
-    h = field_heights(gt, x, y)
-    growth = float(gt["camera"].get("optics", {}).get("psf", {}).get("aberration_sigma_growth", 0.0))
-    key = np.round(np.log1p(growth * h * h) / SIGMA_BIN_REL).astype(np.int64)
-    for kb in np.unique(key):
-        sel = np.nonzero(key == kb)[0]
-        hb = math.sqrt(max(math.expm1(kb * SIGMA_BIN_REL), 0.0) / growth) if growth else 0.0
-        spread = spread_for(optics_at(gt, hb))
+    spreads, bin_of = field_bins(gt, x, y)
+    for kb, spread in enumerate(spreads):
+        sel = np.nonzero(bin_of == kb)[0]
         derivs = means_and_derivatives(spread, {k: v[sel] for k, v in geo.items()}, off, use[sel])
         A, B = _levels(derivs[0], vals[sel], use[sel])
         ok = np.isfinite(A) & np.isfinite(B) & (np.abs(B) > 0)

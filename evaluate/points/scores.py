@@ -141,6 +141,23 @@ def point_bound_px(gt: dict, radiance: np.ndarray, truth) -> float:
                                     window=BOUND_WINDOW_PX, unknowns="4p"))
 
 
+def camera_options(gt: dict, x, y) -> dict:
+    """patch_esf_fit's camera options at points (x, y) (full-image pixel coordinates) from the image's JSON:
+    the edge-spread tables of its PSF per field-height bin (``esf``, ``bin_index``: binned as the bound) and
+    the sensor's pixel variance (``variance``: the bound's EMVA model; left out -- an unweighted fit -- without
+    a sensor block or on an output that is not the raw signal)."""
+    from edgetruth.evaluate.points.bound import esf_for_points, sensor_variance
+
+    if "camera" not in gt:
+        return {}
+    esf, bin_index = esf_for_points(gt, x, y)
+    out = {"esf": esf, "bin_index": bin_index}
+    sensor = gt.get("sensor")
+    if sensor and str(sensor.get("output", "raw")) == "raw" and str(sensor.get("cfa", "none")) == "none":
+        out["variance"] = sensor_variance(gt)
+    return out
+
+
 def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict | None = None,
                 radiance: np.ndarray | None = None) -> PointScores:
     """Refine the target's boundary candidates of the raw ``image`` with every method and score them."""
@@ -160,9 +177,11 @@ def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict |
         mid, kw = resolve(label, options)
         if radiance is not None and len(sub):  # the bound's pixels: the method's declared footprint
             masks[label] = locate.METHODS[mid].footprint_masks(sub, **kw)
-            if kw.get("psf_sigma_px") is not None:  # told the PSF: its scale is known
-                blur_known.add(label)
+            if kw.get("psf_sigma_px") is not None or (mid == "patch_esf_fit" and kw.get("blur_known")):
+                blur_known.add(label)  # told the PSF: its scale is known
         if len(sub):
+            if mid == "patch_esf_fit":
+                kw = {**camera_options(gt, sub.x + x0, sub.y + y0), **kw}
             pts = locate.refine(tc.crop, sub, mid, **kw)
             err = truth.signed_distance(pts.x + x0, pts.y + y0)
             conv = np.asarray(pts.converged, bool)
