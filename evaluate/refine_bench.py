@@ -119,7 +119,7 @@ def scipy_reference(profiles, windows, four_param: bool):
 def run_bench(repeats: int = 7, scipy_points: int = 400, methods=None) -> list[str]:
     img, cand = _bench_candidates(BENCH_SHAPE)
     n = len(cand)
-    methods = list(locate.METHODS) if methods is None else list(methods)
+    methods = locate.registry.camera_free() if methods is None else list(methods)  # a mosaic has no camera
     times = interleaved_times(img, cand, methods, repeats)
     ratios = ratio_medians(times, REFERENCE) if REFERENCE in times else {}
     lines = [f"refinement throughput, {BENCH_SHAPE[1]}x{BENCH_SHAPE[0]} mosaic, {n} candidates, "

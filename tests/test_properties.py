@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 
 from edgetruth import locate
 
-METHOD_IDS = sorted(m for m, r in locate.METHODS.items() if r.builtin)
+# the methods that run on any image (patch_esf_fit needs a camera's tables: tests/locate/test_patch_esf_fit.py)
+METHOD_IDS = sorted(m for m, r in locate.METHODS.items() if r.builtin and not r.needs_camera)
 SETTINGS = settings(max_examples=25, deadline=None, derandomize=True,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
@@ -68,6 +69,9 @@ def test_every_point_finite_and_inside(method):
     check()
 
 
-def test_twenty_one_builtin_methods():
-    """The study's ten baselines, its ERF family (8 fixed windows, dynamic 2P and 4P) and edgetruth's own."""
+def test_twenty_two_builtin_methods():
+    """The study's ten baselines, its ERF family (8 fixed windows, dynamic 2P and 4P) and edgetruth's own two:
+    patch_psf_fit (any image) and patch_esf_fit (needs the camera's model)."""
     assert len(METHOD_IDS) == 21 and "patch_psf_fit" in METHOD_IDS
+    builtin = {m for m, r in locate.METHODS.items() if r.builtin}
+    assert builtin - set(METHOD_IDS) == {"patch_esf_fit"} and locate.METHODS["patch_esf_fit"].needs_camera

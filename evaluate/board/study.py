@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth import console, locate
+from edgetruth.locate.registry import camera_free
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board import locator_fit as LF
@@ -175,7 +176,8 @@ def run_board_study(items: list[str], out, model: str | None = None, methods=Non
     from edgetruth.evaluate.run_dir import prepare_run_dir
 
     inp = resolve_inputs(list(items), model)
-    methods = mo.ordered(methods)
+    # all methods but those that need a camera model (patch_esf_fit's PSF tables): there is none here
+    methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:
         locate.get_method(mo.resolve(m)[0])
     options = mo.study_options(thresholds)

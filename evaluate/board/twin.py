@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth import console, locate
+from edgetruth.locate.registry import camera_free
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, resolve_inputs
@@ -186,7 +187,8 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     if spec.n_images != len(real_all.photos):
         raise InputError(f"{spec_name}: {spec.n_images} images for {len(real_all.photos)} photos; the twin must "
                          "render one image per photo")
-    methods = mo.ordered(methods)
+    # all methods but those that need a camera model (patch_esf_fit's PSF tables): there is none here
+    methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:
         locate.get_method(mo.resolve(m)[0])
     options = mo.study_options(thresholds)

@@ -278,6 +278,15 @@ def _undistorter(cal):
     return _undistorters[key]
 
 
+def ranging_methods(labels: list[str], options: dict | None = None) -> list[str]:
+    """The labels of ``labels`` that size and range the undistorted image: all but those whose method
+    needs the camera's model (``Method.needs_camera``; they are scored per point on the raw image)."""
+    from edgetruth import locate
+    from edgetruth.evaluate.method_order import resolve
+
+    return [m for m in labels if not getattr(locate.METHODS.get(resolve(m, options)[0]), "needs_camera", False)]
+
+
 def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: bool, options: dict,
                 score_points: bool = True):
     """One task (a pure function of its arguments): range target image ``name`` of ``dataset`` with
@@ -295,7 +304,10 @@ def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: b
         raise InputError(f"{dataset}/{name}: image size {size} differs from the calibrated {tuple(cal.image_size)}; "
                          "calibrate with boards from the same camera")
     image = s.image.astype(np.float64)
-    r = process_image(image, gt, cal, _undistorter(cal), methods, keep_points, name=name, options=options)
+    # the size and pose rows read the undistorted (resampled) image, where a camera model's edge-spread
+    # tables no longer describe the blur: methods that need them (patch_esf_fit) are scored per point only
+    r = process_image(image, gt, cal, _undistorter(cal), ranging_methods(methods, options), keep_points,
+                      name=name, options=options)
     if r.rows:
         r.record = {k: r.rows[0].get(k, "") for k in POINT_RECORD_FIELDS}
     if score_points and not r.error:

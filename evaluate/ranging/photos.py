@@ -247,7 +247,7 @@ def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir
     from edgetruth.fileio import write_json
     from edgetruth.locate import plugins
 
-    methods = list(methods or locate.METHODS)
+    methods = list(methods or locate.registry.camera_free())  # photos: no camera model to give a method
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     keep, shown = set(), set()
@@ -324,8 +324,9 @@ def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_d
     options = mo.study_options(thresholds, camera_thresholds)
     tau = mo.thresholds_in_use(thresholds)
     if camera_thresholds is not None:
-        methods = mo.ordered(list(methods or locate.METHODS) + [
-            v for v in mo.variant_labels(options) if options[v]["method"] in (methods or locate.METHODS)])
+        free = locate.registry.camera_free()  # photos: no camera model to give a method (patch_esf_fit)
+        methods = mo.ordered(list(methods or free) + [
+            v for v in mo.variant_labels(options) if options[v]["method"] in (methods or free)])
     result = run_photo_ranging(records, calibration, out, photos_dir, methods=methods, options=options,
                                channel=channel, progress=progress, backend=backend, workers=workers, address=address)
     head = dict(header or {})

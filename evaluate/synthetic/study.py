@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth import locate
+from edgetruth.locate.registry import camera_free
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate import crb
@@ -619,7 +620,8 @@ def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: 
     n_per = PRESETS[preset]["images_per_scenario"] if images_per_scenario is None else int(images_per_scenario)
     if n_per < 2:
         raise InputError(f"images per scenario = {n_per}: need at least 2")
-    methods = mo.ordered(methods)
+    # all methods but those that need a camera model (patch_esf_fit's PSF tables): there is none here
+    methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:
         locate.get_method(mo.resolve(m)[0])
     from edgetruth.backends import check_backend_args
