@@ -65,8 +65,12 @@ sys.meta_path.insert(0, _EdgetruthTree)
 _RENDER_SNIPPET = '''\
 import json, sys, time
 t0 = time.perf_counter()
-from edgetruth.render.dataset.driver import render_spec
-from edgetruth.render.dataset.spec import load_spec
+try:  # render/ has one sub-package per stage since stop 24; a baseline before it has flat modules
+    from edgetruth.render.dataset.driver import render_spec
+    from edgetruth.render.dataset.spec import load_spec
+except ModuleNotFoundError:
+    from edgetruth.render.driver import render_spec
+    from edgetruth.render.spec import load_spec
 spec = load_spec(sys.argv[3])
 names = [g.name for g in spec.groups if g.kind == "target"]
 group = "G1_T1" if "G1_T1" in names else names[0]  # the study's base cell

@@ -40,6 +40,14 @@ def test_refined_rmse_excludes_declines_and_common_subset_is_the_intersection():
     o = rpr.point_stats(t, "other", bound, common)
     assert o["bias_refined"] == pytest.approx(0.01, abs=0.004)
     assert o["bias_optical"] == pytest.approx(0.0, abs=0.004)  # the optics' 0.01 px taken off
+    # the RMSE against the optical edge: sqrt(0.02^2 + 0.01^2) -> 0.02 with the optics' 0.01 px taken off
+    ref = ~oth
+    assert o["rmse_optical"] == pytest.approx(np.sqrt(np.mean((t.errors["other"][ref] - 0.01) ** 2)), rel=1e-12)
+    assert o["rmse_optical"] < o["rmse_refined"]
+    t.bounds = {m: np.full(len(t.image), 0.02) for m in t.methods}
+    o = rpr.point_stats(t, "other", bound, common)
+    assert o["rmse_optical_over_bound"] == pytest.approx(o["rmse_optical"] / 0.02, rel=1e-12)
+    assert o["rmse_optical_over_bound"] == pytest.approx(1.0, abs=0.08)  # N(0.01, 0.02) minus 0.01, over 0.02
 
 
 def test_paired_tests_use_the_common_subset():
@@ -62,11 +70,12 @@ def test_report_section_writes_the_four_figures(tmp_path):
     lines = rpr.report_section(t, t.methods, tmp_path)
     text = "\n".join(lines)
     for word in ("coverage", "RMSE (refined)", "RMSE (common subset)", "declines at pixel", "bias vs optical edge",
-                 "common subset", "optics: predicted displacement"):
+                 "common subset", "optics: predicted displacement", "RMSE vs optical ÷ bound"):
         assert word in text
     rows = (tmp_path / "render_points_summary.csv").read_text().splitlines()
     head = rows[0].split(",")
-    for col in ("rmse_refined_px", "rmse_common_px", "bias_optical_px", "optical_offset_px"):
+    for col in ("rmse_refined_px", "rmse_common_px", "bias_optical_px", "optical_offset_px", "rmse_optical_px",
+                "rmse_optical_over_bound"):
         assert col in head
 
 
