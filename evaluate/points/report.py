@@ -441,6 +441,16 @@ def report_section(table, methods, out_dir: Path) -> list[str]:
                      [[_label(r["method"]), r["n_images"], _f(r["rmse_difference"], 4), _ci(r["rmse_difference_ci"], 4),
                        _f(r["rank_biserial"], 2), f"{r['p_value']:.2g}", f"{r['p_holm']:.2g}",
                        "yes" if r["significant"] else "no"] for r in comp])]
+    best = order[0] if order else None
+    if best is not None and best != REFERENCE_METHOD and len(order) > 1:
+        comp = image_comparisons(base, order, reference=best, mask=common)
+        L += ["", f"## Table E2b — per-point: the lowest-RMSE method ({_label(best)}) vs each on the common subset", "",
+              f"As Table E2, with {_label(best)} (the lowest RMSE on the common subset) in Dynamic 4P's place: "
+              f"r < 0 and ΔRMSE < 0 mean {_label(best)} has the smaller per-image RMSE.", "",
+              _table(["method", "images", "ΔRMSE (px)", "ΔRMSE 95 % CI", "r", "p", "p (Holm)", "significant"],
+                     [[_label(r["method"]), r["n_images"], _f(r["rmse_difference"], 4), _ci(r["rmse_difference_ci"], 4),
+                       _f(r["rank_biserial"], 2), f"{r['p_value']:.2g}", f"{r['p_holm']:.2g}",
+                       "yes" if r["significant"] else "no"] for r in comp])]
     present = [f"{a}-{b}" for a, b in INTERVALS_CM if (c["base"] & (interval == f"{a}-{b}")).any()]
     if present:
         subs = {lb: table.select(c["base"] & (interval == lb)) for lb in present}

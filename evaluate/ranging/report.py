@@ -415,6 +415,12 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
 
     out_dir = Path(out_dir)
     all_rows = rows
+    # methods with no ranging rows (those that need the camera's model: ranging reads the undistorted image)
+    # are in the per-point tables only
+    point_methods = list(methods)
+    ranged = {r["method"] for r in all_rows}
+    points_only = [m for m in methods if m not in ranged] if ranged else []
+    methods = [m for m in methods if m not in points_only]
     rows = main_rows(all_rows)
     per = by_method(rows, methods)
     st = {m: method_stats(per[m]) for m in methods}
@@ -534,7 +540,10 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     if points is not None and len(points.image):
         from edgetruth.evaluate.points.report import report_section
 
-        L += report_section(points, [m for m in methods if m in points.errors], out_dir)
+        if points_only:
+            L += ["", f"{', '.join(points_only)}: scored per point only (Tables E1–E4): it needs the camera's model, "
+                  "which describes the raw image, while the size and pose rows read the undistorted one."]
+        L += report_section(points, [m for m in point_methods if m in points.errors], out_dir)
         if windows_beside_full and (out_dir / "render_points_summary.csv").is_file():
             from edgetruth.evaluate.ranging.window_shares import beside_section
 

@@ -115,3 +115,17 @@ def test_rendered_dataset_carries_the_optical_edge_and_scores_against_it(tiny_da
     e, c = t.errors["canny_devernay"], t.converged["canny_devernay"]
     if (~c).any():  # a declining method: its refined-point RMSE leaves the declines out
         assert st["rmse_refined"] == pytest.approx(np.sqrt(np.mean(e[c] ** 2)))
+
+
+def test_the_lowest_rmse_method_gets_its_own_paired_table(tmp_path):
+    """E2b: the method with the lowest common-subset RMSE against each other method, paired per image."""
+    t, _, _ = _table()
+    t.errors["dynamic_erf_4p"] = t.errors["other"].copy()
+    t.converged["dynamic_erf_4p"] = t.converged["other"].copy()
+    t.errors["decliner"] = t.errors["decliner"] * 2.0  # its refined points at 0.04 px: 'good' is the lowest
+    text = "\n".join(rpr.report_section(t, t.methods, tmp_path))
+    assert "Table E2b" in text and "lowest-RMSE method (good)" in text
+    block = text.split("Table E2b")[1].split("##")[0]
+    rows = {ln.split("|")[1].strip(): ln.split("|") for ln in block.splitlines() if ln.startswith("| ") and "---" not in ln}
+    # 'good' (unbiased) against 'decliner' (twice the noise on the common subset): lower RMSE on every image
+    assert float(rows["decliner"][3]) < 0 and rows["decliner"][-2].strip() == "yes"
