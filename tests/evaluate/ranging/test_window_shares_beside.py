@@ -45,7 +45,8 @@ def test_beside_section_pairs_each_cell_with_the_full_study(tmp_path):
     assert "## Window shares: this run beside the full study" in text
     rows = [ln for ln in text.splitlines() if ln.startswith("| ProposedDynamicERF_4P")]
     assert len(rows) == 2
+    full = FULL_STUDY_SHARES[("base", "dynamic_erf_4p")]  # the full study's side: the committed shares
     assert rows[0].split(" | ")[1:] == ["base (G1_T1)", "90.0 %", "10.0 %", "0.0 %", "0.0 %",
-                                        "96.6 %", "3.4 %", "0.0 %", "0.0 %", "1,200 / 29,280 |"]
-    assert "G4" in rows[1] and "70.0 %" in rows[1] and "72.9 %" in rows[1]
+                                        *[f"{100 * s:.1f} %" for s in full[:4]], f"1,200 / {full[4]:,} |"]
+    assert "G4" in rows[1] and "70.0 %" in rows[1] and f"{100 * FULL_STUDY_SHARES[('G4', 'dynamic_erf_4p')][0]:.1f} %" in rows[1]
     assert beside_section(_summary(tmp_path / "none.csv", [("base", "", "all", "canny_pixel", 5, "", "", "", "")])) == []
