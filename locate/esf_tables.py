@@ -79,6 +79,79 @@ def _hermite_row(P, dP, j, d, k0, inv_h):
     return val, der, i, t
 
 
+@njit(cache=True, inline="always")
+def line_bin(c, s, step_rad, nb):
+    """(row, weight, sign of dpsi/dphi) of a line of normal (c, s): the same at every pixel, once per point."""
+    la = math.atan2(abs(s), abs(c))
+    lda = 1.0 if (s >= 0.0) == (c >= 0.0) else -1.0
+    lx = la / step_rad
+    lj = min(max(int(math.floor(lx)), 0), nb - 1)
+    return lj, lx - lj, lda
+
+
+@njit(cache=True, inline="always")
+def pixel_mean(kind, rho, c, s, radius, sgn, dx, dy, lj, lw, lda, P, dP, L, step_rad, half_px, k0, inv_h,
+               sx2, sy2, vc, with_l):
+    """(M, dM/drho, dM/dphi, lambda dM/dlambda, dL/drho, dL/dphi) of one point at the pixel offset (dx, dy):
+    (c, s) = n(phi), (lj, lw, lda) its ``line_bin``; dL/drho and dL/dphi are 0 unless ``with_l``.  The
+    per-pixel body of ``_means_kernel``, shared with the fused fit of ``patch_esf_fit``."""
+    nb = P.shape[0] - 1
+    if kind == 0:
+        d = dx * c + dy * s + rho
+        d_r = 1.0
+        d_p = dy * c - dx * s
+        s_r = 0.0
+        s_p = 1.0
+        d_l = 0.0
+        j0 = lj
+        w = lw
+        da = lda
+    else:
+        g = sgn
+        kk = g * radius - rho
+        vx = dx - kk * c
+        vy = dy - kk * s
+        r = math.sqrt(vx * vx + vy * vy)
+        if r < 1e-9:
+            r = 1e-9
+        sn = vy / r
+        cs = vx / r
+        vt = sx2 * sn * sn + sy2 * cs * cs + vc
+        ct = 1.0 / 12.0 + vt
+        d = g * (radius - r - ct / (2.0 * r))
+        r_r = (vx * c + vy * s) / r
+        r_p = kk * (vx * s - vy * c) / r
+        s_r = (vx * s - vy * c) / (r * r)
+        s_p = -kk * (vx * c + vy * s) / (r * r)
+        dd_r = g * (-1.0 + ct / (2.0 * r * r))
+        dd_s = -g * (2.0 * sn * cs * (sx2 - sy2)) / (2.0 * r)
+        d_r = dd_r * r_r + dd_s * s_r
+        d_p = dd_r * r_p + dd_s * s_p
+        d_l = -g * vt / r
+        a = math.atan2(abs(sn), abs(cs))
+        da = 1.0 if (sn >= 0.0) == (cs >= 0.0) else -1.0
+        x = a / step_rad
+        j0 = min(max(int(math.floor(x)), 0), nb - 1)
+        w = x - j0
+    if d <= -half_px or d >= half_px:
+        return (0.0 if d < 0 else 1.0), 0.0, 0.0, 0.0, 0.0, 0.0
+    v0, e0, ii, t = _hermite_row(P, dP, j0, d, k0, inv_h)
+    v1, e1, _, _ = _hermite_row(P, dP, j0 + 1, d, k0, inv_h)
+    l0 = L[j0, ii] * (1.0 - t) + L[j0, ii + 1] * t
+    l1 = L[j0 + 1, ii] * (1.0 - t) + L[j0 + 1, ii + 1] * t
+    pd = (1.0 - w) * e0 + w * e1
+    pa = (v1 - v0) / step_rad * da
+    lr = 0.0
+    lp = 0.0
+    if with_l:
+        ld = ((1.0 - w) * (L[j0, ii + 1] - L[j0, ii]) + w * (L[j0 + 1, ii + 1] - L[j0 + 1, ii])) * inv_h
+        la = (l1 - l0) / step_rad * da
+        lr = ld * d_r + la * s_r
+        lp = ld * d_p + la * s_p
+    return ((1.0 - w) * v0 + w * v1, pd * d_r + pa * s_r, pd * d_p + pa * s_p, (1.0 - w) * l0 + w * l1 + pd * d_l,
+            lr, lp)
+
+
 @njit(cache=True)
 def _means_kernel(kind, rho, phi, radius, sgn, offx, offy, use, P, dP, L, step_rad, half_px, k0, inv_h,
                   sx2, sy2, vc, M, Jr, Jp, Jl, with_l, Lr, Lp):
@@ -92,78 +165,19 @@ def _means_kernel(kind, rho, phi, radius, sgn, offx, offy, use, P, dP, L, step_r
     for i in range(n):
         c = math.cos(phi[i])
         s = math.sin(phi[i])
-        # a line's normal is the same at every pixel: its angle bin once per point
-        la = math.atan2(abs(s), abs(c))
-        lda = 1.0 if (s >= 0.0) == (c >= 0.0) else -1.0
-        lx = la / step_rad
-        lj = min(max(int(math.floor(lx)), 0), nb - 1)
-        lw = lx - lj
+        lj, lw, lda = line_bin(c, s, step_rad, nb)
         for k in range(npx):
             if not use[i, k]:
                 continue
-            dx = offx[k]
-            dy = offy[k]
-            if kind[i] == 0:
-                d = dx * c + dy * s + rho[i]
-                d_r = 1.0
-                d_p = dy * c - dx * s
-                s_r = 0.0
-                s_p = 1.0
-                d_l = 0.0
-                j0 = lj
-                w = lw
-                da = lda
-            else:
-                g = sgn[i]
-                kk = g * radius[i] - rho[i]
-                vx = dx - kk * c
-                vy = dy - kk * s
-                r = math.sqrt(vx * vx + vy * vy)
-                if r < 1e-9:
-                    r = 1e-9
-                sn = vy / r
-                cs = vx / r
-                vt = sx2 * sn * sn + sy2 * cs * cs + vc
-                ct = 1.0 / 12.0 + vt
-                d = g * (radius[i] - r - ct / (2.0 * r))
-                r_r = (vx * c + vy * s) / r
-                r_p = kk * (vx * s - vy * c) / r
-                s_r = (vx * s - vy * c) / (r * r)
-                s_p = -kk * (vx * c + vy * s) / (r * r)
-                dd_r = g * (-1.0 + ct / (2.0 * r * r))
-                dd_s = -g * (2.0 * sn * cs * (sx2 - sy2)) / (2.0 * r)
-                d_r = dd_r * r_r + dd_s * s_r
-                d_p = dd_r * r_p + dd_s * s_p
-                d_l = -g * vt / r
-                a = math.atan2(abs(sn), abs(cs))
-                da = 1.0 if (sn >= 0.0) == (cs >= 0.0) else -1.0
-                x = a / step_rad
-                j0 = min(max(int(math.floor(x)), 0), nb - 1)
-                w = x - j0
-            if d <= -half_px or d >= half_px:
-                M[i, k] = 0.0 if d < 0 else 1.0
-                Jr[i, k] = 0.0
-                Jp[i, k] = 0.0
-                Jl[i, k] = 0.0
-                if with_l:
-                    Lr[i, k] = 0.0
-                    Lp[i, k] = 0.0
-                continue
-            v0, e0, ii, t = _hermite_row(P, dP, j0, d, k0, inv_h)
-            v1, e1, _, _ = _hermite_row(P, dP, j0 + 1, d, k0, inv_h)
-            l0 = L[j0, ii] * (1.0 - t) + L[j0, ii + 1] * t
-            l1 = L[j0 + 1, ii] * (1.0 - t) + L[j0 + 1, ii + 1] * t
-            pd = (1.0 - w) * e0 + w * e1
-            pa = (v1 - v0) / step_rad * da
-            M[i, k] = (1.0 - w) * v0 + w * v1
-            Jr[i, k] = pd * d_r + pa * s_r
-            Jp[i, k] = pd * d_p + pa * s_p
-            Jl[i, k] = (1.0 - w) * l0 + w * l1 + pd * d_l
+            m, jr, jp, jl, lr, lp = pixel_mean(kind[i], rho[i], c, s, radius[i], sgn[i], offx[k], offy[k], lj, lw,
+                                               lda, P, dP, L, step_rad, half_px, k0, inv_h, sx2, sy2, vc, with_l)
+            M[i, k] = m
+            Jr[i, k] = jr
+            Jp[i, k] = jp
+            Jl[i, k] = jl
             if with_l:
-                ld = ((1.0 - w) * (L[j0, ii + 1] - L[j0, ii]) + w * (L[j0 + 1, ii + 1] - L[j0 + 1, ii])) * inv_h
-                la = (l1 - l0) / step_rad * da
-                Lr[i, k] = ld * d_r + la * s_r
-                Lp[i, k] = ld * d_p + la * s_p
+                Lr[i, k] = lr
+                Lp[i, k] = lp
 
 
 def means(tables: EsfTables, geometry: dict, offsets, use=None, l_derivatives: bool = False):

@@ -15,8 +15,10 @@ pixels as ``patch_psf_fit`` -- the rectangle |t| <= 5 along the candidate's norm
   own PSF; the bound's Jacobian in lambda is this L): lambda is fitted unless ``blur_known``.
 
 Unknowns (rho, phi, A, B, lambda) -- (rho, phi, A, B) with ``blur_known`` -- by Levenberg–Marquardt,
-batched: every iteration evaluates the model of all still-active points in one pass of the shared table
-kernel, their normal equations in one parallel numba kernel, and their damped steps in another.  The
+one fused numba kernel per point (``_fit_points``: parallel over fixed chunks of points, the patch gathered
+once, the table evaluator's per-pixel body ``esf_tables.pixel_mean`` inlined, no allocation per point); a
+callable ``variance`` cannot be compiled into it and takes the batched path (``_fit_chunk``: per pass the
+shared table kernel over the active points, numpy bookkeeping, small numba kernels), same steps.  The
 Jacobian is the kernel's chain rule, the (lambda - 1) L term's slopes in rho and phi included (without
 them the Gauss-Newton step's fixed point is not the cost's minimum where lambda is far from 1 -- per point
 its scatter is ~0.1 --, steps are refused and the damping stalls: the points at the 3e-3 px tolerance lay
@@ -48,6 +50,7 @@ import numpy as np
 from edgetruth.errors import InputError
 from edgetruth.jit import before_compile, njit, prange
 from edgetruth.locate import erf_kernels as K
+from edgetruth.locate import esf_tables as ET
 from edgetruth.locate import footprints as FP
 from edgetruth.locate.esf_tables import EsfTables, means
 from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
@@ -62,10 +65,12 @@ MAXIT = 40
 TOL_PX = 3e-3  # the step (rho px, phi rad, lambda relative) that ends the fit, taken without another pass
 RHO_MAX = PF.RHO_MAX
 LAMBDA_MIN, LAMBDA_MAX = 0.5, 2.0  # the first-order model in lambda: beyond this range it is not the PSF
-CHUNK = 4096  # points per batch: the (points x patch pixels) work arrays stay ~4 MB each
+CHUNK = 4096  # a callable variance's batches (``_fit_batched``): the (points x pixels) arrays stay ~4 MB each
 KAPPA_RADIUS_PX = 5.0  # the curvature is averaged over the candidates within this radius (``curvature``)
 _SAME_EDGE_COS = math.cos(math.radians(30.0))
 VAR_FLOOR, VAR_FLOOR_REL = 1e-9, 1e-3  # the pixel variance's floor (gray levels²; and relative to the patch's largest)
+N_CHUNKS = PF.N_CHUNKS  # the fused kernel's parallel chunks of points (work arrays allocated once per chunk)
+MAXPIX = FP.SIZE * FP.SIZE
 _solve = None  # locate.small_linalg.cholesky_solve, bound when the kernels first compile
 
 
@@ -143,11 +148,292 @@ def _rho_variance(H, npar, out):
         out[i] = x[0] if _solve(Hs, e, npar, x) else np.inf
 
 
+# --- the fused per-point fit (tuple or no ``variance``) ---------------------------------------------------
+# The same steps as ``_fit_chunk`` in the same floating-point order, so that a point's answer does not
+# depend on the path: the normal equations sum the used pixels in the union's order, and the trial cost
+# (numpy's row sum there) is numpy's pairwise sum over the union's row, its unused pixels adding zero terms.
+
+@njit(cache=True, inline="always")
+def _sum_block(t, lo, n):
+    """numpy's pairwise sum of t[lo:lo + n] for n <= 128 (eight running sums; below 8 one)."""
+    if n < 8:
+        res = -0.0
+        for i in range(lo, lo + n):
+            res += t[i]
+        return res
+    r0, r1, r2, r3 = t[lo], t[lo + 1], t[lo + 2], t[lo + 3]
+    r4, r5, r6, r7 = t[lo + 4], t[lo + 5], t[lo + 6], t[lo + 7]
+    i = 8
+    while i < n - n % 8:
+        r0 += t[lo + i]
+        r1 += t[lo + i + 1]
+        r2 += t[lo + i + 2]
+        r3 += t[lo + i + 3]
+        r4 += t[lo + i + 4]
+        r5 += t[lo + i + 5]
+        r6 += t[lo + i + 6]
+        r7 += t[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += t[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True, inline="always")
+def _sum_half(t, lo, n):
+    if n <= 128:
+        return _sum_block(t, lo, n)
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _sum_block(t, lo, n2) + _sum_block(t, lo + n2, n - n2)
+
+
+@njit(cache=True)
+def _pairwise_sum(t, n):
+    """numpy's float64 row sum of t[:n] bit for bit (its pairwise summation; every n <= FP.SIZE² = 289 checked
+    against np.sum: three levels of halving are enough there)."""
+    if n <= 128:
+        return 0.0 + _sum_block(t, 0, n)
+    n2 = n // 2
+    n2 -= n2 % 8
+    return 0.0 + (_sum_half(t, 0, n2) + _sum_half(t, n2, n - n2))
+
+
+@njit(cache=True, inline="always")
+def _model(th, kind, radius, sgn, ox, oy, npix, P, dP, L, step_rad, half_px, k0, inv_h, sx2, sy2, vcir, wk):
+    """wk[4:10] <- (M, Jr, Jp, Jl, Lr, Lp) of the patch's pixels at theta ``th``."""
+    c = math.cos(th[1])
+    s = math.sin(th[1])
+    lj, lw, lda = ET.line_bin(c, s, step_rad, P.shape[0] - 1)
+    for k in range(npix):
+        m, jr, jp, jl, lr, lp = ET.pixel_mean(kind, th[0], c, s, radius, sgn, ox[k], oy[k], lj, lw, lda, P, dP, L,
+                                              step_rad, half_px, k0, inv_h, sx2, sy2, vcir, True)
+        wk[4, k] = m
+        wk[5, k] = jr
+        wk[6, k] = jp
+        wk[7, k] = jl
+        wk[8, k] = lr
+        wk[9, k] = lp
+
+
+@njit(cache=True, inline="always")
+def _weights(th, wk, npix, nu, weighted, va, vb, vq):
+    """wk[3] <- the pixel weights 1 / var(model mean) (``weights`` of ``_fit_chunk``; 1 unweighted)."""
+    if not weighted:
+        for k in range(npix):
+            wk[3, k] = 1.0
+        return
+    A = th[2]
+    B = th[3]
+    dl = th[4] - 1.0
+    top = 0.0 if npix < nu else -np.inf  # numpy's row max sees the unused pixels' 0
+    nan = False
+    for k in range(npix):
+        m = A + B * (wk[4, k] + dl * wk[7, k])
+        v = va + vb * m + vq * m * m
+        wk[3, k] = v
+        if v != v:
+            nan = True
+        elif v > top:
+            top = v
+    floor = max(VAR_FLOOR_REL * top, VAR_FLOOR)
+    for k in range(npix):
+        v = wk[3, k]
+        wk[3, k] = np.nan if nan else 1.0 / (v if v > floor else floor)  # np.maximum: a NaN spreads
+
+
+@njit(cache=True, inline="always")
+def _normal_eq(th, wk, npix, npar, H, g, jac):
+    """H = J^T W J, g = -J^T W r; returns the cost (``_normal_equations`` for one point)."""
+    A = th[2]
+    B = th[3]
+    dl = th[4] - 1.0
+    for a in range(npar):
+        g[a] = 0.0
+        for b in range(npar):
+            H[a, b] = 0.0
+    c = 0.0
+    for k in range(npix):
+        mk = wk[4, k] + dl * wk[7, k]
+        r = A + B * mk - wk[2, k]
+        wt = wk[3, k]
+        jac[0] = B * (wk[5, k] + dl * wk[8, k])
+        jac[1] = B * (wk[6, k] + dl * wk[9, k])
+        jac[2] = 1.0
+        jac[3] = mk
+        jac[4] = B * wk[7, k]
+        c += wt * r * r
+        for a in range(npar):
+            wa = wt * jac[a]
+            g[a] -= wa * r
+            for b in range(a + 1):
+                H[a, b] += wa * jac[b]
+    for a in range(npar):
+        for b in range(a):
+            H[b, a] = H[a, b]
+    return c
+
+
+@njit(cache=True, inline="always")
+def _in_patch(fx, fy, nx, ny, half_normal, half_tangent):
+    """Is the pixel at offset (fx, fy) in the candidate's patch?  ``footprints.patch_masks``' predicate, the
+    same operations in the same order, so the same pixels bit for bit (numpy's masks cost ~20 % of the fit)."""
+    t = fx * nx + fy * ny
+    u = fy * nx - fx * ny
+    return abs(t) <= half_normal and abs(u) <= half_tangent
+
+
+@njit(cache=True, parallel=True)
+def _patch_union(nxs, nys, half_normal, half_tangent, out):
+    """out (chunks, SIZE, SIZE) <- per chunk of points the union of their patches (ORed by the caller)."""
+    n = nxs.shape[0]
+    n_chunks = out.shape[0]
+    R = FP.RADIUS
+    for c in prange(n_chunks):
+        for yy in range(FP.SIZE):
+            for xx in range(FP.SIZE):
+                out[c, yy, xx] = False
+        for i in range(c * n // n_chunks, (c + 1) * n // n_chunks):
+            for yy in range(FP.SIZE):
+                for xx in range(FP.SIZE):
+                    if not out[c, yy, xx] and _in_patch(float(xx - R), float(yy - R), nxs[i], nys[i], half_normal,
+                                                        half_tangent):
+                        out[c, yy, xx] = True
+
+
+@njit(cache=True)
+def _fit_point(img, x, y, nx, ny, half_normal, half_tangent, uidx, nu, fit, th, kind, radius, sgn, P, dP, L, step_rad,
+               half_px, k0, inv_h, sx2, sy2, vcir, npar, weighted, va, vb, vq, maxit, tol, out, wk, upos, mat, vec):
+    """One candidate: th (5,) = (rho, phi, A, B, lambda) updated in place; out <- [status, iterations, cost,
+    c_rhorho, npix].  Work arrays: wk (11, MAXPIX) = offsets x, y, values, weights, the model's six arrays,
+    the trial cost's terms; upos (MAXPIX,) each pixel's place in the union; mat (2, 5, 5); vec (5, 5)."""
+    h, w = img.shape
+    ix = int(x)
+    iy = int(y)
+    npix = 0
+    R = FP.RADIUS
+    for yy in range(FP.SIZE):  # row-major: the union's order (np.nonzero)
+        for xx in range(FP.SIZE):
+            if not _in_patch(float(xx - R), float(yy - R), nx, ny, half_normal, half_tangent):
+                continue
+            X = ix + xx - R
+            Y = iy + yy - R
+            if 0 <= X < w and 0 <= Y < h:
+                wk[0, npix] = xx - R
+                wk[1, npix] = yy - R
+                wk[2, npix] = img[Y, X]
+                upos[npix] = uidx[yy, xx]
+                npix += 1
+    out[4] = npix
+    if not fit or npix <= npar:
+        out[0] = NO_CONTRAST
+        out[1] = 0
+        out[2] = np.nan
+        out[3] = np.nan
+        return
+    ox = wk[0]
+    oy = wk[1]
+    H = mat[0]
+    Hs = mat[1]
+    g = vec[0]
+    step = vec[1]
+    trial = vec[2]
+    jac = vec[3]
+    rhs = vec[4]
+    status = NOT_CONVERGED
+    it = 0
+    damp = 1e-3
+    _model(th, kind, radius, sgn, ox, oy, npix, P, dP, L, step_rad, half_px, k0, inv_h, sx2, sy2, vcir, wk)
+    _weights(th, wk, npix, nu, weighted, va, vb, vq)
+    cost = _normal_eq(th, wk, npix, npar, H, g, jac)
+    for _ in range(maxit):
+        it += 1
+        for a in range(npar):
+            rhs[a] = g[a]
+            for b in range(npar):
+                Hs[a, b] = H[a, b]
+            Hs[a, a] = H[a, a] * (1.0 + damp) + 1e-30
+        ok = _solve(Hs, rhs, npar, step)
+        for a in range(5):
+            trial[a] = th[a]
+        if ok:
+            for a in range(npar):
+                trial[a] += step[a]
+            small = abs(step[0]) < tol and abs(step[1]) < tol and (npar < 5 or abs(step[4]) < tol)
+            if small:  # converged: take this step without another pass (module docstring)
+                for a in range(5):
+                    th[a] = trial[a]
+                status = OK
+                break
+            _model(trial, kind, radius, sgn, ox, oy, npix, P, dP, L, step_rad, half_px, k0, inv_h, sx2, sy2, vcir,
+                   wk)
+            # the trial cost with the current point's weights (one cost to compare), summed as numpy did
+            A = trial[2]
+            B = trial[3]
+            dl = trial[4] - 1.0
+            r0 = A + B * (0.0 + dl * 0.0) - 0.0
+            t0 = 0.0 * r0 * r0
+            for u in range(nu):
+                wk[10, u] = t0
+            for k in range(npix):
+                r = A + B * (wk[4, k] + dl * wk[7, k]) - wk[2, k]
+                wk[10, upos[k]] = wk[3, k] * r * r
+            ncost = _pairwise_sum(wk[10], nu)
+            if math.isfinite(ncost) and ncost <= cost:
+                for a in range(5):
+                    th[a] = trial[a]
+                _weights(th, wk, npix, nu, weighted, va, vb, vq)
+                cost = _normal_eq(th, wk, npix, npar, H, g, jac)
+                damp = max(damp * 0.1, 1e-12)
+            else:
+                damp *= 10.0
+        else:  # not positive definite: more damping
+            damp *= 10.0
+        if damp > 1e10:
+            break
+    for a in range(npar):
+        rhs[a] = 0.0
+        for b in range(npar):
+            Hs[a, b] = H[a, b]
+    rhs[0] = 1.0
+    out[0] = status
+    out[1] = it
+    out[2] = cost
+    out[3] = step[0] if _solve(Hs, rhs, npar, step) else np.inf
+
+
+@njit(cache=True, parallel=True)
+def _fit_points(img, xs, ys, nxs, nys, half_normal, half_tangent, uidx, nu, fit, idx, theta, kind, radius, sgn, P, dP,
+                L, step_rad, half_px, k0, inv_h, sx2, sy2, vcir, npar, weighted, va, vb, vq, maxit, tol, out, n_chunks):
+    """The points ``idx`` (one table's), in ``n_chunks`` parallel chunks that each allocate their work arrays
+    once."""
+    n = idx.shape[0]
+    for c in prange(n_chunks):
+        wk = np.empty((11, MAXPIX))
+        upos = np.empty(MAXPIX, np.int64)
+        mat = np.empty((2, 5, 5))
+        vec = np.empty((5, 5))
+        for j in range(c * n // n_chunks, (c + 1) * n // n_chunks):
+            i = idx[j]
+            _fit_point(img, xs[i], ys[i], nxs[i], nys[i], half_normal, half_tangent, uidx, nu, fit[i], theta[i],
+                       kind[i], radius[i], sgn[i], P, dP, L, step_rad, half_px, k0, inv_h, sx2, sy2, vcir, npar,
+                       weighted, va, vb, vq, maxit, tol, out[i], wk, upos, mat, vec)
+
+
 def _variance_fn(variance):
     """The pixel variance (gray levels²) as a function of the mean: None (unweighted), (a, b[, c]) or a callable."""
-    if variance is None:
-        return None
-    if callable(variance):
+    coef = _variance_coef(variance)
+    if coef is None or callable(coef):
+        return coef
+    a, b, c = coef
+    return lambda m: a + b * m + c * m * m
+
+
+def _variance_coef(variance):
+    """None (unweighted), (a, b, c) of var = a + b m + c m² (the fused kernel's), or the callable."""
+    if variance is None or callable(variance):
         return variance
     try:
         coef = [float(v) for v in variance]
@@ -156,9 +442,7 @@ def _variance_fn(variance):
     if len(coef) not in (2, 3) or not all(math.isfinite(v) for v in coef):
         raise InputError(f"variance={variance!r}: give (a, b) or (a, b, c) for var = a + b*mean (+ c*mean^2) in "
                          "gray levels^2 (EMVA: a = K^2 sigma_d^2 + 1/12 - K*offset, b = K), a callable, or None")
-    a, b = coef[0], coef[1]
-    c = coef[2] if len(coef) == 3 else 0.0
-    return lambda m: a + b * m + c * m * m
+    return coef[0], coef[1], (coef[2] if len(coef) == 3 else 0.0)
 
 
 def _tables(esf, bin_index, n: int):
@@ -311,10 +595,40 @@ def _fit_chunk(vals, use, geo, tabs, bidx, off, theta, npar, var_fn, maxit, tol)
     return status, iters, cost, c_rr
 
 
+def _fit_batched(img, cand, masks, union, geo, tabs, bidx, init, theta, npar, var_fn, maxit, tol_px, status, iters,
+                 rss, c_rr, npix):
+    """The fit with a callable ``variance``: ``_fit_chunk`` over chunks of CHUNK points (outputs in place)."""
+    n = len(cand)
+    h, w = img.shape
+    iy, ix = np.nonzero(union)
+    off = np.stack([ix - FP.RADIUS, iy - FP.RADIUS], axis=1).astype(float)
+    for c0 in range(0, n, CHUNK):
+        sl = slice(c0, min(n, c0 + CHUNK))
+        m = masks[sl][:, union]
+        px = cand.x[sl].astype(np.int64)[:, None] + ix[None, :] - FP.RADIUS
+        py = cand.y[sl].astype(np.int64)[:, None] + iy[None, :] - FP.RADIUS
+        inside = (px >= 0) & (px < w) & (py >= 0) & (py < h)
+        use = m & inside
+        vals = np.where(use, img[np.clip(py, 0, h - 1), np.clip(px, 0, w - 1)], 0.0)
+        npix[sl] = use.sum(axis=1)
+        fit = (init[sl, 7] != NO_CONTRAST) & (npix[sl] > npar)
+        k = np.nonzero(fit)[0]
+        if not k.size:
+            continue
+        th = theta[sl][k]
+        st, it, cs, cr = _fit_chunk(np.ascontiguousarray(vals[k]), np.ascontiguousarray(use[k]),
+                                    {kk: v[sl][k] for kk, v in geo.items()}, tabs, bidx[sl][k], off, th, npar,
+                                    var_fn, int(maxit), float(tol_px))
+        gi = c0 + k
+        theta[gi] = th
+        status[gi], iters[gi], rss[gi], c_rr[gi] = st, it, cs, cr
+
+
 def esf_refine(image, cand, esf=None, bin_index=None, blur_known: bool = False, variance=None,
                half_normal: float = HALF_NORMAL, half_tangent: float = HALF_TANGENT, curved: bool = True,
                kappa_radius_px: float = KAPPA_RADIUS_PX, maxit: int = MAXIT, tol_px: float = TOL_PX) -> Refinement:
-    var_fn = _variance_fn(variance)
+    coef = _variance_coef(variance)
+    var_fn = _variance_fn(coef)
     half_normal = float(half_normal)
     half_tangent = float(half_tangent)
     if not (1.0 <= half_normal <= FP.RADIUS and 0.0 <= half_tangent <= FP.RADIUS):
@@ -324,12 +638,14 @@ def esf_refine(image, cand, esf=None, bin_index=None, blur_known: bool = False, 
     tabs, bidx = _tables(esf, bin_index, n)
     npar = 4 if blur_known else 5
     img = np.ascontiguousarray(image, np.float64)
-    h, w = img.shape
-    # the patch: patch_psf_fit's footprint, over the union of its offsets (one table pass per point)
-    masks = FP.patch_masks(cand, half_normal, half_tangent)
-    union = masks.any(axis=0) if n else np.zeros((FP.SIZE, FP.SIZE), bool)
+    # the patch: patch_psf_fit's footprint; the union of its offsets over the points fixes the order of the sums
+    nxs = np.ascontiguousarray(cand.nx, np.float64)
+    nys = np.ascontiguousarray(cand.ny, np.float64)
+    union = np.zeros((max(1, min(n, N_CHUNKS)), FP.SIZE, FP.SIZE), bool)
+    if n:
+        _patch_union(nxs, nys, half_normal, half_tangent, union)
+    union = union.any(axis=0)
     iy, ix = np.nonzero(union)
-    off = np.stack([ix - FP.RADIUS, iy - FP.RADIUS], axis=1).astype(float)
     kappa = curvature(cand, kappa_radius_px) if curved else np.zeros(n)
     curved_pt = np.abs(kappa) >= 1e-7  # patch_psf_fit's line / arc rule
     geo = {"kind": curved_pt.astype(np.int64), "rho": np.zeros(n), "phi": np.arctan2(cand.ny, cand.nx),
@@ -353,26 +669,28 @@ def esf_refine(image, cand, esf=None, bin_index=None, blur_known: bool = False, 
     rss = np.full(n, np.nan)
     c_rr = np.full(n, np.nan)
     npix = np.zeros(n, np.int64)
-    for c0 in range(0, n, CHUNK):
-        sl = slice(c0, min(n, c0 + CHUNK))
-        m = masks[sl][:, union]
-        px = cand.x[sl].astype(np.int64)[:, None] + ix[None, :] - FP.RADIUS
-        py = cand.y[sl].astype(np.int64)[:, None] + iy[None, :] - FP.RADIUS
-        inside = (px >= 0) & (px < w) & (py >= 0) & (py < h)
-        use = m & inside
-        vals = np.where(use, img[np.clip(py, 0, h - 1), np.clip(px, 0, w - 1)], 0.0)
-        npix[sl] = use.sum(axis=1)
-        fit = (init[sl, 7] != NO_CONTRAST) & (npix[sl] > npar)
-        k = np.nonzero(fit)[0]
-        if not k.size:
-            continue
-        th = theta[sl][k]
-        st, it, cs, cr = _fit_chunk(np.ascontiguousarray(vals[k]), np.ascontiguousarray(use[k]),
-                                    {kk: v[sl][k] for kk, v in geo.items()}, tabs, bidx[sl][k], off, th, npar,
-                                    var_fn, int(maxit), float(tol_px))
-        gi = c0 + k
-        theta[gi] = th
-        status[gi], iters[gi], rss[gi], c_rr[gi] = st, it, cs, cr
+    if callable(coef):  # a Python callable cannot be compiled into the fused kernel
+        _fit_batched(img, cand, FP.patch_masks(cand, half_normal, half_tangent), union, geo, tabs, bidx, init, theta,
+                     npar, var_fn, maxit, tol_px, status, iters, rss, c_rr, npix)
+    elif n:
+        uidx = np.full((FP.SIZE, FP.SIZE), -1, np.int64)
+        uidx[iy, ix] = np.arange(iy.size)
+        fit = init[:, 7] != NO_CONTRAST
+        out = np.empty((n, 5))
+        va, vb, vq = coef if coef is not None else (0.0, 0.0, 0.0)
+        for b in np.unique(bidx):  # the field-height bins (a few per image): one table per kernel call
+            sel = np.nonzero(bidx == b)[0] if len(tabs) > 1 else np.arange(n)
+            t = tabs[b]
+            _fit_points(img, np.ascontiguousarray(cand.x, np.float64), np.ascontiguousarray(cand.y, np.float64),
+                        nxs, nys, half_normal, half_tangent, uidx, int(iy.size), fit, sel, theta, geo["kind"],
+                        geo["radius"], geo["sgn"], t.P, t.dP, t.L, float(t.step_rad), float(t.half_px), float(t.k0),
+                        float(t.inv_h), float(t.sx2), float(t.sy2), float(t.vc), npar, coef is not None, float(va),
+                        float(vb), float(vq), int(maxit), float(tol_px), out, max(1, min(sel.size, N_CHUNKS)))
+        status[:] = out[:, 0]
+        iters[:] = out[:, 1]
+        rss[:] = out[:, 2]
+        c_rr[:] = out[:, 3]
+        npix[:] = out[:, 4]
     rho, phi, A, B, lam = theta.T
     out_of = (status == OK) & ~((np.abs(rho) <= RHO_MAX) & (B > 0) & (lam > LAMBDA_MIN) & (lam < LAMBDA_MAX))
     status = np.where(out_of, OUT_OF_WINDOW, status)
