@@ -113,20 +113,49 @@ def register() -> str:
             """Film pixel (i, j) images full-frame pixel (x0 + i, y0 + j): a small film renders any window
             of the frame with one compiled kernel (the offset is an opaque JIT variable)."""
             self.window_px = (int(x0), int(y0))
+            self.pixel_list = None
             if scalar:
                 self.window = (float(x0), float(y0))
             else:
                 self.window = (dr.opaque(mi.Float, float(x0)), dr.opaque(mi.Float, float(y0)))
+
+        def set_pixels(self, xs, ys) -> None:
+            """Film pixel (i, j) images full-frame pixel (xs[k], ys[k]), k = j * width + i (one per film
+            pixel, integers): any set of pixels -- an outline's band -- in one render, with one compiled
+            kernel (the lists are JIT arrays, not literals)."""
+            n = int(self.crop_size[0] * self.crop_size[1])
+            if len(xs) != n or len(ys) != n:
+                raise ValueError(f"set_pixels: {n} pixels expected (one per film pixel), got {len(xs)}")
+            self.window_px = None
+            if scalar:
+                self.pixel_list = ([float(x) for x in xs], [float(y) for y in ys])
+            else:
+                self.pixel_list = (mi.Float([float(x) for x in xs]), mi.Float([float(y) for y in ys]))
+
+        def _frame_pixel(self, pu, pv):
+            """The frame pixel (column, row) of film pixel (pu, pv) (integers)."""
+            if self.pixel_list is None:
+                return pu + self.window[0], pv + self.window[1]
+            w = int(self.crop_size[0])
+            if scalar:
+                k = int(pv) * w + int(pu)
+                return self.pixel_list[0][k], self.pixel_list[1][k]
+            k = mi.UInt32(pv) * w + mi.UInt32(pu)
+            return dr.gather(mi.Float, self.pixel_list[0], k), dr.gather(mi.Float, self.pixel_list[1], k)
 
         def _sensor_point(self, position_sample):
             """OpenCV pixel coordinates of the point the ray leaves the sensor from."""
             u = film_coordinate(position_sample.x, self.crop_size[0], self.crop_offset[0])
             v = film_coordinate(position_sample.y, self.crop_size[1], self.crop_offset[1])
             if self.table is None:
-                return u + self.window[0] + MITSUBA_TO_CV_OFFSET_PX, v + self.window[1] + MITSUBA_TO_CV_OFFSET_PX
+                if self.pixel_list is None:
+                    return u + self.window[0] + MITSUBA_TO_CV_OFFSET_PX, v + self.window[1] + MITSUBA_TO_CV_OFFSET_PX
+                pu, pv = dr.floor(u), dr.floor(v)
+                fu, fv = self._frame_pixel(pu, pv)
+                return fu + (u - pu) + MITSUBA_TO_CV_OFFSET_PX, fv + (v - pv) + MITSUBA_TO_CV_OFFSET_PX
             pu, pv = dr.floor(u), dr.floor(v)
             u, v = u - pu, v - pv  # the sample's position in its pixel
-            pu, pv = pu + self.window[0], pv + self.window[1]  # the pixel; its centre is (pu, pv) in OpenCV coordinates
+            pu, pv = self._frame_pixel(pu, pv)  # the pixel; its centre is (pu, pv) in OpenCV coordinates
             q = dr.minimum(((pu - self.cx) ** 2 + (pv - self.cy) ** 2) / self.half_diagonal ** 2, 1.0)
             z, _ = self.warp.sample(mi.Point2f(u, v), mi.Vector1f(q))
             return pu + self.psf_half * (2.0 * z.x - 1.0), pv + self.psf_half * (2.0 * z.y - 1.0)

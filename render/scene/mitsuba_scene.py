@@ -178,10 +178,13 @@ class _Rig:
         return {"type": "rectangle", "to_world": self._T(np.eye(4)),
                 "emitter": {"type": "area", "radiance": {"type": "uniform", "value": 1.0}}}
 
-    def render(self, seed: int, window_at: tuple[int, int] | None = None) -> np.ndarray:
+    def render(self, seed: int, window_at: tuple[int, int] | None = None, pixels=None) -> np.ndarray:
         """Render with the current parameters; radiance (H, W) float32 (RGB channels are equal).
-        ``window_at``: where a window rig's film sits in the frame (its top-left pixel)."""
-        if window_at is not None:
+        ``window_at``: where a window rig's film sits in the frame (its top-left pixel); ``pixels``:
+        (xs, ys), the frame pixel of each of its film pixels in row-major order (``set_pixels``)."""
+        if pixels is not None:
+            self.sensor.set_pixels(*pixels)
+        elif window_at is not None:
             self.sensor.set_window(*window_at)
         img = self.mi.render(self.scene, self.params, seed=int(seed) & 0x7FFFFFFF, spp=self.settings.spp)
         arr = np.asarray(img, dtype=np.float32)
@@ -245,10 +248,10 @@ class TargetRig(_Rig):
         self.params.update()
         return le
 
-    def render(self, seed: int, window_at: tuple[int, int] | None = None) -> np.ndarray:
+    def render(self, seed: int, window_at: tuple[int, int] | None = None, pixels=None) -> np.ndarray:
         if getattr(self, "_active", None) is not None:
-            return self._active.render(seed, window_at)
-        return super().render(seed, window_at)
+            return self._active.render(seed, window_at, pixels)
+        return super().render(seed, window_at, pixels)
 
     def light_ground_truth(self, pose: Pose, le: float, irradiance_w_m2: float) -> dict:
         if getattr(self, "_active", None) is not None:
