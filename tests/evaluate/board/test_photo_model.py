@@ -14,7 +14,8 @@ Values measured on CalibIm1 (a clean photo: adaptive 256-colour palette, 244 gra
 | distinct values; levels per channel | 244; 31 30 27 | 74; 8 8 4 |
 | channel gains (R, G, B) | — | 1.069, 0.995, 0.846 |
 
-and the twin settings ``derive_twin`` gives for them equal the shipped twin scene's (to its rounding).
+and the twin settings ``derive_twin`` gives for them match the shipped twin scene's: to its rounding where they are well
+determined, as good a fit of the photo's ESF where blur and sharpening trade off (along x).
 """
 from __future__ import annotations
 
@@ -73,11 +74,23 @@ def test_derived_settings_are_the_shipped_twins(measured):
     black, white = BASE_LEVELS["zhang1998"]
     d = pm.derive_twin(list(measured), spec.camera, [float(j.camera.defocus_radius_px(j.pose.distance_m)) for j in jobs],
                        base_white=white, base_black=black)
-    for row, job in zip(d["per_photo"], jobs):
-        assert row["x"]["aberration_sigma_um"] == pytest.approx(job.camera.aberration_sigma_um, abs=0.05)
+    from edgetruth.render.sensor.pipeline import srgb_decode
+
+    for row, job, m in zip(d["per_photo"], jobs, measured):
+        # along y (no sharpening) the blur is well determined: the shipped value to its rounding
         assert row["y"]["aberration_sigma_um"] == pytest.approx(job.camera.aberration_sigma_y_um, abs=0.05)
-        assert row["x"]["sharpen_amount"] == pytest.approx(job.sensor.sharpen_amount, abs=0.05)
-        assert row["x"]["sharpen_sigma_px"] == pytest.approx(job.sensor.sharpen_sigma_px, abs=0.05)
+        # along x, blur and sharpening trade off along a flat valley (fits within 0.5 % of the best RMS span
+        # ~0.1 um of sigma, and where a fit stops there moved with numba/LLVM versions): the shipped settings
+        # must fit the photo's ESF as well as the derived ones, and lie near them
+        t, e = m["blur"]["vertical"]["esf"]
+        lin = dict(black=float(srgb_decode(row["black"] / 255.0)), white=float(srgb_decode(min(row["white"], 255.0) / 255.0)))
+        shipped = pm.esf_fit_rms(t, e, spec.camera, row["defocus_px"], sigma_ab_um=job.camera.aberration_sigma_um,
+                                 amount=job.sensor.sharpen_amount, sigma_s=job.sensor.sharpen_sigma_px, **lin)
+        assert row["x"]["fit_rms"] <= shipped * (1 + 1e-9)  # the derivation finds the lower cost
+        assert shipped <= 1.01 * row["x"]["fit_rms"]
+        assert row["x"]["aberration_sigma_um"] == pytest.approx(job.camera.aberration_sigma_um, abs=0.15)
+        assert row["x"]["sharpen_amount"] == pytest.approx(job.sensor.sharpen_amount, abs=0.3)
+        assert row["x"]["sharpen_sigma_px"] == pytest.approx(job.sensor.sharpen_sigma_px, abs=0.1)
         assert row["y"]["sharpen_amount"] == 0.0  # the horizontal sides do not overshoot: no sharpening along y
         assert row["output_gain"] == pytest.approx(job.sensor.output_gain, abs=0.005)
         assert row["output_offset_dn"] == pytest.approx(job.sensor.output_offset_dn, abs=0.2)
