@@ -487,7 +487,7 @@ def fit_esf(t_bins, esf_bins, camera, defocus_px: float, black: float, white: fl
     if sharpen:
         # the model is piecewise smooth in the mask's sigma (its kernel's radius and the 1/64-px grid step
         # in whole samples): a default finite-difference step sees those kinks and stops on one, at a spot
-        # that depends on the last bits of the ESF (numba/LLVM versions moved it by 0.06 um); a step of
+        # that depends on the last bits of the ESF (a fresh environment moved it by 0.06 um); a step of
         # 1e-3 spans them and finds a lower cost.  The blur/sharpening split stays weakly determined along
         # a valley (docs/board.md): fits within 0.5 % of the best RMS span ~0.1 um of sigma
         r = least_squares(resid, [0.5 * p, 0.5, 1.0], bounds=([0.0, 0.0, 0.3], [4.0 * p, 5.0, 4.0]), diff_step=1e-3)

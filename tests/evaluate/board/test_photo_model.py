@@ -80,7 +80,7 @@ def test_derived_settings_are_the_shipped_twins(measured):
         # along y (no sharpening) the blur is well determined: the shipped value to its rounding
         assert row["y"]["aberration_sigma_um"] == pytest.approx(job.camera.aberration_sigma_y_um, abs=0.05)
         # along x, blur and sharpening trade off along a flat valley (fits within 0.5 % of the best RMS span
-        # ~0.1 um of sigma, and where a fit stops there moved with numba/LLVM versions): the shipped settings
+        # ~0.1 um of sigma, and where a fit stops there moved with the environment): the shipped settings
         # must fit the photo's ESF as well as the derived ones, and lie near them
         t, e = m["blur"]["vertical"]["esf"]
         lin = dict(black=float(srgb_decode(row["black"] / 255.0)), white=float(srgb_decode(min(row["white"], 255.0) / 255.0)))
