@@ -19,12 +19,16 @@ run: $(STAMP)
 	$(VENV)/bin/edgetruth run
 
 # The slow tests (full-resolution renders, ~3 min) fit CI's budget, so `make test` runs them too;
-# `make test-fast` leaves them out.
+# `make test-fast` leaves them out.  Test files run on TEST_WORKERS processes (pytest-xdist; a file stays on
+# one worker, so its module fixtures are built once); TEST_WORKERS=0 runs them in this process.
+TEST_WORKERS ?= 2
+XDIST := $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadfile)
+
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q $(XDIST)
 
 test-fast: $(STAMP)
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q $(XDIST) -m "not slow"
 
 bench: $(STAMP)
 	$(VENV)/bin/edgetruth bench
