@@ -40,3 +40,17 @@ def dataset_copy(tiny_dataset, tmp_path) -> tuple[Path, Path]:
     dst = tmp_path / "data"
     shutil.copytree(out, dst)
     return spec, dst
+
+
+@pytest.fixture(autouse=True)
+def _console_state():
+    """Each test starts with the console's defaults (progress on, not quiet) and leaves them so: an
+    in-process ``main([..., "--no-progress"])`` sets them for the whole process, and under pytest-xdist
+    a worker's order of files is not the serial one."""
+    from edgetruth import console
+
+    saved = dict(console._state)
+    console._state.update(quiet=False, progress=True)
+    yield
+    console._state.clear()
+    console._state.update(saved)
