@@ -132,6 +132,15 @@ def register() -> str:
             else:
                 self.pixel_list = (mi.Float([float(x) for x in xs]), mi.Float([float(y) for y in ys]))
 
+        def _film_pixel(self, u, v):
+            """The film pixel of film coordinate (u, v) in pixel-list mode.  The integrator forms the sample
+            position as pixel + jitter in float32, which rounds up to the next integer for a jitter within
+            ~4e-6 of 1: on the last column or row that is one past the film, whose list index would read
+            past the list (or, mid-film, another listed pixel far away).  Clamped: the sample sits on its
+            pixel's far edge, as it would have."""
+            w, h = self.crop_size
+            return dr.minimum(dr.floor(u), w - 1.0), dr.minimum(dr.floor(v), h - 1.0)
+
         def _frame_pixel(self, pu, pv):
             """The frame pixel (column, row) of film pixel (pu, pv) (integers)."""
             if self.pixel_list is None:
@@ -150,10 +159,13 @@ def register() -> str:
             if self.table is None:
                 if self.pixel_list is None:
                     return u + self.window[0] + MITSUBA_TO_CV_OFFSET_PX, v + self.window[1] + MITSUBA_TO_CV_OFFSET_PX
-                pu, pv = dr.floor(u), dr.floor(v)
+                pu, pv = self._film_pixel(u, v)
                 fu, fv = self._frame_pixel(pu, pv)
                 return fu + (u - pu) + MITSUBA_TO_CV_OFFSET_PX, fv + (v - pv) + MITSUBA_TO_CV_OFFSET_PX
-            pu, pv = dr.floor(u), dr.floor(v)
+            if self.pixel_list is None:
+                pu, pv = dr.floor(u), dr.floor(v)
+            else:
+                pu, pv = self._film_pixel(u, v)
             u, v = u - pu, v - pv  # the sample's position in its pixel
             pu, pv = self._frame_pixel(pu, pv)  # the pixel; its centre is (pu, pv) in OpenCV coordinates
             q = dr.minimum(((pu - self.cx) ** 2 + (pv - self.cy) ** 2) / self.half_diagonal ** 2, 1.0)
