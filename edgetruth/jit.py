@@ -10,6 +10,9 @@ dispatchers into those modules in place of the placeholders, and calls it: numba
 loads from its on-disk cache exactly as for ``@numba.njit``.  Only the moment differs, never the
 code numba compiles, so no number a method returns changes.
 
+``variant(kernel, name, **options)``: a second kernel of the same code, compiled with other options
+(e.g. fastmath).
+
 ``before_compile(fn)``: ``fn()`` runs (once) before the first kernel of ``fn``'s module becomes a
 dispatcher -- for a table the kernels read as a global (numba freezes it into the compiled code).
 
@@ -87,6 +90,18 @@ def njit(*args, **options):
 def _declare(fn, options: dict) -> LazyKernel:
     # a placeholder even when numba is already in use: what the kernel calls may still be placeholders
     return LazyKernel(fn, options)
+
+
+def variant(kernel: LazyKernel, name: str, **options) -> LazyKernel:
+    """A second kernel, ``name``, of ``kernel``'s code compiled with other options (e.g. ``fastmath``): its
+    own dispatcher and cache files, no wrapper for numba to inline (copying and typing an inlined function
+    again at every call site makes numba slow to compile)."""
+    f = kernel.py_func
+    g = types.FunctionType(f.__code__, f.__globals__, name, f.__defaults__, f.__closure__)
+    g.__qualname__ = name
+    g.__module__ = f.__module__
+    g.__doc__ = f.__doc__
+    return _declare(g, {**kernel.options, **options})
 
 
 def before_compile(fn):

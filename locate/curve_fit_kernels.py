@@ -62,7 +62,7 @@ from edgetruth.locate.erf_kernels import _chol4
 from edgetruth.locate.normal_cdf import cdf_pdf
 from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
 from edgetruth.locate.profiles import bilinear
-from edgetruth.jit import njit, prange  # numba, imported when a kernel is first called
+from edgetruth.jit import njit, prange, variant  # numba, imported when a kernel is first called
 
 ERF = 0
 ARCTAN = 1
@@ -288,17 +288,6 @@ _FAST = {"contract", "reassoc"}
 @njit(cache=True)
 def fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out):
     """LM fit of a step model to (t[:n], y[:n]) from (A, B, mu, w); out as in the module docstring."""
-    _fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out)
-
-
-@njit(cache=True, fastmath=_FAST)
-def fit_step_fast(model, t, y, n, A, B, mu, w, maxit, tol, out):
-    """``fit_step`` with reassociated sums (the arctangent and logistic models)."""
-    _fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out)
-
-
-@njit(cache=True, inline="always")
-def _fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out):
     lam = 1e-4
     c, h00, h10, h11, h20, h21, h22, h30, h31, h32, h33, g0, g1, g2, g3 = _eval_step(model, t, y, n, A, B, mu, w)
     status = NOT_CONVERGED
@@ -355,6 +344,10 @@ def _fit_step(model, t, y, n, A, B, mu, w, maxit, tol, out):
     out[5] = c_mumu
     out[6] = it
     out[7] = status
+
+
+#: ``fit_step`` with reassociated sums (the arctangent and logistic models)
+fit_step_fast = variant(fit_step, "fit_step_fast", fastmath=_FAST)
 
 
 @njit(cache=True, fastmath=_FAST)
@@ -466,6 +459,7 @@ def _fit_batch_from(model, t, ys, p0s, maxit, tol, out):
 def _refine_kernel(model, img, xs, ys, nxs, nys, t, work, maxit, tol, out):
     """Sample each candidate's 11-point normal profile into its row of ``work`` and fit it (step models),
     or fit the Gaussian to its 10 differences at the mid-points ``t`` (GAUSS): all points in parallel."""
+    n = t.shape[0]  # typed, not the literal PROFILE_LEN: one compiled fit_auto serves both branches (and fit_profiles)
     for i in prange(xs.shape[0]):
         prof = work[i]
         for k in range(PROFILE_LEN):
@@ -474,9 +468,9 @@ def _refine_kernel(model, img, xs, ys, nxs, nys, t, work, maxit, tol, out):
         if model == GAUSS:
             for k in range(PROFILE_LEN - 1):
                 prof[k] = prof[k + 1] - prof[k]
-            fit_auto(model, t, prof, PROFILE_LEN - 1, maxit, tol, out[i])
+            fit_auto(model, t, prof, n, maxit, tol, out[i])
         else:
-            fit_auto(model, t, prof, PROFILE_LEN, maxit, tol, out[i])
+            fit_auto(model, t, prof, n, maxit, tol, out[i])
 
 
 _T_STEP = np.arange(-PROFILE_HALF, PROFILE_HALF + 1, dtype=np.float64)

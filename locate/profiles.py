@@ -14,7 +14,9 @@ from edgetruth.locate.candidates import PROFILE_HALF
 from edgetruth.jit import njit, prange  # numba, imported when a kernel is first called
 
 
-@njit(cache=True, inline="always")
+# forceinline: LLVM inlines the one compiled function (numba's inline="always" would copy and type it again in
+# every kernel that calls it, which is slow to compile)
+@njit(cache=True, forceinline=True)
 def bilinear(img, x, y):
     """Bilinear interpolation at (x, y), OpenCV convention; (x, y) inside the pixel-centre hull."""
     h, w = img.shape

@@ -61,7 +61,8 @@ from edgetruth.jit import njit, prange  # numba, imported when a kernel is first
 GREATER_TOL = 1000.0 * np.finfo(np.float64).eps
 
 
-@njit(cache=True, inline="always")
+# forceinline, not inline="always": LLVM inlines them (numba's own inlining at 11 call sites is slow to compile)
+@njit(cache=True, forceinline=True)
 def _greater(a, b):
     if a <= b:
         return False
@@ -70,56 +71,54 @@ def _greater(a, b):
     return True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _mod_g(g, x, y):
     gx = g[y, x + 1] - g[y, x - 1]
     gy = g[y + 1, x] - g[y - 1, x]
     return math.sqrt(gx * gx + gy * gy)
 
 
+@njit(cache=True)
+def _devernay_point(g, x, y, strict):
+    """IPOL Devernay point at pixel (x, y): (x, y, eta, axis), axis -1 where there is none."""
+    h, w = g.shape
+    if x < 2 or y < 2 or x > w - 3 or y > h - 3:
+        return float(x), float(y), 0.0, -1
+    gxa = abs(g[y, x + 1] - g[y, x - 1])
+    gya = abs(g[y + 1, x] - g[y - 1, x])
+    mod = _mod_g(g, x, y)
+    left = _mod_g(g, x - 1, y)
+    right = _mod_g(g, x + 1, y)
+    down = _mod_g(g, x, y - 1)
+    up = _mod_g(g, x, y + 1)
+    dx = 0
+    dy = 0
+    if _greater(mod, left) and not _greater(right, mod) and gxa >= gya:
+        dx = 1
+    elif _greater(mod, down) and not _greater(up, mod) and gxa <= gya:
+        dy = 1
+    if dx == 0 and dy == 0:
+        if strict:
+            return float(x), float(y), 0.0, -1
+        # non-IPOL fallback: the dominant gradient axis, any concave parabola with |eta| <= 1
+        if gxa >= gya:
+            dx = 1
+        else:
+            dy = 1
+    a = _mod_g(g, x - dx, y - dy)
+    c = _mod_g(g, x + dx, y + dy)
+    den = a - mod - mod + c
+    if not strict and not (den < 0.0 and abs(0.5 * (a - c)) <= -den):
+        return float(x), float(y), 0.0, -1
+    eta = 0.5 * (a - c) / den
+    return x + eta * dx, y + eta * dy, eta, 0 if dx == 1 else 1
+
+
 @njit(cache=True, parallel=True)
 def _devernay_kernel(g, xs, ys, strict, out_x, out_y, out_eta, out_axis):
-    h, w = g.shape
+    # the per-point work in its own function: numba's parallel pass is slow on a large loop body
     for i in prange(xs.shape[0]):
-        x = xs[i]
-        y = ys[i]
-        out_x[i] = x
-        out_y[i] = y
-        out_eta[i] = 0.0
-        out_axis[i] = -1
-        if x < 2 or y < 2 or x > w - 3 or y > h - 3:
-            continue
-        gxa = abs(g[y, x + 1] - g[y, x - 1])
-        gya = abs(g[y + 1, x] - g[y - 1, x])
-        mod = _mod_g(g, x, y)
-        left = _mod_g(g, x - 1, y)
-        right = _mod_g(g, x + 1, y)
-        down = _mod_g(g, x, y - 1)
-        up = _mod_g(g, x, y + 1)
-        dx = 0
-        dy = 0
-        if _greater(mod, left) and not _greater(right, mod) and gxa >= gya:
-            dx = 1
-        elif _greater(mod, down) and not _greater(up, mod) and gxa <= gya:
-            dy = 1
-        if dx == 0 and dy == 0:
-            if strict:
-                continue
-            # non-IPOL fallback: the dominant gradient axis, any concave parabola with |eta| <= 1
-            if gxa >= gya:
-                dx = 1
-            else:
-                dy = 1
-        a = _mod_g(g, x - dx, y - dy)
-        c = _mod_g(g, x + dx, y + dy)
-        den = a - mod - mod + c
-        if not strict and not (den < 0.0 and abs(0.5 * (a - c)) <= -den):
-            continue
-        eta = 0.5 * (a - c) / den
-        out_x[i] = x + eta * dx
-        out_y[i] = y + eta * dy
-        out_eta[i] = eta
-        out_axis[i] = 0 if dx == 1 else 1
+        out_x[i], out_y[i], out_eta[i], out_axis[i] = _devernay_point(g, xs[i], ys[i], strict)
 
 
 def devernay_points(smoothed: np.ndarray, xs: np.ndarray, ys: np.ndarray, strict: bool = True):

@@ -51,47 +51,54 @@ from edgetruth.jit import njit, prange  # numba, imported when a kernel is first
 DEFAULT_HALF = 5
 
 
+@njit(cache=True)
+def _glm_point(img, x, y, nx, ny, half, out):
+    """Tabatabai-Mitchell step of one candidate's normal profile; out <- [offset, p1, h1, h2, skewness, ok]."""
+    n = 2 * half + 1
+    prof = np.empty(n)
+    m1 = 0.0
+    for k in range(n):
+        t = k - half
+        v = bilinear(img, x + t * nx, y + t * ny)
+        prof[k] = v
+        m1 += v
+    m1 /= n
+    c2 = 0.0
+    c3 = 0.0
+    sq = 0.0
+    for k in range(n):
+        d = prof[k] - m1
+        c2 += d * d
+        c3 += d * d * d
+        sq += prof[k] * prof[k]
+    c2 /= n
+    c3 /= n
+    sq /= n
+    out[5] = 0.0
+    if not (c2 > 1e-24 * sq) or not math.isfinite(c2):
+        out[0] = 0.0
+        out[1] = math.nan
+        out[2] = math.nan
+        out[3] = math.nan
+        out[4] = math.nan
+        return
+    sig = math.sqrt(c2)
+    s = c3 / (c2 * sig)
+    p1 = 0.5 * (1.0 + s * math.sqrt(1.0 / (4.0 + s * s)))
+    p2 = 1.0 - p1
+    out[0] = -half - 0.5 + p1 * n
+    out[1] = p1
+    out[2] = m1 - sig * math.sqrt(p2 / p1) if p1 > 0.0 else math.nan
+    out[3] = m1 + sig * math.sqrt(p1 / p2) if p2 > 0.0 else math.nan
+    out[4] = s
+    out[5] = 1.0 if math.isfinite(out[0]) else 0.0
+
+
 @njit(cache=True, parallel=True)
 def _glm_kernel(img, xs, ys, nxs, nys, half, out):
-    n = 2 * half + 1
+    # the per-point work in its own function: numba's parallel pass is slow on a large loop body
     for i in prange(xs.shape[0]):
-        prof = np.empty(n)
-        m1 = 0.0
-        for k in range(n):
-            t = k - half
-            v = bilinear(img, xs[i] + t * nxs[i], ys[i] + t * nys[i])
-            prof[k] = v
-            m1 += v
-        m1 /= n
-        c2 = 0.0
-        c3 = 0.0
-        sq = 0.0
-        for k in range(n):
-            d = prof[k] - m1
-            c2 += d * d
-            c3 += d * d * d
-            sq += prof[k] * prof[k]
-        c2 /= n
-        c3 /= n
-        sq /= n
-        out[i, 5] = 0.0
-        if not (c2 > 1e-24 * sq) or not math.isfinite(c2):
-            out[i, 0] = 0.0
-            out[i, 1] = math.nan
-            out[i, 2] = math.nan
-            out[i, 3] = math.nan
-            out[i, 4] = math.nan
-            continue
-        sig = math.sqrt(c2)
-        s = c3 / (c2 * sig)
-        p1 = 0.5 * (1.0 + s * math.sqrt(1.0 / (4.0 + s * s)))
-        p2 = 1.0 - p1
-        out[i, 0] = -half - 0.5 + p1 * n
-        out[i, 1] = p1
-        out[i, 2] = m1 - sig * math.sqrt(p2 / p1) if p1 > 0.0 else math.nan
-        out[i, 3] = m1 + sig * math.sqrt(p1 / p2) if p2 > 0.0 else math.nan
-        out[i, 4] = s
-        out[i, 5] = 1.0 if math.isfinite(out[i, 0]) else 0.0
+        _glm_point(img, xs[i], ys[i], nxs[i], nys[i], half, out[i])
 
 
 @register("glm1984", "GLM1984", family="baseline", footprint=FP.profile(DEFAULT_HALF, option="half"))

@@ -97,7 +97,12 @@ REACH_ALONG = 2
 N_OUT = 11
 
 
-@njit(cache=True, inline="always")
+# The pixel helpers are called ~60 times with literal offsets: compiled for one signature (each literal would
+# compile another), inlined by LLVM (numba's own inlining of ~60 call sites is slow to compile).
+_PX_SIG = "float64(float64[:, ::1], int64, int64, boolean, int64, int64)"
+
+
+@njit(signature_or_function=_PX_SIG, cache=True, forceinline=True)
 def _px(img, x, y, horiz, along, across):
     """img at the pixel ``along`` lines and ``across`` rows from (x, y) (transposed for vertical edges)."""
     if horiz:
@@ -105,9 +110,12 @@ def _px(img, x, y, horiz, along, across):
     return img[y + along, x + across]
 
 
-@njit(cache=True, inline="always")
+@njit(signature_or_function=_PX_SIG, cache=True, forceinline=True)
 def _ad(gc, x, y, horiz, along, across):
-    return abs(_px(gc, x, y, horiz, along, across))
+    """|gc| at that pixel."""
+    if horiz:
+        return abs(gc[y + across, x + along])
+    return abs(gc[y + along, x + across])
 
 
 @njit(cache=True)

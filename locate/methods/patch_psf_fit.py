@@ -306,7 +306,8 @@ def fit_patch(img, px, py, nx, ny, kappa, half_normal, half_tangent, psf_sigma, 
     for k in range(-hw, hw + 1):
         prof[K.PROFILE_HALF + k] = bilinear(img, px + k * nx, py + k * ny)
     init = vec[1]
-    K.fit_one(prof, _INIT_WINDOW, True, _INIT_MAXIT, 1e-4, init)
+    # typed arguments, not literals: the erf methods' compiled fit_one serves (a literal compiles another)
+    K.fit_one(prof, np.int64(_INIT_WINDOW), np.bool_(True), np.int64(_INIT_MAXIT), 1e-4, init)
     fixed_s = psf_sigma > 0.0
     npar = 4 if fixed_s else 5
     if init[7] == NO_CONTRAST or npix <= npar:
