@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 import numba
+import numpy as np
 
 
 @numba.njit(cache=True)
@@ -66,3 +67,16 @@ def cholesky_solve(H, g, n, x):
             w -= H[k, i] * x[k]
         x[i] = w / H[i, i]
     return True
+
+
+@numba.njit(cache=True)
+def inverse_00(H, n, work, e0, x):
+    """(H^-1)_00 of the leading n x n block of a symmetric positive-definite H, by ``cholesky_solve`` of
+    H x = e_0 on a copy (``work``, ``e0`` and ``x`` are scratch); inf if H is not positive definite.  The
+    variance of a per-point fit's first parameter (its position) from its normal equations."""
+    for a in range(n):
+        e0[a] = 0.0
+        for b in range(n):
+            work[a, b] = H[a, b]
+    e0[0] = 1.0
+    return x[0] if cholesky_solve(work, e0, n, x) else np.inf

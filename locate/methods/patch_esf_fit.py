@@ -73,15 +73,15 @@ _SAME_EDGE_COS = math.cos(math.radians(30.0))
 VAR_FLOOR, VAR_FLOOR_REL = 1e-9, 1e-3  # the pixel variance's floor (gray levels²; and relative to the patch's largest)
 N_CHUNKS = PF.N_CHUNKS  # the fused kernel's parallel chunks of points (work arrays allocated once per chunk)
 MAXPIX = FP.SIZE * FP.SIZE
-_solve = None  # locate.small_linalg.cholesky_solve, bound when the kernels first compile
+_solve = _inverse_00 = None  # locate.small_linalg's, bound when the kernels first compile
 
 
 @before_compile
 def _bind_solver():
-    global _solve
-    from edgetruth.locate.small_linalg import cholesky_solve
+    global _solve, _inverse_00
+    from edgetruth.locate.small_linalg import cholesky_solve, inverse_00
 
-    _solve = cholesky_solve
+    _solve, _inverse_00 = cholesky_solve, inverse_00
 
 
 @njit(cache=True, parallel=True)
@@ -140,14 +140,7 @@ def _damped_steps(H, g, damp, npar, step, ok):
 def _rho_variance(H, npar, out):
     """(H^-1)_rho,rho per point (inf where H is not positive definite)."""
     for i in prange(H.shape[0]):
-        Hs = np.empty((5, 5))
-        x = np.empty(5)
-        e = np.zeros(5)
-        e[0] = 1.0
-        for a in range(npar):
-            for b in range(npar):
-                Hs[a, b] = H[i, a, b]
-        out[i] = x[0] if _solve(Hs, e, npar, x) else np.inf
+        out[i] = _inverse_00(H[i], npar, np.empty((5, 5)), np.empty(5), np.empty(5))
 
 
 # --- the fused per-point fit (tuple or no ``variance``) ---------------------------------------------------
@@ -436,15 +429,10 @@ def _fit_point(img, x, y, nx, ny, half_normal, half_tangent, uoff, nu, fit, th, 
             damp *= 10.0
         if damp > 1e10:
             break
-    for a in range(npar):
-        rhs[a] = 0.0
-        for b in range(npar):
-            Hs[a, b] = H[a, b]
-    rhs[0] = 1.0
     out[0] = status
     out[1] = it
     out[2] = cost
-    out[3] = step[0] if _solve(Hs, rhs, npar, step) else np.inf
+    out[3] = _inverse_00(H, npar, Hs, rhs, step)
 
 
 @njit(cache=True, parallel=True)

@@ -74,16 +74,16 @@ KAPPA_MAX = 0.25  # |curvature| (1/px) above which the arc is not trusted: radiu
 MAXPIX = FP.SIZE * FP.SIZE
 _INIT_WINDOW = 7  # its bilinear samples (|t| <= 3) read pixels with |t| <= 4.42, |u| <= 1.42: inside the patch
 _INIT_MAXIT = 2  # the start's ERF fit: two steps (more do not save a pass of the patch fit)
-_solve = None  # the shared Cholesky solve (locate.small_linalg.cholesky_solve), bound before the kernels compile
+_solve = _inverse_00 = None  # the shared Cholesky solves (locate.small_linalg), bound before the kernels compile
 
 
 @before_compile
 def _bind_solver():
-    """Bind the shared solver when the kernels first compile (small_linalg imports numba)."""
-    global _solve
-    from edgetruth.locate.small_linalg import cholesky_solve
+    """Bind the shared solvers when the kernels first compile (small_linalg imports numba)."""
+    global _solve, _inverse_00
+    from edgetruth.locate.small_linalg import cholesky_solve, inverse_00
 
-    _solve = cholesky_solve
+    _solve, _inverse_00 = cholesky_solve, inverse_00
 
 
 # Phi and phi from a table (1/32 steps on [-8.5, 8.5], cubic Hermite with the exact derivatives): no exp
@@ -387,13 +387,7 @@ def fit_patch(img, px, py, nx, ny, kappa, half_normal, half_tangent, psf_sigma, 
             lam *= 10.0
             if lam > 1e10:
                 break
-    # (J^T J)^-1 rho,rho at the solution
-    for i in range(npar):
-        gs[i] = 0.0
-        for j in range(npar):
-            Hs[i, j] = H[i, j]
-    gs[0] = 1.0
-    c_rr = step[0] if _solve(Hs, gs, npar, step) else np.inf
+    c_rr = _inverse_00(H, npar, Hs, gs, step)  # (J^T J)^-1 rho,rho at the solution
     if status == OK and not (abs(rho) <= RHO_MAX and B > 0.0 and S_MIN < s < S_MAX):
         status = OUT_OF_WINDOW
     out[0] = rho
