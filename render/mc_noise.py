@@ -5,7 +5,7 @@ around its outline and reports the Monte-Carlo noise in electrons (default senso
 distance from the true distorted outline, next to the sensor's own temporal noise there.  The
 edge band (``edge_spp``) is rendered as ``render_job`` does, in either ``edge_mode`` ("path": the
 band path-traced at ``edge_spp``; "analytic": the board and the target's material at ``edge_spp``,
-composited with the exact coverage).
+composited with the exact coverage; "frame": that composite over the whole crop, the shading on a grid).
 """
 from __future__ import annotations
 
@@ -47,10 +47,20 @@ def edge_mc_noise(camera, settings, distance_m: float, sensor=None, irradiance_w
         x0, y0 = (np.floor(poly.min(0)) - 24).astype(int)
         x1, y1 = (np.ceil(poly.max(0)) + 24).astype(int)
     crop = (int(x0), int(y0), int(x1 - x0), int(y1 - y0))
-    base = TargetRig(camera, replace(settings, edge_spp=0), crop=crop)
-    base.set_state("T1", pose, irradiance_w_m2)
+    frame_mode = getattr(settings, "edge_mode", "path") == "frame"
+    if not frame_mode:
+        base = TargetRig(camera, replace(settings, edge_spp=0), crop=crop)
+        base.set_state("T1", pose, irradiance_w_m2)
     imgs = []
     for seed in seeds:
+        if frame_mode:  # the whole crop is the composite (``edgetruth.render.scene.shading_frame``)
+            from edgetruth.render.scene.shading_frame import render_shading_frame
+
+            width = band_width_px(camera, float(camera.defocus_radius_px(distance_m)))
+            img, _ = render_shading_frame(camera, settings, "T1", pose, 0.13, poly, width, crop, seed,
+                                          irradiance_w_m2)
+            imgs.append(img.astype(np.float64))
+            continue
         img = base.render(seed).astype(np.float64)
         if settings.edge_spp:
             width = band_width_px(camera, float(camera.defocus_radius_px(distance_m)))
@@ -167,6 +177,21 @@ def analytic_table(distances_m=(0.5, 1.5, 2.5), camera=None, spp: int = 64, edge
     return lines
 
 
+def frame_table(distances_m=(0.5, 1.5, 2.5), camera=None, edge_spps=(256, 1024), step_px: int = 16) -> list[str]:
+    """Lines: MC noise per |d| band of ``edge_mode = "frame"`` (the shading grid at each of ``edge_spps``)."""
+    from edgetruth.render.optics.camera import load_camera
+    from edgetruth.render.scene.mitsuba_scene import RenderSettings
+
+    camera = camera or load_camera()
+    lines = []
+    for z in distances_m:
+        for n in edge_spps:
+            r = edge_mc_noise(camera, RenderSettings(spp=64, edge_spp=n, edge_mode="frame", shading_step_px=step_px), z)
+            lines.append(f"{z} m frame edge_spp {n:5d} step {step_px} px: " + "; ".join(
+                f"|d| {lo:g}-{hi:g} px {mc:.2f} e- ({mc / tp:.3f} of temporal)" for (lo, hi), (mc, tp) in r.items()))
+    return lines
+
+
 if __name__ == "__main__":  # pragma: no cover
     import sys
 
@@ -174,6 +199,6 @@ if __name__ == "__main__":  # pragma: no cover
 
     choose_variant()
     lines = (analytic_table(path_noise="--no-path-noise" not in sys.argv) if "--analytic" in sys.argv
-             else convergence_table())
+             else frame_table() if "--frame" in sys.argv else convergence_table())
     for line in lines:
         print(line, flush=True)

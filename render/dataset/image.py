@@ -153,10 +153,17 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
         radiance, band = _radiance_cache["radiance"], _radiance_cache["band"]
         reused, render_s = True, 0.0
     else:
-        radiance = rig.render(job.render_seed)
-        render_s = time.perf_counter() - t0
         band = None
-        if job.kind == "target" and settings.edge_spp:  # part of the unit's radiance: the cells reuse it too
+        if job.kind == "target" and settings.edge_mode == "frame":  # no full-frame render: the composite
+            from edgetruth.render.scene.shading_frame import render_target_frame
+
+            radiance, band = render_target_frame(camera, settings, job, pose, gt, crop, e_render)
+            band.pop("render_s")
+            render_s = time.perf_counter() - t0
+        else:
+            radiance = rig.render(job.render_seed)
+            render_s = time.perf_counter() - t0
+        if job.kind == "target" and settings.edge_spp and band is None:  # part of the unit's radiance: cells reuse it
             band = render_edge_band(radiance, camera, settings, job, pose, gt, crop, e_render)
             render_s += band.pop("render_s")
         reused = False

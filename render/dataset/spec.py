@@ -62,7 +62,11 @@ SPEC_KEYS = [
     Key("edge_mode", "str", RenderSettings.edge_mode, "", "the edge band: path = path-traced at edge_spp (the "
         "reference); analytic = the board and the target's material rendered without an edge at edge_spp and "
         "composited with the exact lens-weighted coverage (no Monte-Carlo noise from the edge; preset targets, "
-        "static camera; docs/optics.md)", choices=("path", "analytic")),
+        "static camera; docs/optics.md); frame = that composite over every pixel, the board and the target's "
+        "material rendered at edge_spp on every shading_step_px-th pixel and interpolated (no full-frame "
+        "render: target images cost a fraction)", choices=("path", "analytic", "frame")),
+    Key("shading_step_px", "int", RenderSettings.shading_step_px, "px", "edge_mode = \"frame\": the spacing of "
+        "the shading grid's nodes", 2, 256),
     Key("checkerboard_spp", "int", 0, "samples/px", "samples per pixel of the checkerboard images (their corners "
         "are edges, and boards have no edge band; a power of two, of four for multijitter and stratified); "
         "0 = spp", 0, MAX_SPP),
@@ -619,15 +623,16 @@ def load_spec(name_or_path: str | Path) -> Spec:
                             unit_irradiance_w_m2=unit_e, poses=poses, light_position_m=light))
         first += n
     _check_sample_counts(s, f"{src} [spec]")
-    if s["edge_mode"] == "analytic":  # edgetruth.render.scene.edge_band.render_analytic_band's scope
+    if s["edge_mode"] in ("analytic", "frame"):  # edgetruth.render.scene.edge_band.band_coverage's scope
         for g in groups:
             if g.kind == "target" and (g.camera.moving or not isinstance(g.target, str)):
-                raise InputError(f"{src} group {g.name!r}: edge_mode = \"analytic\" covers preset targets (T1..T4) "
+                raise InputError(f"{src} group {g.name!r}: edge_mode = \"{s['edge_mode']}\" covers preset targets (T1..T4) "
                                  "and a static camera; set edge_mode = \"path\" for this spec")
     return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
                 camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"],
                                                                          edge_spp=s["edge_spp"],
                                                                          checkerboard_spp=s["checkerboard_spp"],
-                                                                         edge_mode=s["edge_mode"]),
+                                                                         edge_mode=s["edge_mode"],
+                                                                         shading_step_px=s["shading_step_px"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
                 text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares)

@@ -33,7 +33,7 @@ from dataclasses import replace
 import numpy as np
 
 TILE_PX = 16
-EDGE_MODES = ("path", "analytic")
+EDGE_MODES = ("path", "analytic", "frame")  # frame: edgetruth.render.scene.shading_frame
 #: the analytic band's tiles: its renders are cheap (a few spp, no edge), so bigger windows -- fewer
 #: render calls, whose fixed cost (~40 ms each on 2 cores) dominates at 16 x 16
 ANALYTIC_TILE_PX = 64
@@ -155,14 +155,10 @@ def _park_active(rig, target: str) -> None:
     rig.params.update()
 
 
-def render_analytic_band(radiance: np.ndarray, frame: tuple[int, int, int, int], camera, settings, target: str,
-                         pose, size_m: float, tiles, seed: int, irradiance_w_m2: float,
-                         light_position_m=None, tile_px: int = TILE_PX) -> dict:
-    """Replace the pixels of ``tiles`` whose kernel meets the outline (0 < c < 1) in ``radiance`` (whose
-    pixel (0, 0) is frame pixel ``frame[:2]``) by S_out (1 − c) + S_in c; returns {pixels (those
-    replaced), render_s, coverage_s, fractional (the same count)}."""
-    import time
-
+def band_coverage(camera, target: str, pose, size_m: float, frame: tuple[int, int, int, int], tiles,
+                  tile_px: int = TILE_PX) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(rows, cols, c): every pixel of ``tiles`` within ``frame`` = (x0, y0, width, height), frame-relative,
+    and the exact lens-weighted coverage c of preset target ``target`` there."""
     from edgetruth.render.scene.edge_coverage import outline_curve, pixel_coverage
     from edgetruth.render.scene.targets import TARGETS
 
@@ -176,9 +172,22 @@ def render_analytic_band(radiance: np.ndarray, frame: tuple[int, int, int, int],
     for x0, y0 in tiles:
         inside[max(y0 - fy0, 0):max(y0 + tile_px - fy0, 0), max(x0 - fx0, 0):max(x0 + tile_px - fx0, 0)] = True
     rr, cc = np.nonzero(inside)
-    t0 = time.perf_counter()
     c = pixel_coverage(camera, outline_curve(camera, pose, target, size_m), (cc + fx0).astype(float),
                        (rr + fy0).astype(float))
+    return rr, cc, c
+
+
+def render_analytic_band(radiance: np.ndarray, frame: tuple[int, int, int, int], camera, settings, target: str,
+                         pose, size_m: float, tiles, seed: int, irradiance_w_m2: float,
+                         light_position_m=None, tile_px: int = TILE_PX) -> dict:
+    """Replace the pixels of ``tiles`` whose kernel meets the outline (0 < c < 1) in ``radiance`` (whose
+    pixel (0, 0) is frame pixel ``frame[:2]``) by S_out (1 − c) + S_in c; returns {pixels (those
+    replaced), render_s, coverage_s, fractional (the same count)}."""
+    import time
+
+    fx0, fy0 = frame[:2]
+    t0 = time.perf_counter()
+    rr, cc, c = band_coverage(camera, target, pose, size_m, frame, tiles, tile_px)
     coverage_s = time.perf_counter() - t0
     mixed = (c > 0.0) & (c < 1.0)  # the rest: no kernel sample meets the outline, the frame's value holds
     rr, cc, c = rr[mixed], cc[mixed], c[mixed]

@@ -60,10 +60,13 @@ class RenderSettings:
     edge_spp: int = 0
     #: spp of checkerboard images; 0: ``spp``
     checkerboard_spp: int = 0
-    #: the edge band: "path" (path-traced at ``edge_spp``, the reference) or "analytic" (the board and
+    #: the edge band: "path" (path-traced at ``edge_spp``, the reference), "analytic" (the board and
     #: the target's material rendered without an edge at ``edge_spp``, composited with the exact
-    #: lens-weighted coverage: ``edgetruth.render.scene.edge_coverage``)
+    #: lens-weighted coverage: ``edgetruth.render.scene.edge_coverage``) or "frame" (that composite over
+    #: the whole frame, the shading rendered on a grid and interpolated: ``shading_frame``)
     edge_mode: str = "path"
+    #: ``edge_mode = "frame"``: the shading grid's node spacing, px (``edgetruth.render.scene.shading_frame``)
+    shading_step_px: int = 16
 
     def to_dict(self) -> dict:
         d = {"spp": self.spp, "sampler": self.sampler, "samples_per_pass": self.samples_per_pass,
@@ -72,6 +75,8 @@ class RenderSettings:
             d["checkerboard_spp"] = self.checkerboard_spp
         if self.edge_mode != "path":  # absent by default: the shipped specs' identities are unchanged
             d["edge_mode"] = self.edge_mode
+        if self.edge_mode == "frame":
+            d["shading_step_px"] = self.shading_step_px
         if self.exposure_s:
             d["exposure_s"] = self.exposure_s
         return d

@@ -369,9 +369,11 @@ def _erf_positions(img: np.ndarray) -> np.ndarray:
 
 
 def composite_against_reference(target: str, z_m: float, half_w: int = 12, rows: int = 16,
-                                shading_spp: int = 256, seeds=REF_SEEDS) -> dict:
+                                shading_spp: int = 256, seeds=REF_SEEDS, mode: str = "analytic") -> dict:
     """A crop across the target's left side: the analytic composite vs the path tracer's mean over
-    ``seeds`` (16,384 spp each).  Returns the numbers the tests and docs/optics.md use."""
+    ``seeds`` (16,384 spp each).  Returns the numbers the tests and docs/optics.md use.  ``mode``:
+    "analytic" (the frame at 64 spp, the band composited) or "frame" (the whole crop composited, the
+    shading on nodes every 16 px: tests/render/scene/test_shading_frame.py)."""
     from edgetruth.render.scene.edge_band import band_tiles, band_width_px, render_analytic_band
     from edgetruth.render.scene.mitsuba_scene import RenderSettings, TargetRig
     from edgetruth.render.sensor.linear_model import SensorModel
@@ -392,6 +394,14 @@ def composite_against_reference(target: str, z_m: float, half_w: int = 12, rows:
     frame_rig = TargetRig(cam, RenderSettings(spp=64), crop=crop)  # as render_job: the frame, then the band
     frame_rig.set_state(target, pose, 1.2)
     for seed in (7, 8):
+        if mode == "frame":
+            from edgetruth.render.scene.shading_frame import render_shading_frame
+
+            settings = RenderSettings(spp=64, edge_spp=shading_spp, edge_mode="frame")
+            comp, res = render_shading_frame(cam, settings, target, pose, 0.13, curve.polyline(), width, crop, seed, 1.2)
+            assert res["pixels"] >= 0.5 * comp.size
+            comps.append(comp.astype(np.float64))
+            continue
         comp = frame_rig.render(seed)
         res = render_analytic_band(comp, crop, cam, RenderSettings(spp=64, edge_spp=shading_spp, edge_mode="analytic"),
                                    target, pose, 0.13, tiles, seed, 1.2)

@@ -1,0 +1,185 @@
+"""``edge_mode = "frame"``: every pixel is S_out (1 − c) + S_in c, the shading rendered on a grid of nodes
+and interpolated (``edgetruth.render.scene.shading_frame``).
+
+Interpolation (no Mitsuba): the 4-point Lagrange cubic reproduces bicubic polynomials to rounding and the
+nodes exactly; a crop interpolates the same values as the whole frame; c's inside/outside part agrees
+with the exact coverage beyond the kernel's reach.
+
+Against Mitsuba (llvm): the interpolated shading against the same shading rendered at every pixel, at the
+image corner (the strongest falloff) and on the glossy target's highlight, within the two renders'
+Monte-Carlo error; the composite of a crop across an outline against the plain path tracer at 65,536
+spp (tests/render/scene/test_edge_coverage.py's comparison); a spec through ``render_job``; the Monte-Carlo
+noise by distance from the outline (slow).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from edgetruth.render.scene import shading_frame as sf
+from edgetruth.render.optics.camera import load_camera
+from edgetruth.render.scene.pose import Pose
+
+
+def _bicubic(rng):
+    a = rng.normal(size=(4, 4))
+
+    def f(x, y):  # scaled to the frame, so every term matters
+        u, v = np.asarray(x, float) / 1280.0, np.asarray(y, float) / 1024.0
+        return sum(a[i, j] * u ** i * v ** j for i in range(4) for j in range(4))
+    return f
+
+
+def test_lagrange_cubic_reproduces_bicubics_and_the_nodes():
+    rng = np.random.default_rng(3)
+    f = _bicubic(rng)
+    xn, yn = sf.axis_nodes(1280, 16), sf.axis_nodes(1024, 16)
+    assert xn[0] == 0 and xn[-1] == 1279 and yn[-1] == 1023 and np.all(np.diff(xn) <= 16)
+    grid = f(xn[None, :], yn[:, None])
+    rows, cols = np.arange(1024), np.arange(1280)
+    out = sf.interpolate(grid, yn, xn, rows, cols)
+    truth = f(cols[None, :], rows[:, None])
+    assert np.max(np.abs(out - truth)) < 1e-11 * np.max(np.abs(truth))
+    at_nodes = out[np.ix_(yn, xn)]
+    assert np.max(np.abs(at_nodes - grid)) < 1e-13 * np.max(np.abs(grid))
+    # a quartic is not reproduced: the test can tell
+    q = sf.interpolate((xn[None, :] / 1280.0) ** 4 + 0 * yn[:, None], yn, xn, rows[:1], cols)
+    assert np.max(np.abs(q[0] - (cols / 1280.0) ** 4)) > 1e-9
+
+
+def test_a_crop_reads_the_same_nodes_as_the_frame():
+    rng = np.random.default_rng(5)
+    xn, yn = sf.axis_nodes(640, 16), sf.axis_nodes(512, 16)
+    grid = rng.normal(size=(len(yn), len(xn)))
+    full = sf.interpolate(grid, yn, xn, np.arange(512), np.arange(640))
+    for x0, y0, w, h in ((0, 0, 40, 30), (600, 480, 40, 32), (123, 77, 61, 45), (631, 500, 9, 12)):
+        sx, sy = sf.nodes_for(xn, x0, x0 + w), sf.nodes_for(yn, y0, y0 + h)
+        crop = sf.interpolate(grid[sy, sx], yn[sy], xn[sx], np.arange(y0, y0 + h), np.arange(x0, x0 + w))
+        np.testing.assert_array_equal(crop, full[y0:y0 + h, x0:x0 + w])
+
+
+def test_inside_mask_is_the_coverage_beyond_the_kernels_reach():
+    from edgetruth.render.scene.edge_band import band_width_px
+    from edgetruth.render.scene.edge_coverage import outline_curve, pixel_coverage
+
+    cam = load_camera()
+    for target, pose in (("T1", Pose(0.6, 0.03, -0.02, 2.0, -1.5, roll_deg=7.0)),
+                         ("T2", Pose(1.2, -0.1, 0.05, -2.0, 1.0, roll_deg=0.0))):
+        curve = outline_curve(cam, pose, target, 0.13)
+        poly = curve.polyline()
+        reach = band_width_px(cam, float(cam.defocus_radius_px(pose.translation_m[2])))
+        x0, y0 = (np.floor(poly.min(0)) - 30).astype(int)
+        x1, y1 = (np.ceil(poly.max(0)) + 30).astype(int)
+        mask = sf.inside_mask(poly, x0, y0, x1 - x0, y1 - y0)
+        ys, xs = np.mgrid[y0:y1, x0:x1]
+        d = np.abs(curve.signed_distance(xs.astype(float), ys.astype(float)))
+        far = d > reach
+        rng = np.random.default_rng(1)
+        pick = rng.choice(np.flatnonzero(far), 3000, replace=False)
+        c = pixel_coverage(cam, curve, xs.ravel()[pick].astype(float), ys.ravel()[pick].astype(float))
+        assert np.all((c < 1e-12) | (c > 1.0 - 1e-12))  # 0 or 1 to rounding
+        np.testing.assert_array_equal(c > 0.5, mask.ravel()[pick])
+        assert 0.2 < mask.mean() < 0.9
+
+
+@pytest.mark.parametrize("where,target", [("corner", "T1"), ("centre", "T4")])
+def test_interpolated_shading_is_the_rendered_shading(fast_variant, where, target):
+    """S_out at the image corner (falloff, distortion) and S_in of the glossy target (its highlight) at
+    0.5 m: nodes every 16 px at 4,096 spp, interpolated, against the same rig rendering every pixel of a
+    48 x 48 crop at 4,096 spp -- their difference is the two renders' Monte-Carlo error, no more, and
+    its mean is below 1e-4 of the signal."""
+    from edgetruth.render.scene.edge_band import BIG_TARGET_M, _park_active, tile_rig
+    from edgetruth.render.scene.mitsuba_scene import RenderSettings, TargetRig
+
+    cam = load_camera()
+    pose = Pose(0.5, 0.02, -0.01, 2.0, -1.5, roll_deg=4.0)
+    x0, y0 = (cam.width_px - 48, cam.height_px - 48) if where == "corner" else (cam.width_px // 2 - 24, 380)
+    crop = (x0, y0, 48, 48)
+    spp = 4096
+    settings = RenderSettings(spp=spp)
+    size = BIG_TARGET_M if target == "T4" else 0.13
+    direct = TargetRig(cam, settings, target_size_m=size, crop=crop)
+    direct.set_state(target, pose, 1.2)
+    if target == "T1":
+        _park_active(direct, target)
+    imgs = [direct.render(s).astype(np.float64) for s in (21, 22)]
+    ref = 0.5 * (imgs[0] + imgs[1])
+    ref_err = np.abs(imgs[0] - imgs[1]) / 2.0  # the mean's MC error (per pixel, |a - b| / 2)
+    rig = tile_rig(cam, settings, size, 64)
+    rig.set_state(target, pose, 1.2)
+    if target == "T1":
+        _park_active(rig, target)
+    xn_all, yn_all = sf.axis_nodes(cam.width_px, 16), sf.axis_nodes(cam.height_px, 16)
+    sx, sy = sf.nodes_for(xn_all, x0, x0 + 48), sf.nodes_for(yn_all, y0, y0 + 48)
+    grids = [sf._render_grid(rig, xn_all[sx], yn_all[sy], s, "test")[0] for s in (31, 32)]
+    interp = [sf.interpolate(g, yn_all[sy], xn_all[sx], np.arange(y0, y0 + 48), np.arange(x0, x0 + 48))
+              for g in grids]
+    comp = 0.5 * (interp[0] + interp[1])
+    comp_err = np.abs(interp[0] - interp[1]) / 2.0
+    diff = comp - ref
+    expected = np.mean(ref_err ** 2) + np.mean(comp_err ** 2)
+    print(f"{where} {target}: signal {ref.mean():.4g}, rms diff {np.sqrt(np.mean(diff ** 2)):.3g}, "
+          f"expected {math.sqrt(expected):.3g}, mean diff {diff.mean():.3g}, range over the crop "
+          f"{(ref.max() - ref.min()) / ref.mean():.3g}")
+    # |a - b| / 2 estimates the error with E = σ² / 2 per pixel: the bound allows for that and for spread
+    assert np.mean(diff ** 2) <= 3.0 * expected
+    assert abs(diff.mean()) <= 1e-4 * ref.mean()
+
+
+@pytest.mark.parametrize("target,z_m", [
+    pytest.param("T1", 1.5, marks=pytest.mark.slow), pytest.param("T1", 0.5, marks=pytest.mark.slow),
+    pytest.param("T2", 1.5, marks=pytest.mark.slow), pytest.param("T2", 0.5, marks=pytest.mark.slow),
+    pytest.param("T4", 1.5, marks=pytest.mark.slow), ("T4", 0.5)])
+def test_frame_composite_agrees_with_the_path_tracer(fast_variant, target, z_m):
+    from tests.render.scene.test_edge_coverage import composite_against_reference
+
+    r = composite_against_reference(target, z_m, mode="frame")
+    print(f"frame {target} {z_m} m: " + ", ".join(f"{k} {v:.4g}" for k, v in r.items()))
+    expected = r["rms_ref_err_e"] ** 2 + r["rms_comp_err_e"] ** 2
+    assert r["rms_diff_e"] ** 2 <= 1.5 * expected
+    assert abs(r["mean_diff_e"]) <= 3.0 * math.sqrt(expected / r["n"]) + 0.1
+    assert abs(r["position_diff_px"]) <= 0.002
+
+
+def test_frame_mode_through_render_job(tmp_path, fast_variant):
+    """``edge_mode = "frame"`` in a spec: no full-frame render, the JSON says so, and the image agrees with the
+    path-traced one to the latter's Monte-Carlo noise (tiny camera: box only, defocused circles)."""
+    from edgetruth.render.dataset.image import render_job
+    from edgetruth.render.dataset.spec import load_spec
+    from edgetruth.render.testing import write_tiny_spec
+
+    path = write_tiny_spec(tmp_path, spp=64, edge_spp=4096)
+    text = path.read_text()
+    path.write_text(text.replace("sampler = ", 'edge_mode = "frame"\nshading_step_px = 8\nsampler = ', 1))
+    frame = load_spec(path)
+    path.write_text(text)
+    reference = load_spec(path)
+    assert frame.render.edge_mode == "frame" and frame.render.to_dict()["shading_step_px"] == 8
+    assert "shading_step_px" not in reference.render.to_dict()
+    rad_f, _, gt_f = render_job(frame, frame.jobs[0])
+    rad_p, _, _ = render_job(reference, reference.jobs[0])
+    band = gt_f["render"]["edge_band"]
+    assert band["mode"] == "frame" and band["shading_step_px"] == 8 and band["fractional_pixels"] > 20
+    assert band["shading_nodes"]["out"] == len(sf.axis_nodes(64, 8)) * len(sf.axis_nodes(48, 8))
+    scale = float(np.percentile(rad_p, 99))
+    assert np.max(np.abs(rad_f - rad_p)) < 0.03 * scale  # the path band's own MC noise (4096 spp)
+    assert abs(float(np.mean(rad_f - rad_p))) < 1e-3 * scale
+    # the checkerboard of the same spec renders as before: the mode is for target images
+    assert render_job(frame, frame.jobs[2])[2]["render"]["edge_band"] is None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("distance_m", [0.5, 1.5, 2.5])
+def test_frame_mode_noise_is_below_a_quarter_of_the_dark_noise(fast_variant, distance_m):
+    """MC noise on every |d| band, the pixels within 1 px of the outline included, at the study's shading
+    (1,024 spp, nodes every 16 px): measured 0.02-0.09 e-, against 2.5 e- (1/4 of the dark noise)."""
+    from edgetruth.render.mc_noise import edge_mc_noise
+    from edgetruth.render.scene.mitsuba_scene import RenderSettings
+    from edgetruth.render.sensor.linear_model import SensorModel
+
+    noise = edge_mc_noise(load_camera(), RenderSettings(spp=64, edge_spp=1024, edge_mode="frame"), distance_m)
+    print(f"{distance_m} m: " + "; ".join(f"|d| {lo:g}-{hi:g} px {mc:.3f} e-" for (lo, hi), (mc, _) in noise.items()))
+    for band, (mc, _) in noise.items():
+        assert 0.0 < mc <= SensorModel().dark_noise_e / 4, band
