@@ -74,12 +74,66 @@ def nodes_for(nodes: np.ndarray, lo: int, hi: int) -> slice:
     return slice(int(i0[0]), int(i0[1]) + w.shape[1])
 
 
-def _render_grid(rig, xn: np.ndarray, yn: np.ndarray, seed: int, which: str) -> tuple[np.ndarray, float]:
-    from edgetruth.render.scene.edge_band import _render_pixels
+#: the films of the node lists: ``ANALYTIC_TILE_PX``² pixels, and the remainder in films of ``SMALL_FILM_PX``²
+#: when fewer of those cost less (a render call's fixed cost against the padded pixels' samples)
+SMALL_FILM_PX = 16
+#: a render call's fixed cost in samples (~15 ms at ~20 M samples/s on 2 cores, llvm)
+_CALL_SAMPLES = 300_000
 
+
+def _film_plan(n: int, big: int, small: int, spp: int) -> list[int]:
+    """Film sizes (pixels) that hold ``n`` listed pixels: whole big films, then the remainder in small films
+    where ceil(rest / small) of them cost fewer samples (padding included) than one more big film."""
+    plan = [big] * (n // big)
+    rest = n - len(plan) * big
+    if rest:
+        k = -(-rest // small)
+        fixed = _CALL_SAMPLES / max(spp, 1)  # in pixels
+        plan += [small] * k if k * (small + fixed) < big + fixed else [big]
+    return plan
+
+
+def _render_grid(rigs: tuple, xn: np.ndarray, yn: np.ndarray, seed: int, which: str) -> tuple[np.ndarray, float]:
+    """The shading at the nodes ``xn`` x ``yn`` (frame pixels): ``rigs`` = (big, small) pixel-list rigs (small may
+    be None); film k has seed ``pixel_chunk_seed(seed, k, which)``; (values (len(yn), len(xn)), s in renders)."""
+    import time
+
+    from edgetruth.render.scene.edge_band import pixel_chunk_seed
+
+    big, small = rigs
     gx, gy = np.meshgrid(xn.astype(np.float64), yn.astype(np.float64))
-    vals, render_s = _render_pixels(rig, gx.ravel(), gy.ravel(), seed, which)
-    return vals.reshape(len(yn), len(xn)), render_s
+    xs, ys = gx.ravel(), gy.ravel()
+    n_big = int(big.window[0] * big.window[1])
+    n_small = int(small.window[0] * small.window[1]) if small is not None else n_big
+    plan = _film_plan(len(xs), n_big, n_small, big.settings.spp)
+    out = np.empty(len(xs), np.float64)
+    render_s, a = 0.0, 0
+    for k, size in enumerate(plan):
+        rig = big if size == n_big else small
+        px, py = xs[a:a + size], ys[a:a + size]
+        m = len(px)
+        if m < size:  # the last film: padded with its own last pixel
+            px = np.concatenate([px, np.full(size - m, px[-1])])
+            py = np.concatenate([py, np.full(size - m, py[-1])])
+        t0 = time.perf_counter()
+        film = rig.render(pixel_chunk_seed(seed, k, which), pixels=(px, py))
+        render_s += time.perf_counter() - t0
+        out[a:a + m] = film.ravel()[:m]
+        a += m
+    return out.reshape(len(yn), len(xn)), render_s
+
+
+def _posed_rigs(camera, shading, size_m: float, target: str, pose, irradiance_w_m2: float, light_position_m,
+                park: bool) -> tuple:
+    """The (big, small) pixel-list rigs of the board alone (``park``) or of the target's material, posed."""
+    from edgetruth.render.scene.edge_band import ANALYTIC_TILE_PX, _park_active, tile_rig
+
+    rigs = (tile_rig(camera, shading, size_m, ANALYTIC_TILE_PX), tile_rig(camera, shading, size_m, SMALL_FILM_PX))
+    for rig in rigs:
+        rig.set_state(target, pose, irradiance_w_m2, light_position_m)
+        if park:
+            _park_active(rig, target)
+    return rigs
 
 
 def inside_mask(outline_px: np.ndarray, x0: int, y0: int, w: int, h: int) -> np.ndarray:
@@ -101,8 +155,7 @@ def render_shading_frame(camera, settings, target: str, pose, size_m: float, out
     returns it and {render_s, coverage_s, pixels (fractional c), nodes_out, nodes_in, tiles}."""
     import time
 
-    from edgetruth.render.scene.edge_band import (ANALYTIC_TILE_PX, BIG_TARGET_M, _park_active, band_coverage,
-                                                  band_tiles, tile_rig)
+    from edgetruth.render.scene.edge_band import ANALYTIC_TILE_PX, BIG_TARGET_M, band_coverage, band_tiles
 
     fx0, fy0, fw, fh = (int(v) for v in frame)
     step = int(getattr(settings, "shading_step_px", SHADING_STEP_PX))
@@ -112,10 +165,8 @@ def render_shading_frame(camera, settings, target: str, pose, size_m: float, out
     sx, sy = nodes_for(xn_all, fx0, fx0 + fw), nodes_for(yn_all, fy0, fy0 + fh)
     xn, yn = xn_all[sx], yn_all[sy]
 
-    out_rig = tile_rig(camera, shading, size_m, ANALYTIC_TILE_PX)
-    out_rig.set_state(target, pose, irradiance_w_m2, light_position_m)
-    _park_active(out_rig, target)
-    s_out, render_s = _render_grid(out_rig, xn, yn, seed, "frame-out")
+    out_rigs = _posed_rigs(camera, shading, size_m, target, pose, irradiance_w_m2, light_position_m, park=True)
+    s_out, render_s = _render_grid(out_rigs, xn, yn, seed, "frame-out")
     radiance = interpolate(s_out, yn, xn, rows, cols)
 
     # the target's box in the frame: its outline and the kernel's reach around it
@@ -135,10 +186,10 @@ def render_shading_frame(camera, settings, target: str, pose, size_m: float, out
         n_frac = int(np.count_nonzero((cv > 0.0) & (cv < 1.0)))
         coverage_s = time.perf_counter() - t0
         if np.any(c > 0.0):
-            in_rig = tile_rig(camera, shading, BIG_TARGET_M, ANALYTIC_TILE_PX)
-            in_rig.set_state(target, pose, irradiance_w_m2, light_position_m)
+            in_rigs = _posed_rigs(camera, shading, BIG_TARGET_M, target, pose, irradiance_w_m2, light_position_m,
+                                  park=False)
             ix, iy = nodes_for(xn_all, bx0, bx1), nodes_for(yn_all, by0, by1)
-            s_in, t_in = _render_grid(in_rig, xn_all[ix], yn_all[iy], seed, "frame-in")
+            s_in, t_in = _render_grid(in_rigs, xn_all[ix], yn_all[iy], seed, "frame-in")
             render_s += t_in
             n_in = s_in.size
             s_in_px = interpolate(s_in, yn_all[iy], xn_all[ix], np.arange(by0, by1), np.arange(bx0, bx1))

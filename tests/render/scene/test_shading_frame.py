@@ -113,7 +113,7 @@ def test_interpolated_shading_is_the_rendered_shading(fast_variant, where, targe
         _park_active(rig, target)
     xn_all, yn_all = sf.axis_nodes(cam.width_px, 16), sf.axis_nodes(cam.height_px, 16)
     sx, sy = sf.nodes_for(xn_all, x0, x0 + 48), sf.nodes_for(yn_all, y0, y0 + 48)
-    grids = [sf._render_grid(rig, xn_all[sx], yn_all[sy], s, "test")[0] for s in (31, 32)]
+    grids = [sf._render_grid((rig, None), xn_all[sx], yn_all[sy], s, "test")[0] for s in (31, 32)]
     interp = [sf.interpolate(g, yn_all[sy], xn_all[sx], np.arange(y0, y0 + 48), np.arange(x0, x0 + 48))
               for g in grids]
     comp = 0.5 * (interp[0] + interp[1])
@@ -183,3 +183,15 @@ def test_frame_mode_noise_is_below_a_quarter_of_the_dark_noise(fast_variant, dis
     print(f"{distance_m} m: " + "; ".join(f"|d| {lo:g}-{hi:g} px {mc:.3f} e-" for (lo, hi), (mc, _) in noise.items()))
     for band, (mc, _) in noise.items():
         assert 0.0 < mc <= SensorModel().dark_noise_e / 4, band
+
+
+def test_film_plan_holds_every_node_and_pads_little():
+    """Whole 4,096-pixel films, then the remainder in 256-pixel films where those cost fewer samples than one
+    more big film (a render call's fixed cost counted in samples)."""
+    for n in (1, 255, 257, 1353, 4096, 4097, 5265, 9000):
+        for spp in (64, 256, 1024):
+            plan = sf._film_plan(n, 4096, 256, spp)
+            assert sum(plan) >= n and sum(plan) - n < 4096 and plan[:n // 4096] == [4096] * (n // 4096)
+    assert sf._film_plan(1353, 4096, 256, 1024) == [256] * 6  # the quick camera's 41 x 33 nodes
+    assert sf._film_plan(5265, 4096, 256, 1024) == [4096] + [256] * 5  # the study camera's 81 x 65
+    assert sf._film_plan(3000, 4096, 256, 64) == [4096]  # at few spp the calls' fixed cost wins
