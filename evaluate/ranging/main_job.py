@@ -41,6 +41,12 @@ def warm_kernels(methods=None, thresholds=None) -> None:
             locate.refine(s.image, cand, mid, **kw)
         except Exception:  # noqa: BLE001 -- the stage that runs the method reports its failure
             continue
+    import numpy as np
+
+    from edgetruth.evaluate.ranging.size import fit_line_robust  # the size model's line-fit kernels
+
+    t = np.linspace(-20.0, 20.0, 200)  # > 128 points: the pairwise sum's halving path too
+    fit_line_robust(10.0 + 0.01 * t, 5.0 + t)
 
 
 def start_kernel_warmup(methods=None, thresholds=None):

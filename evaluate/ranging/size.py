@@ -19,8 +19,6 @@ refitted; the size is the diameter 2r.  Points are first scaled by
 """
 from __future__ import annotations
 
-import math
-
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -52,19 +50,6 @@ class Line:
 IRLS_TOL_PX = 1e-7
 
 
-def _tls(x, y, w):
-    """Weighted total-least-squares line: (unit normal, d)."""
-    sw = w.sum()
-    mx, my = (w * x).sum() / sw, (w * y).sum() / sw
-    dx, dy = x - mx, y - my
-    sxx, sxy, syy = float((w * dx * dx).sum()), float((w * dx * dy).sum()), float((w * dy * dy).sum())
-    # the scatter matrix's major axis is at angle theta = atan2(2 sxy, sxx - syy) / 2; the normal is
-    # perpendicular to it (closed form of the 2x2 eigenproblem, with a fixed sign: +y side up)
-    theta = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
-    n = np.array([-math.sin(theta), math.cos(theta)])
-    return n, float(n[0] * mx + n[1] * my)
-
-
 def _median(v: np.ndarray) -> float:
     """``np.median`` of a 1-D array, bit for bit, without its generic machinery (the robust line fits
     call it ~60,000 times per quick run)."""
@@ -84,9 +69,13 @@ def _mad_sigma(r) -> float:
 
 def fit_line_robust(x, y, ransac_threshold_px: float = 1.0, iterations: int = 200, seed: int = 0,
                     tukey_c: float = 4.685) -> Line:
-    """Robust line through (x, y): RANSAC inliers, then Tukey-biweight IRLS total least squares."""
-    x = np.asarray(x, np.float64)
-    y = np.asarray(y, np.float64)
+    """Robust line through (x, y): RANSAC inliers, then Tukey-biweight IRLS total least squares (scale
+    1.4826 MAD, at least ``SIGMA_FLOOR_PX``; to ``IRLS_TOL_PX``, at most 30 steps).  The loops are numba
+    kernels (``edgetruth.evaluate.ranging.line_kernels``), bit for bit the numpy code they replaced."""
+    from edgetruth.evaluate.ranging import line_kernels as lk
+
+    x = np.ascontiguousarray(x, np.float64)
+    y = np.ascontiguousarray(y, np.float64)
     n_pts = x.size
     if n_pts < 2:
         raise InputError(f"line fit: need at least 2 points, got {n_pts}")
@@ -101,30 +90,12 @@ def fit_line_robust(x, y, ransac_threshold_px: float = 1.0, iterations: int = 20
         i, ex, ey, norm = i[ok], ex[ok], ey[ok], norm[ok]
         nx, ny = -ey / norm, ex / norm
         d = nx * x[i[:, 0]] + ny * y[i[:, 0]]
-        r = np.abs(nx[:, None] * x[None] + ny[:, None] * y[None] - d[:, None])
-        counts = (r < ransac_threshold_px).sum(1)
-        if counts.size:
-            k = int(np.argmax(counts))
-            best = r[k] < ransac_threshold_px
+        if nx.size:
+            k = lk.ransac_best(x, y, nx, ny, d, float(ransac_threshold_px))
+            best = np.abs(nx[k] * x + ny[k] * y - d[k]) < ransac_threshold_px
     w = best.astype(np.float64) if best is not None and best.sum() >= 2 else np.ones(n_pts)
-    n, d = _tls(x, y, w)
-    for _ in range(30):
-        r = n[0] * x + n[1] * y - d
-        s = _mad_sigma(r[w > 0])
-        u = r / (tukey_c * s)
-        w_new = np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)
-        if w_new.sum() < 2 or np.count_nonzero(w_new) < 2:
-            break
-        n_new, d_new = _tls(x, y, w_new)
-        if n_new @ n < 0:
-            n_new, d_new = -n_new, -d_new
-        done = abs(d_new - d) < IRLS_TOL_PX and np.linalg.norm(n_new - n) < IRLS_TOL_PX * 1e-3
-        n, d, w = n_new, d_new, w_new
-        if done:
-            break
-    r = n[0] * x + n[1] * y - d
-    inl = w > 0
-    return Line(n, d, inl, float(np.sqrt(np.mean(r[inl] ** 2))) if inl.any() else float("nan"))
+    nx, ny, d, rms = lk.irls_line(x, y, w, float(tukey_c), SIGMA_FLOOR_PX, IRLS_TOL_PX, 30)
+    return Line(np.array([nx, ny]), float(d), w > 0, float(rms))
 
 
 def intersect(a: Line, b: Line) -> np.ndarray:

@@ -1,0 +1,191 @@
+"""The robust line fit's loops as numba kernels, bit for bit the numpy code they replace.
+
+``fit_line_robust`` (``edgetruth.evaluate.ranging.size``) runs ~33,000 times per quick run (12 lines per
+square, per method, per image): RANSAC on point pairs, then Tukey-biweight IRLS total least squares to
+1e-7 px.  In numpy each IRLS step is a dozen small-array calls; here one kernel runs the whole fit.
+The answers are the same to the last bit: sums use numpy's own pairwise summation (``pairwise_sum``:
+8 accumulators up to 128 elements, halving above), medians the same order statistics, and every
+expression keeps numpy's operation order (tests/evaluate/ranging/test_line_kernels.py checks equality
+with the numpy implementation).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from edgetruth.jit import njit
+
+_BLOCK = 128  # numpy's PW_BLOCKSIZE
+
+
+@njit(cache=True)
+def _block_sum(a, lo, n):
+    """numpy's pairwise_sum of ``a[lo:lo + n]`` for n <= 128: 8 accumulators, then the rest in order."""
+    if n < 8:
+        res = -0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - (n % 8):
+        r0 += a[lo + i]
+        r1 += a[lo + i + 1]
+        r2 += a[lo + i + 2]
+        r3 += a[lo + i + 3]
+        r4 += a[lo + i + 4]
+        r5 += a[lo + i + 5]
+        r6 += a[lo + i + 6]
+        r7 += a[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True)
+def pairwise_sum(a, lo, n):
+    """numpy's ``add.reduce`` of the contiguous float64 ``a[lo:lo + n]``, bit for bit: blocks of <= 128,
+    halved (at a multiple of 8) above.  Iterative, with its own stack: numba's on-disk cache cannot
+    reload a recursive function (it crashes the process)."""
+    if n <= _BLOCK:
+        return _block_sum(a, lo, n)
+    los = np.empty(64, np.int64)
+    ns = np.empty(64, np.int64)
+    state = np.zeros(64, np.int64)  # 0: split next, 1: left done, 2: both done
+    vals = np.empty(64)
+    sp, vt = 1, 0
+    los[0], ns[0], state[0] = lo, n, 0
+    while sp > 0:
+        top = sp - 1
+        m = ns[top]
+        if m <= _BLOCK:
+            vals[vt] = _block_sum(a, los[top], m)
+            vt += 1
+            sp -= 1
+            continue
+        n2 = m // 2
+        n2 -= n2 % 8
+        if state[top] == 0:
+            state[top] = 1
+            los[sp], ns[sp], state[sp] = los[top], n2, 0
+            sp += 1
+        elif state[top] == 1:
+            state[top] = 2
+            los[sp], ns[sp], state[sp] = los[top] + n2, m - n2, 0
+            sp += 1
+        else:
+            vals[vt - 2] = vals[vt - 2] + vals[vt - 1]
+            vt -= 1
+            sp -= 1
+    return vals[0]
+
+
+@njit(cache=True)
+def _sum(a):
+    return pairwise_sum(a, 0, a.size)
+
+
+@njit(cache=True)
+def _median(v):
+    """``np.median`` of a 1-D array (the middle order statistic, or the mean of the two)."""
+    n = v.size
+    if n == 0:
+        return np.nan
+    s = np.sort(v)
+    k = n // 2
+    if n % 2:
+        return s[k]
+    return (s[k - 1] + s[k]) / 2.0
+
+
+@njit(cache=True)
+def _tls(x, y, w, buf):
+    """Weighted total-least-squares line (nx, ny, d), as ``size._tls``; ``buf`` scratch of len(x)."""
+    sw = _sum(w)
+    for i in range(x.size):
+        buf[i] = w[i] * x[i]
+    mx = _sum(buf) / sw
+    for i in range(x.size):
+        buf[i] = w[i] * y[i]
+    my = _sum(buf) / sw
+    for i in range(x.size):
+        buf[i] = w[i] * (x[i] - mx) * (x[i] - mx)
+    sxx = _sum(buf)
+    for i in range(x.size):
+        buf[i] = w[i] * (x[i] - mx) * (y[i] - my)
+    sxy = _sum(buf)
+    for i in range(x.size):
+        buf[i] = w[i] * (y[i] - my) * (y[i] - my)
+    syy = _sum(buf)
+    theta = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
+    nx, ny = -math.sin(theta), math.cos(theta)
+    return nx, ny, nx * mx + ny * my
+
+
+@njit(cache=True)
+def ransac_best(x, y, nx, ny, d, threshold_px):
+    """Index of the candidate line (nx, ny, d) with the most points within ``threshold_px`` (the first of
+    equals, as ``np.argmax``)."""
+    best_k, best_c = 0, -1
+    for k in range(nx.size):
+        c = 0
+        for j in range(x.size):
+            if abs(nx[k] * x[j] + ny[k] * y[j] - d[k]) < threshold_px:
+                c += 1
+        if c > best_c:
+            best_k, best_c = k, c
+    return best_k
+
+
+@njit(cache=True)
+def irls_line(x, y, w, tukey_c, sigma_floor_px, tol_px, max_iter):
+    """Tukey-biweight IRLS total least squares from weights ``w`` (modified in place): (nx, ny, d, rms_px);
+    ``w > 0`` marks the inliers on return."""
+    n_pts = x.size
+    buf = np.empty(n_pts)
+    r = np.empty(n_pts)
+    w_new = np.empty(n_pts)
+    nx, ny, d = _tls(x, y, w, buf)
+    for _ in range(max_iter):
+        m = 0
+        for i in range(n_pts):
+            r[i] = nx * x[i] + ny * y[i] - d
+            if w[i] > 0:
+                buf[m] = r[i]
+                m += 1
+        med = _median(buf[:m])
+        for i in range(m):
+            buf[i] = abs(buf[i] - med)
+        s = max(1.4826 * _median(buf[:m]), sigma_floor_px)
+        nz = 0
+        for i in range(n_pts):
+            u = r[i] / (tukey_c * s)
+            if abs(u) < 1:
+                t = 1 - u * u
+                w_new[i] = t * t
+                nz += w_new[i] != 0.0
+            else:
+                w_new[i] = 0.0
+        if _sum(w_new) < 2 or nz < 2:
+            break
+        nx2, ny2, d2 = _tls(x, y, w_new, buf)
+        if nx2 * nx + ny2 * ny < 0:
+            nx2, ny2, d2 = -nx2, -ny2, -d2
+        done = abs(d2 - d) < tol_px and math.sqrt((nx2 - nx) ** 2 + (ny2 - ny) ** 2) < tol_px * 1e-3
+        nx, ny, d = nx2, ny2, d2
+        w[:] = w_new
+        if done:
+            break
+    m = 0
+    for i in range(n_pts):
+        if w[i] > 0:
+            ri = nx * x[i] + ny * y[i] - d
+            buf[m] = ri * ri
+            m += 1
+    rms = math.sqrt(pairwise_sum(buf, 0, m) / m) if m else np.nan
+    return nx, ny, d, rms
