@@ -126,25 +126,33 @@ def pixel_chunk_seed(seed: int, k: int, which: str) -> int:
     return int.from_bytes(digest[:4], "little") & 0x7FFFFFFF
 
 
-def _render_pixels(rig, xs: np.ndarray, ys: np.ndarray, seed: int, which: str) -> tuple[np.ndarray, float]:
-    """Frame pixels (xs, ys) rendered with ``rig`` (a window rig in pixel-list mode), one film per
-    ``width x height`` of them (the last padded with its own last pixel); (values, seconds in renders)."""
+def render_pixel_list(rigs, xs: np.ndarray, ys: np.ndarray, seed: int, which: str) -> tuple[np.ndarray, float]:
+    """Frame pixels (xs, ys) rendered film by film: film k by ``rigs[k]`` (a window rig in pixel-list mode),
+    holding the next ``width x height`` listed pixels (the last film padded with its own last pixel), with
+    seed ``pixel_chunk_seed(seed, k, which)``; (values, seconds in renders)."""
     import time
 
-    n_film = int(rig.window[0] * rig.window[1])
     out = np.empty(len(xs), np.float64)
-    render_s = 0.0
-    for k, a in enumerate(range(0, len(xs), n_film)):
-        px, py = xs[a:a + n_film], ys[a:a + n_film]
+    render_s, a = 0.0, 0
+    for k, rig in enumerate(rigs):
+        size = int(rig.window[0] * rig.window[1])
+        px, py = xs[a:a + size], ys[a:a + size]
         m = len(px)
-        if m < n_film:
-            px = np.concatenate([px, np.full(n_film - m, px[-1])])
-            py = np.concatenate([py, np.full(n_film - m, py[-1])])
+        if m < size:
+            px = np.concatenate([px, np.full(size - m, px[-1])])
+            py = np.concatenate([py, np.full(size - m, py[-1])])
         t0 = time.perf_counter()
         film = rig.render(pixel_chunk_seed(seed, k, which), pixels=(px, py))
         render_s += time.perf_counter() - t0
         out[a:a + m] = film.ravel()[:m]
+        a += m
     return out, render_s
+
+
+def _render_pixels(rig, xs: np.ndarray, ys: np.ndarray, seed: int, which: str) -> tuple[np.ndarray, float]:
+    """Frame pixels (xs, ys) rendered with ``rig``, one film per ``width x height`` of them."""
+    n_film = int(rig.window[0] * rig.window[1])
+    return render_pixel_list([rig] * -(-len(xs) // n_film), xs, ys, seed, which)
 
 
 def _park_active(rig, target: str) -> None:

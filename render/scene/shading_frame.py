@@ -96,9 +96,7 @@ def _film_plan(n: int, big: int, small: int, spp: int) -> list[int]:
 def _render_grid(rigs: tuple, xn: np.ndarray, yn: np.ndarray, seed: int, which: str) -> tuple[np.ndarray, float]:
     """The shading at the nodes ``xn`` x ``yn`` (frame pixels): ``rigs`` = (big, small) pixel-list rigs (small may
     be None); film k has seed ``pixel_chunk_seed(seed, k, which)``; (values (len(yn), len(xn)), s in renders)."""
-    import time
-
-    from edgetruth.render.scene.edge_band import pixel_chunk_seed
+    from edgetruth.render.scene.edge_band import render_pixel_list
 
     big, small = rigs
     gx, gy = np.meshgrid(xn.astype(np.float64), yn.astype(np.float64))
@@ -106,20 +104,7 @@ def _render_grid(rigs: tuple, xn: np.ndarray, yn: np.ndarray, seed: int, which: 
     n_big = int(big.window[0] * big.window[1])
     n_small = int(small.window[0] * small.window[1]) if small is not None else n_big
     plan = _film_plan(len(xs), n_big, n_small, big.settings.spp)
-    out = np.empty(len(xs), np.float64)
-    render_s, a = 0.0, 0
-    for k, size in enumerate(plan):
-        rig = big if size == n_big else small
-        px, py = xs[a:a + size], ys[a:a + size]
-        m = len(px)
-        if m < size:  # the last film: padded with its own last pixel
-            px = np.concatenate([px, np.full(size - m, px[-1])])
-            py = np.concatenate([py, np.full(size - m, py[-1])])
-        t0 = time.perf_counter()
-        film = rig.render(pixel_chunk_seed(seed, k, which), pixels=(px, py))
-        render_s += time.perf_counter() - t0
-        out[a:a + m] = film.ravel()[:m]
-        a += m
+    out, render_s = render_pixel_list([big if size == n_big else small for size in plan], xs, ys, seed, which)
     return out.reshape(len(yn), len(xn)), render_s
 
 

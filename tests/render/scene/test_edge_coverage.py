@@ -426,8 +426,13 @@ def composite_against_reference(target: str, z_m: float, half_w: int = 12, rows:
 def test_composite_agrees_with_the_path_tracer(fast_variant, target, z_m):
     r = composite_against_reference(target, z_m)
     print(f"{target} {z_m} m: " + ", ".join(f"{k} {v:.4g}" for k, v in r.items()))
-    # pixel values: the difference is the two renders' Monte-Carlo errors, no more (chi² with n dof:
-    # mean square <= 1.5 x the expected, far beyond its spread for n = 384)
+    assert_agrees_with_reference(r)
+
+
+def assert_agrees_with_reference(r: dict) -> None:
+    """``composite_against_reference``'s numbers: pixel values differ by the two renders' Monte-Carlo errors,
+    no more (chi² with n dof: mean square <= 1.5 x the expected, far beyond its spread for n = 384), and the
+    mean edge position by <= 0.002 px (the issue's tolerance)."""
     expected = r["rms_ref_err_e"] ** 2 + r["rms_comp_err_e"] ** 2
     assert r["rms_diff_e"] ** 2 <= 1.5 * expected
     assert abs(r["mean_diff_e"]) <= 3.0 * math.sqrt(expected / r["n"]) + 0.1

@@ -133,14 +133,11 @@ def test_interpolated_shading_is_the_rendered_shading(fast_variant, where, targe
     pytest.param("T2", 1.5, marks=pytest.mark.slow), pytest.param("T2", 0.5, marks=pytest.mark.slow),
     pytest.param("T4", 1.5, marks=pytest.mark.slow), ("T4", 0.5)])
 def test_frame_composite_agrees_with_the_path_tracer(fast_variant, target, z_m):
-    from tests.render.scene.test_edge_coverage import composite_against_reference
+    from tests.render.scene.test_edge_coverage import assert_agrees_with_reference, composite_against_reference
 
     r = composite_against_reference(target, z_m, mode="frame")
     print(f"frame {target} {z_m} m: " + ", ".join(f"{k} {v:.4g}" for k, v in r.items()))
-    expected = r["rms_ref_err_e"] ** 2 + r["rms_comp_err_e"] ** 2
-    assert r["rms_diff_e"] ** 2 <= 1.5 * expected
-    assert abs(r["mean_diff_e"]) <= 3.0 * math.sqrt(expected / r["n"]) + 0.1
-    assert abs(r["position_diff_px"]) <= 0.002
+    assert_agrees_with_reference(r)
 
 
 def test_frame_mode_through_render_job(tmp_path, fast_variant):
