@@ -166,11 +166,72 @@ def materialise(kernel: LazyKernel):
                 for hook in _HOOKS.get(mod, ()):
                     hook()
         made = {id(k): _numba.njit(**_cache_options(k.options))(k.py_func) for k in todo}
+        for k in todo:
+            _guard_compile(made[id(k)], k)
         for g in {id(k.py_func.__globals__): k.py_func.__globals__ for k in seen.values()}.values():
             _swap_globals(g, made)
         for k in todo:  # published last: a dispatcher another thread may call sees its globals in place
             k.dispatcher = made[id(k)]
         return kernel.dispatcher
+
+
+# --- one compilation per kernel across processes ----------------------------------------------------
+_HELD = threading.local()  # the lock files this thread holds (a kernel's compile may compile its callees)
+_LOCK_DIR: dict = {}
+
+
+def _lock_folder() -> Path | None:
+    """A private per-user folder for the compile locks (None: locks off; the kernels compile unguarded)."""
+    if "dir" not in _LOCK_DIR:
+        uid = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")
+        folder = Path(tempfile.gettempdir()) / f"edgetruth-jit-locks-{uid}"
+        _LOCK_DIR["dir"] = folder if _private(folder) and _writable(folder) else None
+    return _LOCK_DIR["dir"]
+
+
+def _guard_compile(dispatcher, kernel: LazyKernel) -> None:
+    """Processes that need the same kernel at once (a pool's workers starting together, the warm-up process
+    beside them) compile it once: a dispatcher's ``compile(sig)`` -- numba's cache lookup, then, on a miss,
+    the compilation, whose result it writes to the cache -- runs under an exclusive file lock per kernel, so
+    the others wait and then load it from the cache instead of compiling it again (on 2 cores, two workers
+    compiling the same kernels took twice the time of one).  Only with the on-disk cache (without it
+    each process must compile anyway), and only where ``fcntl`` exists."""
+    if not kernel.options.get("cache") or _CACHE["off"]:
+        return
+    try:
+        import fcntl
+    except ImportError:  # Windows: no flock; the kernels compile unguarded, as numba does by default
+        return
+    folder = _lock_folder()
+    if folder is None:
+        return
+    from numba.core import sigutils
+    from numba.core.compiler_lock import global_compiler_lock
+
+    path = str(folder / f"{kernel.__module__}.{kernel.__qualname__}.lock")
+    compile_sig = dispatcher.compile
+
+    def compile(sig):
+        if tuple(sigutils.normalize_signature(sig)[0]) in dispatcher.overloads:
+            return compile_sig(sig)  # this process has it (a caller being typed asks again): no file to lock
+        held = getattr(_HELD, "paths", None)
+        if held is None:
+            held = _HELD.paths = set()
+        # numba's own (re-entrant, per-process) lock first: a thread of this process never waits on a file
+        # another thread of it holds while that thread waits for numba's lock
+        with global_compiler_lock:
+            if path in held:
+                return compile_sig(sig)
+            with open(path, "a") as fh:
+                fcntl.flock(fh, fcntl.LOCK_EX)
+                held.add(path)
+                try:
+                    return compile_sig(sig)
+                finally:
+                    held.discard(path)
+                    fcntl.flock(fh, fcntl.LOCK_UN)
+
+    dispatcher.compile = compile  # numba calls self.compile(sig) for a new signature (a call, or a caller's typing)
 
 
 # --- the on-disk cache ------------------------------------------------------------------------------

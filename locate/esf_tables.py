@@ -282,7 +282,9 @@ def means(tables: EsfTables, geometry: dict, offsets, use=None, l_derivatives: b
     n = np.asarray(geometry["rho"]).size
     npx = off.shape[0]
     use = np.ones((n, npx), bool) if use is None else np.ascontiguousarray(use, bool)
-    bc = lambda v, t=float: np.ascontiguousarray(np.broadcast_to(np.asarray(v, t), (n,)))  # noqa: E731
+    # always a fresh writable array: a read-only one (a broadcast view) is another type to numba, and compiling
+    # the kernel a second time for it cost 3.5 s of a cold start
+    bc = lambda v, t=float: np.array(np.broadcast_to(np.asarray(v, t), (n,)))  # noqa: E731
     kind, rho, phi = bc(geometry["kind"], np.int64), bc(geometry["rho"]), bc(geometry["phi"])
     radius, sgn = bc(geometry["radius"]), bc(geometry["sgn"])
     M = np.zeros((n, npx))

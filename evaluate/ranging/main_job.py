@@ -49,32 +49,135 @@ def warm_kernels(methods=None, thresholds=None) -> None:
     fit_line_robust(10.0 + 0.01 * t, 5.0 + t)
 
 
-def start_kernel_warmup(methods=None, thresholds=None):
-    """``warm_kernels`` in a background process, started before the renders: on a fresh clone (no numba
-    cache) the kernels' compilation (~90 s of one core, measured) then overlaps the rendering instead
-    of running afterwards in every worker of the synthetic study at once.  With a warm cache it only
-    loads them (a few seconds of one core beside the renders).  Returns the process (or None)."""
-    import atexit
-    import subprocess
+def warm_on_render(dataset, name: str, methods=None, thresholds=None) -> None:
+    """The ranging task (``range_image``: undistortion, target finding, every method, sizes, per-point scores
+    and bounds) on one rendered target image, with the camera's true intrinsics standing in for the
+    calibration: numba compiles every kernel the ranging workers call, with the argument types they pass
+    (``warm_kernels``' analytic image reaches most, not those of a camera's ESF tables)."""
+    import numpy as np
+
+    from edgetruth.evaluate import method_order as mo
+    from edgetruth.evaluate.calibration import Calibration
+    from edgetruth.evaluate.ranging.images import range_image
+    from edgetruth.render.dataset.reader import open_dataset
+
+    cam = open_dataset(dataset)[name].truth["camera"]
+    K = np.array([[cam["fx_px"], 0.0, cam["cx_px"]], [0.0, cam["fy_px"], cam["cy_px"]], [0.0, 0.0, 1.0]])
+    cal = Calibration(K=K, dist=np.asarray(cam["dist_coeffs_opencv"], float), rms_px=float("nan"), n_views=0,
+                      image_size=(int(cam["width_px"]), int(cam["height_px"])))
+    range_image(str(dataset), name, cal, list(methods or mo.ordered(None)), False, mo.study_options(thresholds))
+
+
+def _warm_main(argv) -> None:
+    """The warm-up process: ``warm_kernels``, then ``warm_on_render`` for each "dataset<TAB>name" line on stdin."""
     import sys
 
-    code = ("import sys; from edgetruth.evaluate.ranging.main_job import warm_kernels; "
-            "warm_kernels(sys.argv[2:] or None, sys.argv[1] or None)")
-    try:
-        proc = subprocess.Popen([sys.executable, "-c", code, str(thresholds or ""), *(methods or [])],
-                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    except OSError:
-        return None
-    atexit.register(lambda: proc.poll() is None and proc.kill())  # a run that stops early leaves none behind
-    return proc
+    thresholds, methods = argv[0] or None, argv[1:] or None
+    warm_kernels(methods, thresholds)
+    for line in sys.stdin:
+        dataset, _, name = line.rstrip("\n").partition("\t")
+        if name:
+            try:
+                warm_on_render(dataset, name, methods, thresholds)
+            except Exception:  # noqa: BLE001 -- the warm-up only saves time; the ranging stage reports failures
+                pass
 
 
-def finish_kernel_warmup(proc) -> float:
-    """Wait for ``start_kernel_warmup``'s process; returns the seconds waited."""
-    t = time.perf_counter()
-    if proc is not None:
-        proc.wait()
-    return time.perf_counter() - t
+class KernelWarmup:
+    """``warm_kernels`` in a background process, started before the renders: on a fresh clone (no numba
+    cache) the kernels' compilation (~45 s of one core, measured) then overlaps the rendering instead
+    of running afterwards in the workers of the ranging and synthetic stages.  ``feed(dataset, name)``
+    hands it a rendered target image to run the ranging task on (``warm_on_render``); ``finish()``
+    closes its input and waits.  With a warm cache it only loads the kernels (a few seconds of one core
+    beside the renders).  Processes that need a kernel the warm-up is compiling wait for it and load it
+    from the cache (``edgetruth.jit``'s compile locks) rather than compile it again."""
+
+    def __init__(self, methods=None, thresholds=None):
+        import atexit
+        import subprocess
+        import sys
+
+        code = "import sys; from edgetruth.evaluate.ranging.main_job import _warm_main; _warm_main(sys.argv[1:])"
+        try:
+            self.proc = subprocess.Popen([sys.executable, "-c", code, str(thresholds or ""), *(methods or [])],
+                                         stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                         stderr=subprocess.DEVNULL, text=True)
+        except OSError:
+            self.proc = None
+            return
+        proc = self.proc
+        atexit.register(lambda: proc.poll() is None and proc.kill())  # a run that stops early leaves none behind
+
+    def feed(self, dataset, name: str) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            try:
+                self.proc.stdin.write(f"{dataset}\t{name}\n")
+                self.proc.stdin.flush()
+            except OSError:  # it has gone: the stages compile what they need themselves
+                pass
+
+    def finish(self) -> float:
+        """Close its input and wait for it; returns the seconds waited."""
+        t = time.perf_counter()
+        if self.proc is not None:
+            try:
+                self.proc.stdin.close()
+            except OSError:
+                pass
+            self.proc.wait()
+        return time.perf_counter() - t
+
+
+def _synthetic_task(out_dir: str, methods, thresholds, note: str, images_per_scenario: int | None) -> str:
+    from edgetruth.evaluate.synthetic.study import run_synthetic_study
+
+    return str(run_synthetic_study(out_dir, preset="quick", methods=methods, progress=False, thresholds=thresholds,
+                                   workers=1, timing_note=note, images_per_scenario=images_per_scenario))
+
+
+class SyntheticBeside:
+    """The synthetic study's quick preset in a worker process, started when the renders are done: it runs
+    beside calibration, thresholds and ranging (in this process it left one of two cores idle for ~20 s).
+    The worker learns this process's plug-in methods as any pool worker does; a thread here only waits
+    for it.  ``result()`` waits and returns (report path or None, error line or None)."""
+
+    TIMING_NOTE = ("Inside `edgetruth run` this study ran beside the ranging stage, on loaded cores: read its "
+                   "ratios, not its absolute points/s (`make bench` measures those on quiet cores).")
+
+    def __init__(self, out_dir: Path, methods=None, thresholds=None, images_per_scenario: int | None = None):
+        import threading
+
+        from edgetruth.backends import PoolBackend
+        from edgetruth.locate.plugins import init_worker, worker_payload
+
+        self.t0 = time.perf_counter()
+        self.seconds = None
+        self._out: dict = {}
+        backend = PoolBackend(1, init_worker, worker_payload(methods))
+        task = (str(out_dir), methods, str(thresholds) if thresholds else None, self.TIMING_NOTE, images_per_scenario)
+
+        def wait():
+            try:
+                with backend:
+                    for path in backend.map_unordered(_synthetic_task, [task]):
+                        self._out["path"] = Path(path)
+            except Exception as exc:  # noqa: BLE001 -- reported by result(); the ranging results stay
+                self._out["error"] = f"{type(exc).__name__}: {exc}"
+            self.seconds = time.perf_counter() - self.t0
+
+        self._thread = threading.Thread(target=wait, name="edgetruth-synthetic", daemon=True)
+        self._thread.start()
+
+    def result(self) -> tuple[Path | None, str | None]:
+        self._thread.join()
+        if "path" in self._out:
+            return self._out["path"], None
+        return None, self._out.get("error", "no report")
+
+
+def first_target(spec, only) -> str | None:
+    """The name of the first target image among the jobs ``only`` of ``spec`` (None: none)."""
+    return next((spec.jobs[i].name for i in only if spec.jobs[i].kind == "target"), None)
 
 
 def select_jobs(spec, limit: int | None, kind: str) -> list[int]:
@@ -156,6 +259,9 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
         head["entropy thresholds for this camera (camera τ)"] = (
             f"2P {tuple(ct['2p'])}, 4P {tuple(ct['4p'])} (from {Path(camera_thresholds).name}: calibrated on renders "
             "disjoint from these, `edgetruth calibrate-thresholds --dataset`)")
+    if callable(synthetic_report):  # the main job's synthetic study, running beside the ranging: wait for it now
+        synthetic_report, more = synthetic_report()
+        head.update(more)
     return write_report(out, result["rows"], result["methods"], calibration, result["examples"], head,
                         str(synthetic_report) if synthetic_report else None, title=title, points=result["points"],
                         windows_beside_full=windows_beside_full)
@@ -195,7 +301,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     t0 = time.perf_counter()
     timing: dict = {}
     console.say(f"run: study {study!r} -> {out}")
-    warmup = start_kernel_warmup(methods, thresholds)  # numba compiles beside the renders, not after them
+    warmup = KernelWarmup(methods, thresholds)  # numba compiles beside the renders, not after them
 
     # 1. render
     render_dir = out / "render"
@@ -215,18 +321,25 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     if thr_spec is not None:  # threshold calibration renders: a spec (and seeds) of their own
         target_sets.insert(0, (thr_spec, select_jobs(thr_spec, limit, "target")))
     stats: dict = {}
+    fed = False
     for spec, only in target_sets:
         # one worker process per core (one Dr.Jit thread each): a render's single-threaded parts (the edge
         # band's small tiles, ground truth, sensor, encoding, hashing) overlap the other worker's render
         # instead of leaving a core idle; the files are the same bytes as in-process (tests/cli/test_backends.py)
         render_spec(spec, render_dir / spec.name, variant=variant, progress=progress, only=only, timings=stats,
                     announce=lambda s: (variants.append(s), console.say(s)), workers=workers)
+        if not fed and first_target(spec, only):  # the ranging task on one image compiles the ranging's kernels
+            warmup.feed(render_dir / spec.name, first_target(spec, only))
+            fed = True
     timing["render_s"] = time.perf_counter() - t
     reuse_line = render_reuse_line(target_sets, stats)
     if reuse_line:
         console.say("render: " + reuse_line)
 
-    # 2. calibrate
+    # 2. synthetic study (quick preset), linked from the report: in a worker from here on, beside 3 and 4
+    synthetic = None if skip_synthetic else SyntheticBeside(out / "synthetic", methods, thresholds)
+
+    # 3. calibrate
     t = time.perf_counter()
     cal_names = [cal_spec.jobs[i].name for i in cal_only]
     cal = calibrate_dataset(render_dir / cal_spec.name, names=cal_names, progress=progress)
@@ -238,9 +351,9 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     timing["calibrate_s"] = time.perf_counter() - t
 
     # the kernels are cached from here on: the stages below (and their workers) load them
-    timing["kernel_wait_s"] = finish_kernel_warmup(warmup)
+    timing["kernel_wait_s"] = warmup.finish()
 
-    # 2b. entropy thresholds for this camera, from the disjoint threshold renders' per-point truth
+    # 3b. entropy thresholds for this camera, from the disjoint threshold renders' per-point truth
     if thr_spec is not None:
         from edgetruth.evaluate import threshold_calibration as tcal
 
@@ -257,24 +370,6 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
               f" {thr_spec.name} images)")
         timing["thresholds_s"] = time.perf_counter() - t
 
-    # 3. synthetic study (quick preset), linked from the report
-    synthetic_report, synthetic_failed = None, False
-    if not skip_synthetic:
-        from edgetruth.evaluate.synthetic.study import run_synthetic_study
-
-        t = time.perf_counter()
-        try:
-            # in this process: the quick preset is too small to pay for starting workers (each imports
-            # and loads every kernel): 8.0 s here against 13.4 s on two workers, same results
-            synthetic_report = Path(run_synthetic_study(out / "synthetic", preset="quick", methods=methods,
-                                                        progress=progress, thresholds=thresholds, workers=1))
-        except InputError:
-            raise
-        except Exception as exc:  # keep the ranging results; say what failed
-            synthetic_failed = True
-            console.say(f"run: synthetic study failed: {type(exc).__name__}: {exc}")
-        timing["synthetic_s"] = time.perf_counter() - t
-
     # 4. locate + evaluate + report
     t = time.perf_counter()
     datasets = [render_dir / s.name for s, _ in target_sets if s.name in plan["targets"]]
@@ -286,13 +381,24 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     if reuse_line:
         header["render reuse"] = reuse_line
     header["timings so far (s)"] = ", ".join(f"{k} {v:.1f}" for k, v in timing.items())
-    if synthetic_failed:
-        header["synthetic study"] = "FAILED (see the console)"
+    outcome: dict = {"failed": False}
+
+    def wait_synthetic():  # called before the report is written: the ranging ran beside the synthetic study
+        if synthetic is None:
+            return None, {}
+        path, err = synthetic.result()
+        timing["synthetic_s"] = synthetic.seconds
+        if err is not None:
+            outcome["failed"] = True
+            console.say(f"run: synthetic study failed: {err}")
+            return None, {"synthetic study": "FAILED (see the console)"}
+        return path, {}
+
     report = evaluate_datasets(datasets, cal, out, methods=methods, thresholds=thresholds, progress=progress,
-                               names=names, workers=workers, header=header, synthetic_report=synthetic_report,
+                               names=names, workers=workers, header=header, synthetic_report=wait_synthetic,
                                title=f"run report (study {study})", camera_thresholds=camera_thresholds,
                                windows_beside_full=study == "quick")
     timing["ranging_s"] = time.perf_counter() - t
     console.say(f"run: report {report} ({time.perf_counter() - t0:.1f} s in all: "
                 + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + ")")
-    return report, 1 if synthetic_failed else 0
+    return report, 1 if outcome["failed"] else 0

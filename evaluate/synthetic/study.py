@@ -35,10 +35,12 @@ from edgetruth.render.synthetic.scenarios import DEFAULT_SHAPE, SCENARIOS, synth
 
 #: throughput_rounds: interleaved rounds of the time-per-point measurement (``batch_throughput``, in the
 #: driver after the blocks); 3 in the quick preset (`make run`: ~1/4 of its synthetic stage at 7 rounds),
-#: 7 in the full one.  Only the timing column's medians depend on it, never an error figure.
+#: 7 in the full one.  throughput_shape: the mosaic it times (``refine_bench.bench_image``); the quick preset's
+#: is a quarter of ``make bench``'s 1280 x 1024 (making the full one took 6.3 s of its ~20 s).  Only the timing
+#: column depends on these, never an error figure.
 PRESETS = {
-    "quick": {"images_per_scenario": 24, "throughput_rounds": 3},
-    "full": {"images_per_scenario": 200, "throughput_rounds": 7},
+    "quick": {"images_per_scenario": 24, "throughput_rounds": 3, "throughput_shape": (512, 640)},
+    "full": {"images_per_scenario": 200, "throughput_rounds": 7, "throughput_shape": (1024, 1280)},
 }
 DELTAS = (-0.10, -0.08, -0.05, -0.02, 0.0, 0.02, 0.05, 0.08, 0.10)
 BLOCK = 25
@@ -172,7 +174,8 @@ def _load_block(path: Path, methods) -> dict | None:
 
 def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAPE, progress=True,
             backend: str = "local", workers: int = 1, address: str | None = None,
-            options: dict | None = None, thresholds=None, throughput: bool | int = False) -> StudyData:
+            options: dict | None = None, thresholds=None, throughput: bool | int = False,
+            throughput_shape=(1024, 1280)) -> StudyData:
     """The study's per-point data (from the cache, computing missing blocks); ``throughput``: also
     measure every method's batch throughput (``refine_bench.batch_throughput``) in this process (an
     int: over that many interleaved rounds; True: the default 7)."""
@@ -225,7 +228,8 @@ def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAP
         from edgetruth.evaluate.refine_bench import REFERENCE, batch_throughput
 
         rounds = 7 if throughput is True else int(throughput)
-        rates, ratios = batch_throughput(methods, options, repeats=rounds, reference=REFERENCE)
+        rates, ratios = batch_throughput(methods, options, repeats=rounds, reference=REFERENCE,
+                                         shape=tuple(throughput_shape))
     return StudyData(
         methods=methods, scenario=scen, image=image,
         errors={m: cat(f"err__{m}") for m in methods}, converged=conv,
@@ -458,11 +462,14 @@ def write_csv(path: Path, rows: list[dict]) -> None:
 
 # ---------------------------------------------------------------- report
 
-def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, elapsed_s: float) -> Path:
+def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, elapsed_s: float,
+                 timing_note: str = "") -> Path:
     from edgetruth.evaluate.synthetic import claims as synthetic_claims
     from edgetruth.evaluate.synthetic import figures as figs
     from edgetruth import __version__
     from edgetruth.resources import source_commit
+
+    mosaic_h, mosaic_w = PRESETS.get(preset, PRESETS["full"])["throughput_shape"]
 
     tables_dir = out_dir / "tables"
     fig_dir = out_dir / "figures"
@@ -517,10 +524,10 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
         "",
         f"edgetruth {__version__}, commit {source_commit()[:12]}; study time {elapsed_s:.0f} s. "
         "Times per point are batch throughput (`edgetruth.evaluate.refine_bench.batch_throughput`: one refinement "
-        "call over the candidates of a 1280×1024 mosaic of blurred noisy discs, median of "
+        f"call over the candidates of a {mosaic_w}×{mosaic_h} mosaic of blurred noisy discs, median of "
         f"{PRESETS.get(preset, {}).get('throughput_rounds', 7)} interleaved rounds, all "
         "cores), as in `make bench`, measured in one run so that ratios compare like with like; on a shared machine "
-        "the ratios (last table) are steadier than the absolute figures.",
+        "the ratios (last table) are steadier than the absolute figures." + (f" {timing_note}" if timing_note else ""),
         "",
         "## Does the seed's synthetic study reproduce here?",
         "",
@@ -613,8 +620,9 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
 
 def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: bool = True,
                         images_per_scenario: int | None = None, backend: str = "local", workers: int = 1,
-                        address: str | None = None, thresholds=None) -> Path:
-    """Run (or resume) the synthetic study into ``out_dir``; returns the path of its report.md."""
+                        address: str | None = None, thresholds=None, timing_note: str = "") -> Path:
+    """Run (or resume) the synthetic study into ``out_dir``; returns the path of its report.md.  ``timing_note``:
+    a sentence the report adds to its note on the times per point (how the machine was loaded)."""
     if preset not in PRESETS:
         raise InputError(f"preset {preset!r}: choose one of {', '.join(PRESETS)}")
     n_per = PRESETS[preset]["images_per_scenario"] if images_per_scenario is None else int(images_per_scenario)
@@ -636,6 +644,7 @@ def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: 
     out_dir = make_output_dir(out_dir)
     t0 = time.perf_counter()
     d = collect(out_dir, n_per, methods, progress=progress, backend=backend, workers=workers, address=address,
-                options=options, thresholds=thresholds, throughput=PRESETS[preset]["throughput_rounds"])
+                options=options, thresholds=thresholds, throughput=PRESETS[preset]["throughput_rounds"],
+                throughput_shape=PRESETS[preset]["throughput_shape"])
     t = build_tables(d)
-    return write_report(out_dir, d, t, preset, n_per, time.perf_counter() - t0)
+    return write_report(out_dir, d, t, preset, n_per, time.perf_counter() - t0, timing_note)

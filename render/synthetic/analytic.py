@@ -69,7 +69,9 @@ class StepProfile:
 
     def value(self, d):
         d = np.asarray(d, float)
-        return np.where(d < 0, ndtr(d / self.s_dark), ndtr(d / self.s_bright))
+        # one ndtr per sample (each side's scale picked first): the same values as choosing between the two
+        # sides' ndtr afterwards, at half the cost (the circles' quadrature calls this ~100 times per pixel)
+        return ndtr(d / np.where(d < 0, self.s_dark, self.s_bright))
 
     def F1(self, d):
         d = np.asarray(d, float)

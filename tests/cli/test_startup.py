@@ -127,3 +127,42 @@ def test_unwritable_everything_compiles_in_memory_with_one_line(tmp_path):
     assert int(r.stdout.strip()) > 0
     lines = [line for line in r.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "NUMBA_CACHE_DIR" in lines[0], r.stderr
+
+
+_LOCK_CHILD = r'''
+import os, sys, time
+sys.path.insert(0, sys.argv[1])
+import lockkern  # a module of kernels declared with edgetruth.jit.njit(cache=True)
+import numpy as np
+while not os.path.exists(sys.argv[2]):  # start together
+    time.sleep(0.01)
+print(lockkern.total(np.arange(5.0)),
+      sum(lockkern.total.stats.cache_misses.values()), sum(lockkern.total.stats.cache_hits.values()))
+'''
+
+
+def test_processes_that_need_one_kernel_at_once_compile_it_once(tmp_path):
+    """Two processes calling a kernel together (a pool's workers starting): one compiles it under the kernel's
+    file lock and writes numba's cache, the other waits and loads it from the cache (edgetruth.jit)."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    (tmp_path / "lockkern.py").write_text(
+        "from edgetruth.jit import njit\n\n\n@njit(cache=True)\ndef total(a):\n    s = 0.0\n"
+        "    for i in range(a.size):\n        s += a[i] * a[i] - a[i] / (1.0 + a[i])\n    return s\n")
+    go = tmp_path / "go"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "TMPDIR": str(tmp_path / "tmp")}
+    (tmp_path / "tmp").mkdir()
+    procs = [subprocess.Popen([sys.executable, "-c", _LOCK_CHILD, str(tmp_path), str(go)], env=env,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    time.sleep(3.0)  # both have imported numba's placeholders and wait
+    go.write_text("")
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert all(p.returncode == 0 for p in procs), outs
+    rows = [tuple(float(v) for v in o[0].split()) for o in outs]
+    assert all(r[0] == rows[0][0] for r in rows)
+    misses, hits = sum(r[1] for r in rows), sum(r[2] for r in rows)
+    assert (misses, hits) == (1, 1), rows  # one compiled, the other loaded what it wrote
+    assert list((tmp_path / "tmp").glob("edgetruth-jit-locks-*/lockkern.total.lock"))

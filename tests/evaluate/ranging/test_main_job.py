@@ -78,12 +78,45 @@ def test_quick_run_end_to_end(tmp_path, fast_variant):
         assert (out / link).exists(), link
 
 
-def test_kernel_warmup_runs_in_the_background_and_skips_unknown_methods():
+def test_kernel_warmup_runs_in_the_background_and_skips_unknown_methods(tiny_dataset):
     """The run starts the kernels' compilation beside its renders (a fresh clone has no numba cache);
-    a method this process cannot run (a plug-in's) is skipped, never an error."""
-    from edgetruth.evaluate.ranging.main_job import finish_kernel_warmup, start_kernel_warmup, warm_kernels
+    a method this process cannot run (a plug-in's) is skipped, never an error; a rendered image fed to it
+    runs the ranging task there (bad input to it is skipped too: the warm-up only saves time)."""
+    from edgetruth.evaluate.ranging.main_job import KernelWarmup, warm_kernels, warm_on_render
+    from edgetruth.render.dataset.reader import open_dataset
 
+    data = tiny_dataset[1]
     warm_kernels(["canny_pixel", "no_such_method"])  # in-process: returns
-    proc = start_kernel_warmup(["canny_pixel", "no_such_method"])
-    assert proc is not None
-    assert finish_kernel_warmup(proc) >= 0.0 and proc.returncode == 0
+    name = next(s.name for s in open_dataset(data).targets())
+    warm_on_render(data, name, ["canny_pixel", "dynamic_erf_4p"])  # in-process: returns
+    warmup = KernelWarmup(["canny_pixel", "no_such_method"])
+    assert warmup.proc is not None
+    warmup.feed(data, name)
+    warmup.feed(data, "no_such_image")
+    assert warmup.finish() >= 0.0 and warmup.proc.returncode == 0
+
+
+def test_first_target_skips_checkerboards():
+    from edgetruth.evaluate.ranging.main_job import first_target, select_jobs
+    from edgetruth.render.dataset.spec import load_spec
+
+    spec = load_spec("quick")
+    only = select_jobs(spec, None, "checkerboard") + select_jobs(spec, 1, "target")
+    name = first_target(spec, sorted(only))
+    assert name is not None and spec.jobs[[j.name for j in spec.jobs].index(name)].kind == "target"
+    assert first_target(spec, select_jobs(spec, None, "checkerboard")) is None
+
+
+def test_synthetic_study_beside_the_ranging_reports_its_path_or_its_failure(tmp_path):
+    """The main job's synthetic study runs in a worker while this process goes on; result() waits for its
+    report, or returns the failure as one line (the ranging results are kept either way)."""
+    from edgetruth.evaluate.ranging.main_job import SyntheticBeside
+
+    ok = SyntheticBeside(tmp_path / "syn", ["canny_pixel", "dynamic_erf_4p"], images_per_scenario=2)
+    bad = SyntheticBeside(tmp_path / "bad", ["no_such_method"], images_per_scenario=2)
+    path, err = ok.result()
+    assert err is None and path == tmp_path / "syn" / "report.md" and path.is_file()
+    assert SyntheticBeside.TIMING_NOTE in path.read_text() and "640×512 mosaic" in path.read_text()
+    path, err = bad.result()
+    assert path is None and "no_such_method" in err
+    assert ok.seconds > 0 and bad.seconds > 0
