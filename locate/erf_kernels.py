@@ -32,7 +32,7 @@ from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_W
 from edgetruth.jit import njit, prange  # numba, imported when a kernel is first called
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def normalised_entropy(prof):
     """H = -sum p ln p / ln M over g_k = |I_{k+1} - I_k|, M = len(prof) - 1; NaN for a flat profile."""
     m = prof.shape[0] - 1
@@ -49,7 +49,7 @@ def normalised_entropy(prof):
     return h / math.log(m)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def window_from_entropy(h, tau1, tau2, tau3):
     if h < tau1:
         return 5
@@ -72,7 +72,7 @@ _AS_A4 = -1.453152027
 _AS_A5 = 1.061405429
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def cdf_pdf(z):
     """(Phi(z), phi(z)) of the standard normal with a single exp."""
     e = math.exp(-0.5 * z * z)
@@ -83,6 +83,8 @@ def cdf_pdf(z):
     return Phi, _INV_SQRT2PI * e
 
 
+# numba's inline="always" kept here (elsewhere forceinline: LLVM inlines one compiled copy, quicker to compile):
+# curve_fit_kernels' fastmath fit inlines _chol4, and what fastmath code computes depends on where it lands
 @njit(cache=True, inline="always")
 def _chol4(m00, m10, m11, m20, m21, m22, m30, m31, m32, m33, b0, b1, b2, b3):
     """Solve a symmetric positive-definite 4x4 system by Cholesky, in scalars (no allocation).
@@ -119,7 +121,7 @@ def _chol4(m00, m10, m11, m20, m21, m22, m30, m31, m32, m33, b0, b1, b2, b3):
     return True, x0, x1, x2, x3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _eval4(prof, lo, w, t0, A, B, mu, s):
     """One pass over the window: cost and the normal equations (J^T J, J^T r) of the 4P model."""
     c = 0.0
@@ -150,7 +152,7 @@ def _eval4(prof, lo, w, t0, A, B, mu, s):
     return c, h00, h10, h11, h20, h21, h22, h30, h31, h32, h33, g0, g1, g2, g3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _eval2(prof, lo, w, t0, A, B, mu, s):
     """Cost and normal equations of the 2P model (A, B fixed; unknowns mu, s)."""
     c = 0.0

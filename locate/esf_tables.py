@@ -58,7 +58,7 @@ class EsfTables:
 # slope of the linear interpolation in psi (as a central difference across a bin boundary gives), L
 # linear in d.
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _column(d, k0, inv_h, nd):
     """(column i, fraction t) of distance d in a table of nd columns: the Hermite cell [i, i + 1]."""
     x = d * inv_h + k0
@@ -70,7 +70,7 @@ def _column(d, k0, inv_h, nd):
     return i, x - i
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _hermite(p0, p1, q0, q1, t, inv_h):
     """(value, slope) of the cubic Hermite through (p0, slope q0), (p1, q1) at fraction t of the cell."""
     h = 1.0 / inv_h
@@ -84,7 +84,7 @@ def _hermite(p0, p1, q0, q1, t, inv_h):
     return val, der
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def line_bin(c, s, step_rad, nb):
     """(row, weight, sign of dpsi/dphi) of a line of normal (c, s): the same at every pixel, once per point."""
     la = math.atan2(abs(s), abs(c))
@@ -94,7 +94,7 @@ def line_bin(c, s, step_rad, nb):
     return lj, lx - lj, lda
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def arc_geometry(rho, c, s, radius, sgn, dx, dy, sx2, sy2, vc):
     """A circle's pixel at offset (dx, dy): (d, dd/drho, dd/dphi, dpsi/drho, dpsi/dphi, dd/dlambda, |sin psi|,
     |cos psi|, the sign of dpsi) -- psi the local normal's direction, read from the tables as atan2 of the two."""
@@ -123,14 +123,14 @@ def arc_geometry(rho, c, s, radius, sgn, dx, dy, sx2, sy2, vc):
     return d, d_r, d_p, s_r, s_p, d_l, abs(sn), abs(cs), da
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _angle_row(x, nb):
     """(row j, weight of row j + 1) at angle coordinate x = psi / step_rad, of nb + 1 rows."""
     j = min(max(int(math.floor(x)), 0), nb - 1)
     return j, x - j
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _rows(w, da, t, v0, e0, v1, e1, l00, l01, l10, l11, step_rad, inv_h):
     """The two angle rows' Hermite values and slopes (v, e) and L's cell corners, interpolated with weight w of
     the second (da the sign of dpsi): (P, dP/dd, dP/dpsi, L, dL/dd, dL/dpsi)."""
@@ -140,7 +140,7 @@ def _rows(w, da, t, v0, e0, v1, e1, l00, l01, l10, l11, step_rad, inv_h):
             ((1.0 - w) * (l01 - l00) + w * (l11 - l10)) * inv_h, (l1 - l0) / step_rad * da)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _chain(d, d_r, d_p, s_r, s_p, d_l, m, pd, pa, lm, ld, la, half_px, with_l):
     """``pixel_mean``'s values by the chain rule from ``_rows``' and the distance's and angle's slopes; the
     plateaus 0 / 1 beyond ``half_px``."""
@@ -154,7 +154,7 @@ def _chain(d, d_r, d_p, s_r, s_p, d_l, m, pd, pa, lm, ld, la, half_px, with_l):
     return m, pd * d_r + pa * s_r, pd * d_p + pa * s_p, lm + pd * d_l, lr, lp
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def pixel_mean(kind, rho, c, s, radius, sgn, dx, dy, lj, lw, lda, P, dP, L, step_rad, half_px, k0, inv_h,
                sx2, sy2, vc, with_l):
     """(M, dM/drho, dM/dphi, lambda dM/dlambda, dL/drho, dL/dphi) of one point at the pixel offset (dx, dy):
@@ -176,7 +176,7 @@ def pixel_mean(kind, rho, c, s, radius, sgn, dx, dy, lj, lw, lda, P, dP, L, step
     return _chain(d, d_r, d_p, s_r, s_p, d_l, m, pd, pa, lm, ld, la, half_px, with_l)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def atan_quadrant(y, x):
     """atan2(y, x) for y, x >= 0 without a libm call, so that a loop of it vectorises (~10x libm's time): the
     smaller over the larger (a division), then SLEEF's degree-19 polynomial (its atan2k) by Estrin's scheme (a

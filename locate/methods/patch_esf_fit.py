@@ -149,7 +149,7 @@ def _rho_variance(H, npar, out):
 # used pixels in the union's order, and the trial cost (numpy's row sum there) is numpy's pairwise sum over the
 # union's row, its unused pixels adding zero terms.
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _sum_block(t, lo, n):
     """numpy's pairwise sum of t[lo:lo + n] for n <= 128 (eight running sums; below 8 one)."""
     if n < 8:
@@ -177,7 +177,7 @@ def _sum_block(t, lo, n):
     return res
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _sum_half(t, lo, n):
     if n <= 128:
         return _sum_block(t, lo, n)
@@ -197,7 +197,7 @@ def _pairwise_sum(t, n):
     return 0.0 + (_sum_half(t, 0, n2) + _sum_half(t, n2, n - n2))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _model(th, kind, radius, sgn, ox, oy, npix, P, dP, L, step_rad, half_px, k0, inv_h, sx2, sy2, vcir, wk, cell):
     """wk[4:10] <- (M, Jr, Jp, Jl, Lr, Lp) of the patch's pixels at theta ``th`` (wk[11:20], cell: the passes'
     work)."""
@@ -205,7 +205,7 @@ def _model(th, kind, radius, sgn, ox, oy, npix, P, dP, L, step_rad, half_px, k0,
                    half_px, k0, inv_h, sx2, sy2, vcir, wk[4:10], wk[11:20], cell)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _weights(th, wk, npix, nu, weighted, va, vb, vq):
     """wk[3] <- the pixel weights 1 / var(model mean) (``weights`` of ``_fit_chunk``; 1 unweighted)."""
     if not weighted:
@@ -231,7 +231,7 @@ def _weights(th, wk, npix, nu, weighted, va, vb, vq):
         wk[3, k] = np.nan if nan else 1.0 / (v if v > floor else floor)  # np.maximum: a NaN spreads
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _normal_eq(th, wk, npix, npar, weighted, H, g):
     """H = J^T W J, g = -J^T W r; returns the cost (``_normal_equations`` for one point, the same sums in the same
     order, held in registers; unweighted the products with the weight 1 left out: they are exact)."""
@@ -303,7 +303,7 @@ def _normal_eq(th, wk, npix, npar, weighted, H, g):
     return c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _in_patch(fx, fy, nx, ny, half_normal, half_tangent):
     """Is the pixel at offset (fx, fy) in the candidate's patch?  ``footprints.patch_masks``' predicate, the
     same operations in the same order, so the same pixels bit for bit (numpy's masks cost ~20 % of the fit)."""

@@ -161,7 +161,7 @@ FAR_MARGIN_PX = 4.0  # beyond the defocus radius + this, the far rule
 TAIL_RULE = aperture_nodes(1.0, n_r=2, n_phi=8)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _g_value(dens, row_cum, row_mass, lev, xi, eta, r, h, n):
     """G(xi, eta) = ∫_{−∞}^{xi} K(x, eta) dx for level ``lev``."""
     if eta <= -r or eta >= r or xi <= -r:
@@ -181,7 +181,7 @@ def _g_value(dens, row_cum, row_mass, lev, xi, eta, r, h, n):
     return (1.0 - v) * cj + v * cj1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _mass_below(row_mass, mass_cum, lev, eta, r, h, n):
     """∫_{−∞}^{eta} of the row masses (the kernel's mass below eta)."""
     if eta <= -r:
