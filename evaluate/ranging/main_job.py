@@ -275,7 +275,9 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     from edgetruth.backends import default_workers
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.calibration import calibrate_dataset
-    from edgetruth.render.dataset.driver import check_variant_name, render_spec
+    from contextlib import nullcontext
+
+    from edgetruth.render.dataset.driver import RenderPool, check_variant_name, render_spec
     from edgetruth.render.dataset.spec import load_spec
     from edgetruth.resources import default_runs_dir
 
@@ -322,15 +324,17 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
         target_sets.insert(0, (thr_spec, select_jobs(thr_spec, limit, "target")))
     stats: dict = {}
     fed = False
-    for spec, only in target_sets:
-        # one worker process per core (one Dr.Jit thread each): a render's single-threaded parts (the edge
-        # band's small tiles, ground truth, sensor, encoding, hashing) overlap the other worker's render
-        # instead of leaving a core idle; the files are the same bytes as in-process (tests/cli/test_backends.py)
-        render_spec(spec, render_dir / spec.name, variant=variant, progress=progress, only=only, timings=stats,
-                    announce=lambda s: (variants.append(s), console.say(s)), workers=workers)
-        if not fed and first_target(spec, only):  # the ranging task on one image compiles the ranging's kernels
-            warmup.feed(render_dir / spec.name, first_target(spec, only))
-            fed = True
+    # one worker process per core (one Dr.Jit thread each): a render's single-threaded parts (the coverage,
+    # ground truth, sensor, encoding, hashing) overlap the other worker's render instead of leaving a core
+    # idle; the files are the same bytes as in-process (tests/cli/test_backends.py).  One pool serves every
+    # spec: its workers start and warm up once.
+    with RenderPool([s for s, _ in target_sets], workers) if workers > 1 else nullcontext() as pool:
+        for spec, only in target_sets:
+            render_spec(spec, render_dir / spec.name, variant=variant, progress=progress, only=only, timings=stats,
+                        announce=lambda s: (variants.append(s), console.say(s)), workers=workers, pool=pool)
+            if not fed and first_target(spec, only):  # the ranging task on one image: the ranging's kernels
+                warmup.feed(render_dir / spec.name, first_target(spec, only))
+                fed = True
     timing["render_s"] = time.perf_counter() - t
     reuse_line = render_reuse_line(target_sets, stats)
     if reuse_line:

@@ -26,7 +26,7 @@ from edgetruth.fileio import is_temporary, make_output_dir, sha256_file
 from edgetruth.render.dataset.journal import (JOURNAL, MANIFEST, JournalScan, JournalWriter, ManifestReader, compact,
                                       journal_positions, merged_entries, new_header, write_manifest)
 from edgetruth.render.dataset.spec import Spec, load_spec
-from edgetruth.render.dataset.task import init_worker, render_indexed, write_files
+from edgetruth.render.dataset.task import init_worker, init_worker_specs, render_indexed, write_files
 
 #: Who writes the image files: ``auto`` = the workers when they see the driver's disk, else the
 #: driver; ``driver`` = always the driver (file bytes travel back, as on a multi-node cluster);
@@ -113,7 +113,7 @@ def check_variant_name(variant: str | None) -> None:
 def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | None = None, progress: bool = True,
                 only: list[int] | None = None, timings: dict | None = None, announce=print,
                 backend: str = "local", workers: int | None = 1, address: str | None = None,
-                files: str = "auto", window: int | None = None) -> ManifestView:
+                files: str = "auto", window: int | None = None, pool: "RenderPool | None" = None) -> ManifestView:
     """Render every image of ``spec`` into ``out_dir`` (resumable) and return the manifest.
 
     ``only`` restricts to those job indices; ``timings`` (a dict) accumulates ``render_s``
@@ -127,7 +127,8 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
     ``FILE_WRITERS``).  ``window``: tasks in flight (default: a few per worker).  Whatever
     the backend, the files of an image are identical, only this (driver) process writes
     the journal and ``manifest.json``, and an interrupted run -- even ``kill -9`` -- resumes
-    where it stopped.
+    where it stopped.  ``pool``: a ``RenderPool`` whose workers render this spec (one of the specs it was
+    made for) and stay up for the caller's next call, instead of a pool started for this call.
     """
     from edgetruth.backends import check_backend_args
     from edgetruth.render import variants  # noqa: F401 -- before Mitsuba: points Dr.Jit at the pip libLLVM
@@ -153,7 +154,7 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
     lock = DirLock(out_dir)
     try:
         return _render_locked(spec, out_dir, variant, progress, selected, timings if timings is not None else {},
-                              announce, backend, workers, address, files, window)
+                              announce, backend, workers, address, files, window, pool)
     finally:
         lock.release()
 
@@ -240,8 +241,47 @@ def _llvm_threads() -> int | None:
     return int(dr.thread_count())
 
 
+class RenderPool:
+    """Local worker processes shared by several ``render_spec`` calls (the main job's threshold, calibration and
+    target specs): each worker starts, imports Mitsuba and warms its caches once, not once per spec (~3 s of a
+    2-core run per pool, measured).  Every worker is given all ``specs`` when it starts; a call renders one of
+    them.  A context manager; ``close()`` stops the workers."""
+
+    def __init__(self, specs, workers: int | None = None):
+        from edgetruth.backends import default_workers
+
+        self.specs = {s.identity_sha256: s for s in specs}
+        self.workers = default_workers() if workers is None else int(workers)
+        self.backend = None
+        self.variant = None
+
+    def backend_for(self, variant: str):
+        """The pool (started on first use, its workers on ``variant``); a second variant: InputError."""
+        from edgetruth.backends import PoolBackend, default_workers
+
+        if self.backend is None:
+            self.variant = variant
+            self.backend = PoolBackend(self.workers)
+            threads = max(1, default_workers() // self.workers)
+            self.backend.set_initializer(init_worker_specs, (variant, threads, self.specs))
+        elif variant != self.variant:
+            raise InputError(f"render pool: its workers run {self.variant}, not {variant}; use one variant per run")
+        return self.backend
+
+    def close(self, abort: bool = False) -> None:
+        if self.backend is not None:
+            self.backend.close(abort=abort)
+            self.backend = None
+
+    def __enter__(self) -> "RenderPool":
+        return self
+
+    def __exit__(self, exc_type, *exc) -> None:
+        self.close(abort=exc_type is not None)
+
+
 def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, backend, workers, address,
-                   files, window) -> ManifestView:
+                   files, window, pool=None) -> ManifestView:
     from edgetruth.backends import default_workers, make_backend
     from edgetruth.render.variants import choose_variant
 
@@ -267,19 +307,25 @@ def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, 
         stats["n_complete"] = int(done.sum())
         stats["wall_s"] = stats.get("wall_s", 0.0) + time.perf_counter() - t_start
         return ManifestView(out_dir, header)
+    if pool is not None and spec_key not in pool.specs:
+        raise InputError(f"render pool: made without spec {spec.name!r}; give RenderPool every spec it renders")
     n_workers = default_workers() if workers is None else int(workers)
     n_workers = min(n_workers, len(todo)) if backend == "local" else n_workers
-    be = make_backend(backend, workers=n_workers, address=address)  # validates before any rendering
+    # validates before any rendering; a shared pool is the caller's (started once, closed by it)
+    be = make_backend(backend, workers=n_workers, address=address) if pool is None else None
     bar = writer = None
-    threads_before = _llvm_threads() if be.in_process else None  # init_worker may change them here
+    threads_before = _llvm_threads() if be is not None and be.in_process else None  # init_worker may change them
     try:
         if backend == "ray" and getattr(be, "num_gpus", 0) and not variant:
             used = "cuda_ad_rgb"
             announce(f"render: using Mitsuba variant {used} (the Ray cluster has GPUs)")
         else:
             used = choose_variant(variant, announce=announce)
-        threads = max(1, default_workers() // max(1, be.concurrency)) if be.concurrency > 1 else None
-        be.set_initializer(init_worker, (used, threads, spec, spec_key))  # the spec: once per worker
+        if pool is not None:
+            be = pool.backend_for(used)
+        else:
+            threads = max(1, default_workers() // max(1, be.concurrency)) if be.concurrency > 1 else None
+            be.set_initializer(init_worker, (used, threads, spec, spec_key))  # the spec: once per worker
         if files == "workers" or (files == "auto" and be.shares_filesystem):
             worker_dir = str(out_dir.resolve())
         else:
@@ -310,7 +356,10 @@ def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, 
             stats["reused"] = stats.get("reused", 0) + res.get("reused", 0)
             bar.update(1)
     except BaseException:
-        be.close(abort=True)
+        if pool is not None:
+            pool.close(abort=True)
+        elif be is not None:
+            be.close(abort=True)
         raise
     finally:
         if bar is not None:
@@ -321,7 +370,8 @@ def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, 
             import drjit as dr
 
             dr.set_thread_count(threads_before)
-    be.close()
+    if pool is None:
+        be.close()
     per_node = stats.get("tasks_per_node") or {}
     if len(per_node) > 1:
         announce("render: images per Ray node: " + ", ".join(f"{k[:12]} {v}" for k, v in sorted(per_node.items())))

@@ -52,6 +52,15 @@ def init_worker(variant: str, threads: int | None = None, spec: Spec | None = No
         _specs[spec_key or spec.identity_sha256] = spec
 
 
+def init_worker_specs(variant: str, threads: int | None, specs: dict) -> None:
+    """``init_worker`` for a worker shared by several specs (``driver.RenderPool``): all of them, by identity hash;
+    one Dr.Jit thread if every spec's renders are small."""
+    if specs and all(samples_per_render(s) <= SMALL_RENDER_SAMPLES for s in specs.values()):
+        threads = 1
+    init_worker(variant, threads)
+    _specs.update(specs)
+
+
 def render_indexed(spec_key: str, indices: tuple, variant: str, out_dir: str | None) -> list[dict]:
     """``render_task`` of each of ``indices`` (one radiance unit: rendered once, in this worker) for the
     spec this worker was given by ``init_worker``."""

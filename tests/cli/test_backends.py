@@ -86,6 +86,30 @@ def test_local_pool_and_in_process_give_identical_datasets(tmp_path):
     assert _files(tmp_path / "serial") == _files(tmp_path / "pool")
 
 
+def test_one_render_pool_serves_several_specs_with_the_same_bytes(tmp_path):
+    """The main job's shared pool: its workers render two specs in turn (started once) and write what an
+    in-process render writes; a spec the pool was not made for is an input error, before any rendering."""
+    from edgetruth.render.dataset.driver import RenderPool, render_spec
+    from edgetruth.render.dataset.spec import load_spec
+
+    for d in "abc":
+        (tmp_path / d).mkdir()
+    a = load_spec(write_tiny_spec(tmp_path / "a", spp=4))
+    b = load_spec(write_tiny_spec(tmp_path / "b", spp=16))
+    assert a.identity_sha256 != b.identity_sha256
+    with RenderPool([a, b], 2) as pool:
+        for sp, name in ((a, "a"), (b, "b")):
+            render_spec(sp, tmp_path / f"pool_{name}", progress=False, announce=lambda s: None, workers=2, pool=pool)
+        first = pool.backend
+        with pytest.raises(InputError, match="made without spec"):
+            render_spec(load_spec(write_tiny_spec(tmp_path / "c", spp=64)), tmp_path / "pool_c", progress=False,
+                        announce=lambda s: None, workers=2, pool=pool)
+        assert pool.backend is first  # the same workers throughout
+    for sp, name in ((a, "a"), (b, "b")):
+        render_spec(sp, tmp_path / f"serial_{name}", progress=False, announce=lambda s: None, workers=1)
+        assert _files(tmp_path / f"serial_{name}") == _files(tmp_path / f"pool_{name}")
+
+
 def test_ray_and_local_backends_give_identical_manifests(tmp_path):
     ray = pytest.importorskip("ray", reason="ray is not installed: pip install 'edgetruth[cluster]'")
     from edgetruth.render.dataset.driver import render_spec
