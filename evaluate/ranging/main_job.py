@@ -62,8 +62,7 @@ def warm_on_render(dataset, name: str, methods=None, thresholds=None) -> None:
     from edgetruth.render.dataset.reader import open_dataset
 
     cam = open_dataset(dataset)[name].truth["camera"]
-    K = np.array([[cam["fx_px"], 0.0, cam["cx_px"]], [0.0, cam["fy_px"], cam["cy_px"]], [0.0, 0.0, 1.0]])
-    cal = Calibration(K=K, dist=np.asarray(cam["dist_coeffs_opencv"], float), rms_px=float("nan"), n_views=0,
+    cal = Calibration(K=np.asarray(cam["K"], float), dist=np.asarray(cam["dist_coeffs_opencv"], float), rms_px=float("nan"), n_views=0,
                       image_size=(int(cam["width_px"]), int(cam["height_px"])))
     range_image(str(dataset), name, cal, list(methods or mo.ordered(None)), False, mo.study_options(thresholds))
 

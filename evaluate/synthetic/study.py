@@ -175,7 +175,7 @@ def _load_block(path: Path, methods) -> dict | None:
 def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAPE, progress=True,
             backend: str = "local", workers: int = 1, address: str | None = None,
             options: dict | None = None, thresholds=None, throughput: bool | int = False,
-            throughput_shape=(1024, 1280)) -> StudyData:
+            throughput_shape=None) -> StudyData:
     """The study's per-point data (from the cache, computing missing blocks); ``throughput``: also
     measure every method's batch throughput (``refine_bench.batch_throughput``) in this process (an
     int: over that many interleaved rounds; True: the default 7)."""
@@ -228,8 +228,8 @@ def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAP
         from edgetruth.evaluate.refine_bench import REFERENCE, batch_throughput
 
         rounds = 7 if throughput is True else int(throughput)
-        rates, ratios = batch_throughput(methods, options, repeats=rounds, reference=REFERENCE,
-                                         shape=tuple(throughput_shape))
+        shape = {} if throughput_shape is None else {"shape": tuple(throughput_shape)}  # None: make bench's
+        rates, ratios = batch_throughput(methods, options, repeats=rounds, reference=REFERENCE, **shape)
     return StudyData(
         methods=methods, scenario=scen, image=image,
         errors={m: cat(f"err__{m}") for m in methods}, converged=conv,

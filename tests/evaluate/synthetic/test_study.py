@@ -149,3 +149,11 @@ def test_no_method_beats_its_bound(study):
     b = {r["method"]: r["ideal_bound_px"] for r in t["bound"]}
     assert b["erf4p_fixed5"] > b["erf4p_fixed7"] > b["erf4p_fixed11"]
     assert b["canny_devernay"] < b["erf4p_fixed11"]
+
+
+def test_the_full_preset_times_make_bench_s_mosaic():
+    """The full preset's throughput (the report's 'Time per point') is make bench's figure: the same mosaic."""
+    from edgetruth.evaluate.refine_bench import BENCH_SHAPE
+
+    assert tuple(ss.PRESETS["full"]["throughput_shape"]) == tuple(BENCH_SHAPE)
+    assert ss.PRESETS["quick"]["throughput_shape"][0] * 2 == BENCH_SHAPE[0]
