@@ -5,9 +5,12 @@ Signed distance d > 0 on the bright side; the normal points dark -> bright
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from edgetruth.jit import njit
 
 
 @dataclass(frozen=True)
@@ -66,10 +69,10 @@ def closed_polyline_signed_distance(poly: np.ndarray, x, y) -> np.ndarray:
     """Signed distance (px) of points to the closed polyline ``poly`` (N, 2): > 0 outside.
 
     The nearest vertex (k-d tree), then the exact distance to the four chords around it (enough for
-    points within a vertex spacing of a smooth curve, the only ones scored)."""
+    points within a vertex spacing of a smooth curve, the only ones scored): ``_chords_kernel``."""
     from scipy.spatial import cKDTree
 
-    poly = np.asarray(poly, float)
+    poly = np.ascontiguousarray(poly, dtype=np.float64)
     q = np.column_stack([np.ravel(x), np.ravel(y)]).astype(float)
     n = len(poly)
     if n < 3 or not len(q):
@@ -77,26 +80,50 @@ def closed_polyline_signed_distance(poly: np.ndarray, x, y) -> np.ndarray:
     _, i = cKDTree(poly).query(q)
     area2 = np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1) * poly[:, 1])
     orient = 1.0 if area2 > 0 else -1.0  # > 0: counter-clockwise in (x right, y down) pixel axes
-    best = np.full(len(q), np.inf)
-    lever = np.zeros(len(q))  # |distance to the chord's line| of the chord that gave the sign
-    sign = np.ones(len(q))
-    for j0 in (i - 2, i - 1, i, i + 1):
-        a, b = poly[j0 % n], poly[(j0 + 1) % n]
-        d = b - a
-        u = np.clip(((q - a) * d).sum(1) / np.maximum((d * d).sum(1), 1e-300), 0.0, 1.0)
-        dist = np.linalg.norm(q - (a + u[:, None] * d), axis=1)
-        cross = d[:, 0] * (q - a)[:, 1] - d[:, 1] * (q - a)[:, 0]
-        line = np.abs(cross) / np.maximum(np.linalg.norm(d, axis=1), 1e-300)
-        # Off a vertex both chords that meet there are nearest (at the vertex): the sign comes from
-        # the one whose line the point is farther from.  The other's line may pass on the wrong side
-        # of the point (on the extension of a side beyond an acute corner it does), whereas a
-        # point farthest from a line lies on the side of it the vertex's normal cone says.
-        tie = np.abs(dist - best) <= 1e-12 * np.maximum(1.0, best)
-        signed = (dist < best) & ~tie | tie & (line > lever)
-        lever[signed] = line[signed]
-        sign[signed] = np.where(cross * orient > 0, -1.0, 1.0)[signed]
-        best = np.minimum(best, dist)  # the distance exactly as before: the smallest of the four
-    return (sign * best).reshape(np.shape(x))
+    out = np.empty(len(q))
+    _chords_kernel(poly, np.ascontiguousarray(q[:, 0]), np.ascontiguousarray(q[:, 1]), i.astype(np.int64), orient,
+                   out)
+    return out.reshape(np.shape(x))
+
+
+@njit(cache=True)  # strict IEEE, each operation as the numpy code it replaced did it: the same bits
+def _chords_kernel(poly, qx, qy, nearest, orient, out):
+    """Per point: the distance to the nearest of the chords j0 -> j0 + 1, j0 = nearest - 2 .. nearest + 1, and
+    its sign.  Off a vertex both chords that meet there are nearest (at the vertex): the sign comes from the
+    one whose line the point is farther from.  The other's line may pass on the wrong side of the point (on
+    the extension of a side beyond an acute corner it does), whereas a point farthest from a line lies on the
+    side of it the vertex's normal cone says."""
+    n = poly.shape[0]
+    for p in range(qx.shape[0]):
+        best = np.inf
+        lever = 0.0  # |distance to the chord's line| of the chord that gave the sign
+        sign = 1.0
+        for o in range(-2, 2):
+            j0 = (nearest[p] + o) % n
+            j1 = (j0 + 1) % n
+            ax, ay = poly[j0, 0], poly[j0, 1]
+            dx, dy = poly[j1, 0] - ax, poly[j1, 1] - ay
+            qax, qay = qx[p] - ax, qy[p] - ay
+            dd = dx * dx + dy * dy
+            u = (qax * dx + qay * dy) / (dd if (dd > 1e-300 or dd != dd) else 1e-300)
+            if u < 0.0:  # np.clip: NaN passes
+                u = 0.0
+            elif u > 1.0:
+                u = 1.0
+            ex, ey = qx[p] - (ax + u * dx), qy[p] - (ay + u * dy)
+            dist = math.sqrt(ex * ex + ey * ey)
+            cross = dx * qay - dy * qax
+            nd = math.sqrt(dx * dx + dy * dy)
+            line = abs(cross) / (nd if (nd > 1e-300 or nd != nd) else 1e-300)
+            tie = abs(dist - best) <= 1e-12 * (best if (best > 1.0 or best != best) else 1.0)
+            if ((dist < best) and not tie) or (tie and line > lever):
+                lever = line
+                sign = -1.0 if cross * orient > 0 else 1.0
+            if dist != dist or best != best:  # np.minimum: NaN wins
+                best = np.nan
+            elif dist < best:
+                best = dist
+        out[p] = sign * best
 
 
 @dataclass(frozen=True)
