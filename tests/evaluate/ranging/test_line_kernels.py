@@ -91,3 +91,22 @@ def test_fit_equals_the_numpy_implementation(case):
     assert ln.n[0] == n_ref[0] and ln.n[1] == n_ref[1] and ln.d == d_ref
     np.testing.assert_array_equal(ln.inliers, inl_ref)
     assert ln.rms_px == rms_ref
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 3, 7, 8, 64, 129, 500])
+def test_median_is_numpys_median(n):
+    """The kernel's heap sort gives np.median's order statistics, NaN last (as np.sort orders them)."""
+    rng = np.random.default_rng(n)
+    for case in range(20):
+        v = rng.normal(size=n) * 10.0 ** rng.uniform(-3, 3, size=n)
+        if case % 3 == 1 and n > 2:
+            v[rng.integers(0, n, n // 3 + 1)] = v[0]  # ties
+        if case % 5 == 4 and n > 2:
+            v[rng.integers(0, n, 1)] = np.nan
+        ref = np.sort(v)
+        want = np.nan if n == 0 else (ref[n // 2] if n % 2 else (ref[n // 2 - 1] + ref[n // 2]) / 2.0)
+        got = lk._median(v.copy())
+        assert (got == want) or (np.isnan(got) and np.isnan(want))
+        s = v.copy()
+        lk._heapsort(s)
+        assert np.array_equal(s, ref, equal_nan=True)
