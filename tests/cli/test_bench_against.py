@@ -85,3 +85,35 @@ def test_against_head_renders_one_image_per_side(fast_variant, capsys, tmp_path)
     assert any(line.strip().startswith("s_per_image") for line in res["lines"])
     after = subprocess.run(["git", "-C", str(root), "worktree", "list"], capture_output=True, text=True).stdout
     assert after == before
+
+
+def test_working_side_is_a_fresh_copy_of_the_checkout(tmp_path):
+    """The working tree's side runs from its tracked and untracked-not-ignored files (uncommitted edits
+    included), without bytecode or ignored outputs; its environment leaves the venv's bytecode alone."""
+    root = tmp_path / "repo"
+    root.mkdir()
+    git = lambda *a: subprocess.run(["git", "-C", str(root), *a], check=True, capture_output=True)  # noqa: E731
+    git("init", "-q")
+    (root / ".gitignore").write_text("__pycache__/\nruns/\n")
+    (root / "pkg").mkdir()
+    (root / "pkg" / "a.py").write_text("A = 1\n")
+    (root / "gone.py").write_text("")
+    git("add", ".")
+    git("-c", "user.email=x@y", "-c", "user.name=x", "commit", "-qm", "x")
+    (root / "pkg" / "a.py").write_text("A = 2\n")  # an uncommitted edit
+    (root / "new.py").write_text("N = 1\n")  # untracked, not ignored
+    (root / "gone.py").unlink()  # deleted in the working tree
+    (root / "pkg" / "__pycache__").mkdir()
+    (root / "pkg" / "__pycache__" / "a.cpython-311.pyc").write_bytes(b"x")
+    (root / "runs").mkdir()
+    (root / "runs" / "out.txt").write_text("ignored")
+    dest = tmp_path / "copy"
+    ba.copy_working_tree(root, dest)
+    got = sorted(str(p.relative_to(dest)) for p in dest.rglob("*") if p.is_file())
+    assert got == [".gitignore", "new.py", "pkg/a.py"]
+    assert (dest / "pkg" / "a.py").read_text() == "A = 2\n"
+    (dest / "pkg" / "__pycache__").mkdir()
+    ba.drop_bytecode(dest)
+    assert not (dest / "pkg" / "__pycache__").exists()
+    env = ba.side_env(dest, tmp_path / "scratch")
+    assert "PYTHONPYCACHEPREFIX" not in env

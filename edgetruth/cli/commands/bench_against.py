@@ -7,8 +7,13 @@ afterwards), and runs both with the same interpreter and venv, alternating which
 
 - the main job, ``edgetruth run --study quick`` (``--limit``/``--skip-synthetic`` shrink it): its own
   stage times (the ``run: report ... s in all: render_s ...`` line both versions print) and its wall
-  time, from a cold start like a fresh clone: every run gets empty numba and bytecode caches
-  (``NUMBA_CACHE_DIR``, ``PYTHONPYCACHEPREFIX``);
+  time, from a cold start like a fresh clone's: both sides run from fresh copies of their trees (the
+  baseline's worktree, and the working tree's tracked and untracked-not-ignored files), whose
+  ``__pycache__`` folders are removed before every run, and every run gets an empty numba cache
+  (``NUMBA_CACHE_DIR``).  The venv's packages keep the bytecode ``pip install`` compiled: that is the
+  venv's set-up, which the issue's figure leaves out (an empty ``PYTHONPYCACHEPREFIX``, as before stop
+  29, also made numpy, scipy, matplotlib and Mitsuba's Python cold, and where ``PYTHONDONTWRITEBYTECODE``
+  is set it recompiled them in every process: ~3.5 s of one core per process);
 - the full study's rendering: a few ``study`` images (G1_T1 at the nearest, the middle and the
   farthest distance, each its own radiance render) in a fresh process, seconds per image and the
   per-stage split of ``render_spec``'s timings.
@@ -124,16 +129,35 @@ def remove_worktree(root: Path, dest: Path) -> None:
     subprocess.run(["git", "-C", str(root), "worktree", "prune"], capture_output=True)
 
 
+def copy_working_tree(root: Path, dest: Path) -> None:
+    """The files of the checkout ``root`` a fresh clone of its state would hold -- tracked (as they are now,
+    uncommitted changes included) and untracked but not ignored -- copied into ``dest``: no bytecode, no
+    numba cache, no build outputs."""
+    r = subprocess.run(["git", "-C", str(root), "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+                       capture_output=True, check=True)
+    for rel in sorted({p for p in r.stdout.decode().split("\0") if p}):
+        src = root / rel
+        if src.is_file():  # a tracked file deleted in the working tree is not copied
+            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / rel)
+
+
+def drop_bytecode(tree: Path) -> None:
+    """Remove every ``__pycache__`` folder under ``tree``: the next run compiles the tree's modules afresh."""
+    for p in sorted(Path(tree).rglob("__pycache__"), reverse=True):
+        shutil.rmtree(p, ignore_errors=True)
+
+
 def side_env(tree: Path, scratch: Path) -> dict:
     """The environment that makes a Python process (and its spawned workers) import edgetruth from
-    ``tree``, with empty numba and bytecode caches under ``scratch`` (a fresh clone's cold start)."""
+    ``tree``, with an empty numba cache under ``scratch`` (the tree's bytecode: ``drop_bytecode``)."""
     site = scratch / "site"
     site.mkdir(parents=True, exist_ok=True)
     (site / "sitecustomize.py").write_text(_SITECUSTOMIZE.format(root=str(Path(tree).resolve())))
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(site)] + [p for p in [env.get("PYTHONPATH")] if p])
     env["NUMBA_CACHE_DIR"] = str(scratch / "numba")
-    env["PYTHONPYCACHEPREFIX"] = str(scratch / "pycache")
+    env.pop("PYTHONPYCACHEPREFIX", None)  # the venv's packages keep their bytecode (see the module's docstring)
     return env
 
 
@@ -212,10 +236,12 @@ def run_against(rev: str, repeats: int = 1, run_args: list[str] | None = None, s
     run_args = list(run_args or [])
     resolve_commit(root, rev)  # a bad revision fails before anything is created
     tmp = Path(tempfile.mkdtemp(prefix="edgetruth-bench-against-", dir=keep))
-    base_tree = tmp / "baseline"
+    base_tree, work_tree = tmp / "baseline", tmp / "working"
     try:
         commit = add_worktree(root, rev, base_tree)
+        copy_working_tree(root, work_tree)
     except BaseException:
+        remove_worktree(root, base_tree)
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     head = subprocess.run(["git", "-C", str(root), "log", "-1", "--format=%h %s"], capture_output=True,
@@ -223,17 +249,18 @@ def run_against(rev: str, repeats: int = 1, run_args: list[str] | None = None, s
     dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
                            capture_output=True, text=True).stdout.strip()
     say(f"bench --against: baseline {commit[:12]} at {base_tree}; working tree {root} (HEAD {head[:60]}"
-        + (", with uncommitted changes" if dirty else "") + f"); {repeats} repeat(s), alternating order; "
-        "cold numba and bytecode caches per run")
+        + (", with uncommitted changes" if dirty else "") + f", copied to {work_tree}); {repeats} repeat(s), "
+        "alternating order; cold numba cache and no bytecode of either tree per run")
     res: dict = {"baseline": commit, "working_tree": str(root), "run": {"baseline": [], "working": []},
                  "render": {"baseline": [], "working": []}}
-    sides = {"baseline": base_tree, "working": root}
+    sides = {"baseline": base_tree, "working": work_tree}
     try:
         for k in range(repeats):
             order = ("baseline", "working") if k % 2 == 0 else ("working", "baseline")
             for part in parts:
                 for side in order:
                     scratch = tmp / f"{part}-{side}-{k}"
+                    drop_bytecode(sides[side])
                     if part == "run":
                         r = main_job_once(sides[side], scratch, run_args)
                         say(f"bench --against: run #{k + 1} {side}: {r['total_s']:.1f} s in all ("
