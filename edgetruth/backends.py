@@ -71,11 +71,28 @@ def worker_threads(workers: int) -> int:
     (each process would otherwise start one thread per core, and ``workers`` x cores threads on the
     cores make the numba kernels slower than one process: measured 2 workers x 2 threads 33.0 s against
     2 x 1 15.5 s for the quick run's ranging on 2 cores)."""
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # pragma: no cover - not Linux
-        cores = os.cpu_count() or 1
-    return max(1, cores // max(1, int(workers)))
+    return max(1, default_workers() // max(1, int(workers)))
+
+
+class numba_threads:
+    """``with numba_threads(n):`` numba runs on at most ``n`` threads in this process inside the block
+    (``numba.set_num_threads``), and on as many as before after it."""
+
+    def __init__(self, threads: int):
+        self.threads = max(1, int(threads))
+        self._before = None
+
+    def __enter__(self):
+        import numba
+
+        self._before = numba.get_num_threads()
+        numba.set_num_threads(min(self.threads, numba.config.NUMBA_NUM_THREADS))
+        return self
+
+    def __exit__(self, *exc) -> None:
+        import numba
+
+        numba.set_num_threads(self._before)
 
 
 def _limit_numba_threads(threads: int) -> None:
@@ -159,10 +176,11 @@ class SerialBackend(Backend):
 class PoolBackend(Backend):
     name = "local"
 
-    def __init__(self, workers: int, initializer=None, initargs=()):
+    def __init__(self, workers: int, initializer=None, initargs=(), threads: int | None = None):
         self.concurrency = workers
         self.set_initializer(initializer, initargs)
         self._pool = None
+        self.threads = threads  # numba threads per worker; None: ``worker_threads(workers)``
 
     def map_unordered(self, fn, args_list, window=None):
         import itertools
@@ -173,7 +191,7 @@ class PoolBackend(Backend):
             self._pool = ProcessPoolExecutor(max_workers=self.concurrency, mp_context=mp.get_context("spawn"),
                                              initializer=_worker_init,
                                              initargs=(os.getpid(), self._initializer, self._initargs,
-                                                       worker_threads(self.concurrency)))
+                                                       self.threads or worker_threads(self.concurrency)))
         todo = iter(args_list)
         pending = {self._pool.submit(fn, *args) for args in itertools.islice(todo, window or self.window())}
         try:

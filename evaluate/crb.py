@@ -82,6 +82,8 @@ import math as _math
 
 import numba as _numba
 
+from edgetruth.jit import njit, prange  # noqa: E402
+
 #: parameter columns of the Jacobian
 COLUMNS = ("rho", "phi", "A", "B", "s_dark", "s_bright")
 _H_RHO = 1e-6  # forward-difference steps (px, rad, relative): Jacobian to ~1e-6 relative
@@ -159,12 +161,12 @@ def _unit_mean(kind, dx, dy, rho, phi, radius, sgn, s1, s2):
     return pixel_mean(sgn * (radius - r - 1.0 / (24.0 * r)), vx / r, vy / r, s1, s2)
 
 
-@_numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)  # edgetruth.jit's: on one numba thread, its serial copy (same bits)
 def _jacobian_kernel(kind, rho, phi, radius, sgn, A, B, s1, s2, union, J, M):
     """J[i, k, :] = d m / d theta at footprint pixel k = (dy, dx) flattened; M[i, k] the unit mean."""
     size = union.shape[1]
     r0 = size // 2
-    for i in _numba.prange(rho.shape[0]):
+    for i in prange(rho.shape[0]):
         hs1 = _H_S_REL * max(s1[i], 1e-3)
         hs2 = _H_S_REL * max(s2[i], 1e-3)
         for iy in range(size):

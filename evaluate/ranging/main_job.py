@@ -91,16 +91,20 @@ class KernelWarmup:
     beside the renders).  Processes that need a kernel the warm-up is compiling wait for it and load it
     from the cache (``edgetruth.jit``'s compile locks) rather than compile it again."""
 
-    def __init__(self, methods=None, thresholds=None):
+    def __init__(self, methods=None, thresholds=None, threads: int | None = None):
         import atexit
+        import os
         import subprocess
         import sys
 
         code = "import sys; from edgetruth.evaluate.ranging.main_job import _warm_main; _warm_main(sys.argv[1:])"
+        env = dict(os.environ)
+        if threads:  # the ranging workers' numba threads: on one, strict kernels compile serially (edgetruth.jit)
+            env["NUMBA_NUM_THREADS"] = str(threads)
         try:
             self.proc = subprocess.Popen([sys.executable, "-c", code, str(thresholds or ""), *(methods or [])],
                                          stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
-                                         stderr=subprocess.DEVNULL, text=True)
+                                         stderr=subprocess.DEVNULL, text=True, env=env)
         except OSError:
             self.proc = None
             return
@@ -143,7 +147,8 @@ class SyntheticBeside:
     TIMING_NOTE = ("Inside `edgetruth run` this study ran beside the ranging stage, on loaded cores: read its "
                    "ratios, not its absolute points/s (`make bench` measures those on quiet cores).")
 
-    def __init__(self, out_dir: Path, methods=None, thresholds=None, images_per_scenario: int | None = None):
+    def __init__(self, out_dir: Path, methods=None, thresholds=None, images_per_scenario: int | None = None,
+                 threads: int = 1):
         import threading
 
         from edgetruth.backends import PoolBackend
@@ -152,7 +157,8 @@ class SyntheticBeside:
         self.t0 = time.perf_counter()
         self.seconds = None
         self._out: dict = {}
-        backend = PoolBackend(1, init_worker, worker_payload(methods))
+        self.threads = threads  # numba threads: it shares the cores with the ranging's workers
+        backend = PoolBackend(1, init_worker, worker_payload(methods), threads=threads)
         task = (str(out_dir), methods, str(thresholds) if thresholds else None, self.TIMING_NOTE, images_per_scenario)
 
         def wait():
@@ -271,10 +277,10 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
                  skip_synthetic: bool = False, progress: bool = True, thresholds=None,
                  workers: int | None = None, camera_thresholds=None) -> tuple[Path, int]:
     """The whole study in one call (``edgetruth run``); returns (report path, exit code)."""
-    from edgetruth.backends import default_workers
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.calibration import calibrate_dataset
     from contextlib import nullcontext
+
+    from edgetruth.backends import default_workers, numba_threads, worker_threads
+    from edgetruth.evaluate import method_order as mo
 
     from edgetruth.render.dataset.driver import RenderPool, check_variant_name, render_spec
     from edgetruth.render.dataset.spec import load_spec
@@ -302,7 +308,13 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     t0 = time.perf_counter()
     timing: dict = {}
     console.say(f"run: study {study!r} -> {out}")
-    warmup = KernelWarmup(methods, thresholds)  # numba compiles beside the renders, not after them
+    # numba threads: the ranging's workers get worker_threads(workers) each; the synthetic study beside them
+    # a share of its own, this process the rest (on 2 cores: one each, so strict kernels run their serial
+    # copies everywhere and compile once: edgetruth.jit)
+    syn_threads = worker_threads(workers + 1)
+    main_threads = max(1, default_workers() - (0 if skip_synthetic else syn_threads))
+    ranging_threads = worker_threads(workers) if workers > 1 else main_threads  # workers = 1: in this process
+    warmup = KernelWarmup(methods, thresholds, threads=ranging_threads)  # compiles beside the renders
 
     # 1. render
     render_dir = out / "render"
@@ -340,7 +352,21 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
         console.say("render: " + reuse_line)
 
     # 2. synthetic study (quick preset), linked from the report: in a worker from here on, beside 3 and 4
-    synthetic = None if skip_synthetic else SyntheticBeside(out / "synthetic", methods, thresholds)
+    synthetic = None if skip_synthetic else SyntheticBeside(out / "synthetic", methods, thresholds, threads=syn_threads)
+    with numba_threads(main_threads):
+        report, failed = _after_render(out, t0, timing, warmup, synthetic, cal_spec, cal_only, thr_spec, target_sets,
+                                       plan, limit, variants, reuse_line, study, methods, thresholds, progress,
+                                       workers, camera_thresholds)
+    return report, 1 if failed else 0
+
+
+def _after_render(out, t0, timing, warmup, synthetic, cal_spec, cal_only, thr_spec, target_sets, plan, limit, variants,
+                  reuse_line, study, methods, thresholds, progress, workers, camera_thresholds):
+    """The main job after its renders: calibrate, thresholds for the camera, ranging and the report
+    (``run_main_job``'s steps 3-4); returns (report path, whether a stage failed)."""
+    from edgetruth.evaluate.calibration import calibrate_dataset
+
+    render_dir = out / "render"
 
     # 3. calibrate
     t = time.perf_counter()
@@ -404,4 +430,4 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     timing["ranging_s"] = time.perf_counter() - t
     console.say(f"run: report {report} ({time.perf_counter() - t0:.1f} s in all: "
                 + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + ")")
-    return report, 1 if outcome["failed"] else 0
+    return report, outcome["failed"]

@@ -188,3 +188,23 @@ def test_every_builtin_method_declares_its_footprint():
     for m in locate.METHODS.values():
         if m.builtin:
             assert m.footprint is not None, m.id
+
+
+def test_jacobian_kernel_gives_the_same_bits_on_one_thread():
+    """On one numba thread the footprint Jacobian runs its serial copy (edgetruth.jit): the same bits."""
+    numba = pytest.importorskip("numba")
+    from edgetruth.backends import numba_threads
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba runs on one thread here")
+    rng = np.random.default_rng(2)
+    xs, ys = rng.uniform(20.0, 44.0, 40), rng.uniform(20.0, 44.0, 40)
+    geo = crb.edge_geometry(CircleEdge(32.0, 31.5, 9.0, True), xs, ys)
+    union = np.ones((40, 11, 11), bool)
+    out = []
+    for threads in (2, 1):
+        with numba_threads(threads):
+            out.append(crb.footprint_jacobian(geo, 40.0, 120.0, 0.7, 0.9, union))
+    for a, b in zip(*out):
+        assert np.array_equal(a.view(np.int64), b.view(np.int64))
+    assert crb._jacobian_kernel.serial.signatures and crb._jacobian_kernel.dispatcher.signatures
