@@ -7,6 +7,8 @@ percentile) and max of |e|.  Paired comparisons: Wilcoxon signed-rank
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy import stats as _st
 
@@ -134,8 +136,7 @@ def bootstrap_ci(statistic, *samples, n_boot: int = 2000, alpha: float = 0.05, s
     n = arrs[0].size
     if n < 2 or any(a.size != n for a in arrs):
         return float("nan"), float("nan")
-    rng = np.random.Generator(np.random.PCG64(seed))
-    idx = rng.integers(0, n, size=(n_boot, n))
+    idx = bootstrap_indices(n, n_boot, seed)
     vals = np.array([statistic(*(a[i] for a in arrs)) for i in idx])
     vals = vals[np.isfinite(vals)]
     if vals.size == 0:
@@ -150,6 +151,21 @@ def rmse(e) -> float:
     return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
 
 
+@functools.lru_cache(maxsize=64)
+def _cached_indices(k: int, n_boot: int, seed: int) -> np.ndarray:
+    idx = np.random.Generator(np.random.PCG64(seed)).integers(0, k, size=(n_boot, k))
+    idx.flags.writeable = False
+    return idx
+
+
+def bootstrap_indices(k: int, n_boot: int, seed: int) -> np.ndarray:
+    """The resamples (n_boot, k) of k units: ``Generator(PCG64(seed)).integers(0, k, (n_boot, k))``, kept
+    (read-only) for the small sizes a report asks for again and again (one per method and subset)."""
+    if k * n_boot <= 2_000_000:
+        return _cached_indices(int(k), int(n_boot), int(seed))
+    return np.random.Generator(np.random.PCG64(seed)).integers(0, k, size=(n_boot, k))
+
+
 def _bootstrap_rmse(sq_a: np.ndarray, sq_b: np.ndarray | None, n_boot: int, alpha: float, seed: int,
                     chunk_values: int = 4_000_000) -> tuple[float, float]:
     """Percentile bootstrap CI of RMSE(a) (- RMSE(b)) from squared errors, vectorised: the same
@@ -157,7 +173,7 @@ def _bootstrap_rmse(sq_a: np.ndarray, sq_b: np.ndarray | None, n_boot: int, alph
     n = sq_a.size
     if n < 2:
         return float("nan"), float("nan")
-    idx = np.random.Generator(np.random.PCG64(seed)).integers(0, n, size=(n_boot, n))
+    idx = bootstrap_indices(n, n_boot, seed)
     step = max(1, chunk_values // n)
     vals = np.empty(n_boot)
     for k in range(0, n_boot, step):

@@ -29,7 +29,7 @@ import numpy as np
 from edgetruth.evaluate.ranging.design_cells import factor_tables, main_rows, plain_groups
 from edgetruth.evaluate.ranging.images import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, table as _table
-from edgetruth.evaluate.stats import holm, rank_biserial, wilcoxon_paired
+from edgetruth.evaluate.stats import bootstrap_indices, holm, rank_biserial, wilcoxon_paired
 
 N_BOOT = 2000
 MAD_TO_SD = 1.4826
@@ -64,7 +64,7 @@ def cluster_rmse_ci(sse: np.ndarray, n: np.ndarray, n_boot: int = N_BOOT, seed: 
     k = sse.size
     if k < 3:
         return float("nan"), float("nan")
-    idx = np.random.Generator(np.random.PCG64(seed)).integers(0, k, size=(n_boot, k))
+    idx = bootstrap_indices(k, n_boot, seed)
     tot = n[idx].sum(1)
     v = np.sqrt(sse[idx].sum(1) / tot)
     if other is not None:

@@ -90,3 +90,17 @@ def test_friedman_detects_a_monotone_effect_and_not_noise():
     assert all(r["significant"] and r["median_difference"] > 0 and r["rank_biserial"] > 0.8 for r in rows)
     flat = base + rng.normal(0, 0.02, (40, 4))
     assert friedman(flat)["p_value"] > 0.01
+
+
+def test_bootstrap_indices_are_the_generators_draws_kept_read_only():
+    from edgetruth.evaluate.stats import bootstrap_indices
+
+    for k, n_boot, seed in [(3, 2000, 0), (140, 2000, 0), (57, 500, 4), (1200, 2000, 1)]:  # the last: not kept
+        want = np.random.Generator(np.random.PCG64(seed)).integers(0, k, size=(n_boot, k))
+        got = bootstrap_indices(k, n_boot, seed)
+        assert np.array_equal(got, want)
+        again = bootstrap_indices(k, n_boot, seed)
+        if k * n_boot <= 2_000_000:
+            assert again is got and not got.flags.writeable  # kept, and nobody can change it for the next caller
+        else:
+            assert again is not got
