@@ -107,7 +107,7 @@ def _heapsort(s):
         _sift(s, start, n)
     for end in range(n - 1, 0, -1):
         s[0], s[end] = s[end], s[0]
-        _sift(s, 0, end)
+        _sift(s, np.int64(0), end)  # typed: a literal 0 compiles a second _sift
 
 
 @njit(cache=True, forceinline=True)
@@ -224,3 +224,37 @@ def irls_line(x, y, w, tukey_c, sigma_floor_px, tol_px, max_iter):
             m += 1
     rms = math.sqrt(pairwise_sum(buf, np.int64(0), np.int64(m)) / m) if m else np.nan  # typed: as in _sum
     return nx, ny, d, rms
+
+
+@njit(cache=True)
+def robust_line(x, y, pairs, threshold_px, tukey_c, sigma_floor_px, tol_px, max_iter, w):
+    """``size.fit_line_robust`` after its random draws: the candidate lines through the point ``pairs``
+    (draws with i0 != i1; those of coincident points dropped), RANSAC's best, its inliers as the start
+    weights (all points when fewer than 2), then ``irls_line``.  ``w`` (n,) receives the final weights;
+    returns (nx, ny, d, rms_px).  Each operation as the numpy code did it (tests)."""
+    n_pts = x.size
+    m = pairs.shape[0]
+    cnx = np.empty(m)
+    cny = np.empty(m)
+    cd = np.empty(m)
+    c = 0
+    for j in range(m):
+        i0, i1 = pairs[j, 0], pairs[j, 1]
+        ex, ey = x[i1] - x[i0], y[i1] - y[i0]
+        norm = math.hypot(ex, ey)
+        if norm > 0:
+            a, b = -ey / norm, ex / norm
+            cnx[c], cny[c], cd[c] = a, b, a * x[i0] + b * y[i0]
+            c += 1
+    inliers = 0
+    if c > 0:
+        k = ransac_best(x, y, cnx[:c], cny[:c], cd[:c], threshold_px)
+        for i in range(n_pts):
+            if abs(cnx[k] * x[i] + cny[k] * y[i] - cd[k]) < threshold_px:
+                w[i] = 1.0
+                inliers += 1
+            else:
+                w[i] = 0.0
+    if inliers < 2:
+        w[:] = 1.0
+    return irls_line(x, y, w, tukey_c, sigma_floor_px, tol_px, max_iter)

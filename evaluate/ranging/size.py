@@ -19,6 +19,7 @@ refitted; the size is the diameter 2r.  Points are first scaled by
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -70,8 +71,9 @@ def _mad_sigma(r) -> float:
 def fit_line_robust(x, y, ransac_threshold_px: float = 1.0, iterations: int = 200, seed: int = 0,
                     tukey_c: float = 4.685) -> Line:
     """Robust line through (x, y): RANSAC inliers, then Tukey-biweight IRLS total least squares (scale
-    1.4826 MAD, at least ``SIGMA_FLOOR_PX``; to ``IRLS_TOL_PX``, at most 30 steps).  The loops are numba
-    kernels (``edgetruth.evaluate.ranging.line_kernels``), bit for bit the numpy code they replaced."""
+    1.4826 MAD, at least ``SIGMA_FLOOR_PX``; to ``IRLS_TOL_PX``, at most 30 steps).  Past the random draws
+    it is one numba kernel (``edgetruth.evaluate.ranging.line_kernels.robust_line``), bit for bit the numpy
+    code it replaced."""
     from edgetruth.evaluate.ranging import line_kernels as lk
 
     x = np.ascontiguousarray(x, np.float64)
@@ -79,23 +81,24 @@ def fit_line_robust(x, y, ransac_threshold_px: float = 1.0, iterations: int = 20
     n_pts = x.size
     if n_pts < 2:
         raise InputError(f"line fit: need at least 2 points, got {n_pts}")
-    rng = np.random.Generator(np.random.PCG64(seed))
-    best = None
-    if n_pts > 3:
-        i = rng.integers(0, n_pts, size=(iterations, 2))
-        i = i[i[:, 0] != i[:, 1]]
-        ex, ey = x[i[:, 1]] - x[i[:, 0]], y[i[:, 1]] - y[i[:, 0]]
-        norm = np.hypot(ex, ey)
-        ok = norm > 0
-        i, ex, ey, norm = i[ok], ex[ok], ey[ok], norm[ok]
-        nx, ny = -ey / norm, ex / norm
-        d = nx * x[i[:, 0]] + ny * y[i[:, 0]]
-        if nx.size:
-            k = lk.ransac_best(x, y, nx, ny, d, float(ransac_threshold_px))
-            best = np.abs(nx[k] * x + ny[k] * y - d[k]) < ransac_threshold_px
-    w = best.astype(np.float64) if best is not None and best.sum() >= 2 else np.ones(n_pts)
-    nx, ny, d, rms = lk.irls_line(x, y, w, float(tukey_c), SIGMA_FLOOR_PX, IRLS_TOL_PX, 30)
+    w = np.empty(n_pts)
+    nx, ny, d, rms = lk.robust_line(x, y, ransac_pairs(seed, n_pts, iterations), float(ransac_threshold_px),
+                                    float(tukey_c), SIGMA_FLOOR_PX, IRLS_TOL_PX, 30, w)
     return Line(np.array([nx, ny]), float(d), w > 0, float(rms))
+
+
+@functools.lru_cache(maxsize=4096)
+def ransac_pairs(seed: int, n_pts: int, iterations: int) -> np.ndarray:
+    """RANSAC's point pairs (m, 2) for ``n_pts`` points: ``iterations`` draws of ``Generator(PCG64(seed))``
+    without the pairs of one point twice; none for 3 points or fewer (no RANSAC).  They depend on nothing
+    else, so they are drawn once per (seed, n_pts) and kept read-only: the quick run fits ~40,000 lines."""
+    if n_pts <= 3:
+        i = np.zeros((0, 2), np.int64)
+    else:
+        i = np.random.Generator(np.random.PCG64(seed)).integers(0, n_pts, size=(iterations, 2))
+        i = np.ascontiguousarray(i[i[:, 0] != i[:, 1]], np.int64)
+    i.flags.writeable = False
+    return i
 
 
 def intersect(a: Line, b: Line) -> np.ndarray:

@@ -110,3 +110,16 @@ def test_median_is_numpys_median(n):
         s = v.copy()
         lk._heapsort(s)
         assert np.array_equal(s, ref, equal_nan=True)
+
+
+def test_ransac_pairs_are_the_draws_kept_read_only():
+    from edgetruth.evaluate.ranging.size import ransac_pairs
+
+    for n in (2, 3, 4, 57, 400):
+        got = ransac_pairs(1, n, 200)
+        if n <= 3:
+            assert got.shape == (0, 2)
+        else:
+            i = np.random.Generator(np.random.PCG64(1)).integers(0, n, size=(200, 2))
+            assert np.array_equal(got, i[i[:, 0] != i[:, 1]])
+        assert not got.flags.writeable and ransac_pairs(1, n, 200) is got
