@@ -190,6 +190,20 @@ def _jacobian_kernel(kind, rho, phi, radius, sgn, A, B, s1, s2, union, J, M):
                 J[i, k, 5] = B[i] * (m2 - m0) / hs2
 
 
+@njit(cache=True)
+def _fisher_kernel(wm, J, F):
+    """F[i, k, l] = sum_p wm[i, p] J[i, p, k] J[i, p, l]: ``np.einsum("np,npk,npl->nkl", wm, J, J)`` bit for bit
+    (its products left to right, summed over p in order from 0.0), ~3x faster (tests/evaluate/test_crb.py)."""
+    n, n_pix, k_par = J.shape
+    for i in range(n):
+        for k in range(k_par):
+            for j in range(k_par):
+                acc = 0.0
+                for p in range(n_pix):
+                    acc += wm[i, p] * J[i, p, k] * J[i, p, j]
+                F[i, k, j] = acc
+
+
 def edge_geometry(truth, x, y) -> dict:
     """rho = d(p), phi = direction of the true normal at p, and the curvature data of a true edge
     (``render.edge_truth.StraightEdge`` / ``CircleEdge``) at pixel centres (x, y)."""
@@ -270,7 +284,8 @@ def footprint_bounds(geometry: dict, A, B, s_dark, s_bright, masks: dict, noise_
         Jp = J
     out = {}
     for name, m in zip(masks, stack):
-        wm = w * m.reshape(n, -1)
-        F = np.einsum("np,npk,npl->nkl", wm, Jp, Jp)
+        wm = np.ascontiguousarray(w * m.reshape(n, -1))
+        F = np.empty((n, Jp.shape[2], Jp.shape[2]))
+        _fisher_kernel(wm, np.ascontiguousarray(Jp), F)
         out[name] = bound_from_fisher(F)
     return out

@@ -208,3 +208,15 @@ def test_jacobian_kernel_gives_the_same_bits_on_one_thread():
     for a, b in zip(*out):
         assert np.array_equal(a.view(np.int64), b.view(np.int64))
     assert crb._jacobian_kernel.serial.signatures and crb._jacobian_kernel.dispatcher.signatures
+
+
+@pytest.mark.parametrize("n_pix", [1, 49, 121, 225, 1000])
+def test_fisher_kernel_is_einsum_bit_for_bit(n_pix):
+    """The Fisher sums of footprint_bounds: the kernel gives np.einsum's bits (zero weights off a mask,
+    magnitudes over six decades)."""
+    rng = np.random.default_rng(n_pix)
+    wm = rng.random((60, n_pix)) * (rng.random((60, n_pix)) < 0.6)
+    J = rng.normal(size=(60, n_pix, 5)) * 10.0 ** rng.uniform(-3, 3, (60, n_pix, 5))
+    F = np.empty((60, 5, 5))
+    crb._fisher_kernel(wm, J, F)
+    assert np.array_equal(F.view(np.int64), np.einsum("np,npk,npl->nkl", wm, J, J).view(np.int64))
