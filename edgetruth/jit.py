@@ -138,16 +138,22 @@ def _reach(kernel: LazyKernel, seen: dict) -> None:
     if id(kernel) in seen:
         return
     seen[id(kernel)] = kernel
-    g = kernel.py_func.__globals__
-    names = _code_names(kernel.py_func.__code__)
-    for name in names:
-        v = g.get(name)
+    for v in _named(kernel.py_func):
         if isinstance(v, LazyKernel):
             _reach(v, seen)
-        elif isinstance(v, types.ModuleType):  # ``K.fit(...)``: "fit" is among the code's names too
-            for w in (vars(v).get(n) for n in names):
-                if isinstance(w, LazyKernel):
-                    _reach(w, seen)
+
+
+def _named(fn):
+    """The objects ``fn``'s code can call by name: its module's globals of those names and, for a module
+    among them, that module's attributes of those names (``K.fit(...)`` names both "K" and "fit")."""
+    g = fn.__globals__
+    names = _code_names(fn.__code__)
+    for name in names:
+        v = g.get(name)
+        if isinstance(v, types.ModuleType):
+            yield from (vars(v).get(n) for n in names)
+        else:
+            yield v
 
 
 def _swap_globals(g: dict, made: dict) -> None:
@@ -215,17 +221,12 @@ def _reaches_fastmath(kernel: LazyKernel) -> bool:
         seen.add(id(fn))
         if options.get("fastmath"):
             return True
-        g = fn.__globals__
-        names = _code_names(fn.__code__)
-        for name in names:
-            v = g.get(name)
-            items = [vars(v).get(n) for n in names] if isinstance(v, types.ModuleType) else [v]
-            for w in items:
-                w = _BY_DISPATCHER.get(id(w), w)
-                if isinstance(w, LazyKernel):
-                    todo.append((w.py_func, w.options))
-                elif _numba is not None and isinstance(w, _numba.core.dispatcher.Dispatcher):
-                    todo.append((w.py_func, w.targetoptions))
+        for w in _named(fn):
+            w = _BY_DISPATCHER.get(id(w), w)
+            if isinstance(w, LazyKernel):
+                todo.append((w.py_func, w.options))
+            elif _numba is not None and isinstance(w, _numba.core.dispatcher.Dispatcher):
+                todo.append((w.py_func, w.targetoptions))
     return False
 
 

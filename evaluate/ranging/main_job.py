@@ -99,8 +99,10 @@ class KernelWarmup:
 
         code = "import sys; from edgetruth.evaluate.ranging.main_job import _warm_main; _warm_main(sys.argv[1:])"
         env = dict(os.environ)
-        if threads:  # the ranging workers' numba threads: on one, strict kernels compile serially (edgetruth.jit)
-            env["NUMBA_NUM_THREADS"] = str(threads)
+        mine = env.get("NUMBA_NUM_THREADS", "")
+        if threads and not (mine.isdigit() and 0 < int(mine) <= threads):  # a smaller setting of the user's stays
+            env["NUMBA_NUM_THREADS"] = str(threads)  # the ranging workers' count: on one, strict kernels compile
+            # their serial copies (edgetruth.jit)
         try:
             self.proc = subprocess.Popen([sys.executable, "-c", code, str(thresholds or ""), *(methods or [])],
                                          stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
@@ -157,8 +159,7 @@ class SyntheticBeside:
         self.t0 = time.perf_counter()
         self.seconds = None
         self._out: dict = {}
-        self.threads = threads  # numba threads: it shares the cores with the ranging's workers
-        backend = PoolBackend(1, init_worker, worker_payload(methods), threads=threads)
+        backend = PoolBackend(1, init_worker, worker_payload(methods), threads=threads)  # sharing the cores
         task = (str(out_dir), methods, str(thresholds) if thresholds else None, self.TIMING_NOTE, images_per_scenario)
 
         def wait():
@@ -281,6 +282,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
 
     from edgetruth.backends import default_workers, numba_threads, worker_threads
     from edgetruth.evaluate import method_order as mo
+    from edgetruth.evaluate.calibration import calibrate_dataset
 
     from edgetruth.render.dataset.driver import RenderPool, check_variant_name, render_spec
     from edgetruth.render.dataset.spec import load_spec
@@ -353,81 +355,68 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
 
     # 2. synthetic study (quick preset), linked from the report: in a worker from here on, beside 3 and 4
     synthetic = None if skip_synthetic else SyntheticBeside(out / "synthetic", methods, thresholds, threads=syn_threads)
-    with numba_threads(main_threads):
-        report, failed = _after_render(out, t0, timing, warmup, synthetic, cal_spec, cal_only, thr_spec, target_sets,
-                                       plan, limit, variants, reuse_line, study, methods, thresholds, progress,
-                                       workers, camera_thresholds)
-    return report, 1 if failed else 0
-
-
-def _after_render(out, t0, timing, warmup, synthetic, cal_spec, cal_only, thr_spec, target_sets, plan, limit, variants,
-                  reuse_line, study, methods, thresholds, progress, workers, camera_thresholds):
-    """The main job after its renders: calibrate, thresholds for the camera, ranging and the report
-    (``run_main_job``'s steps 3-4); returns (report path, whether a stage failed)."""
-    from edgetruth.evaluate.calibration import calibrate_dataset
-
-    render_dir = out / "render"
-
-    # 3. calibrate
-    t = time.perf_counter()
-    cal_names = [cal_spec.jobs[i].name for i in cal_only]
-    cal = calibrate_dataset(render_dir / cal_spec.name, names=cal_names, progress=progress)
-    write_json(out / "calibration.json", cal.to_dict())
-    e = cal.errors()
-    console.say(f"calibrate: {cal.n_views} boards, RMS {cal.rms_px:.3f} px, fx {cal.fx:.2f} px "
-                f"({e.get('fx_rel_pct', float('nan')):+.3f} % vs truth), principal point error "
-                f"({e.get('cx_px', float('nan')):+.2f}, {e.get('cy_px', float('nan')):+.2f}) px")
-    timing["calibrate_s"] = time.perf_counter() - t
-
-    # the kernels are cached from here on: the stages below (and their workers) load them
-    timing["kernel_wait_s"] = warmup.finish()
-
-    # 3b. entropy thresholds for this camera, from the disjoint threshold renders' per-point truth
-    if thr_spec is not None:
-        from edgetruth.evaluate import threshold_calibration as tcal
-
+    with numba_threads(main_threads):  # beside the synthetic study's worker: the cores' rest
+        # 3. calibrate
         t = time.perf_counter()
-        record = tcal.calibrate_renders([render_dir / thr_spec.name],
-                                        names=[thr_spec.jobs[i].name for i in select_jobs(thr_spec, limit, "target")])
-        record["provenance"]["command"] = (f"edgetruth calibrate-thresholds --dataset render/{thr_spec.name} "
-                                           "(inside edgetruth run)")
-        camera_thresholds = out / "thresholds_camera.json"
-        tcal.write(record, camera_thresholds)
-        console.say("thresholds for the camera: " + "; ".join(
-            f"{m} tau {tuple(round(v, 2) for v in r['tau'])} RMSE {r['rmse_px']:.4f} px" for m, r in record["models"].items())
-            + f" ({record['provenance']['data']['on_edge_points']} points of {len(record['provenance']['data']['images'])}"
-              f" {thr_spec.name} images)")
-        timing["thresholds_s"] = time.perf_counter() - t
+        cal_names = [cal_spec.jobs[i].name for i in cal_only]
+        cal = calibrate_dataset(render_dir / cal_spec.name, names=cal_names, progress=progress)
+        write_json(out / "calibration.json", cal.to_dict())
+        e = cal.errors()
+        console.say(f"calibrate: {cal.n_views} boards, RMS {cal.rms_px:.3f} px, fx {cal.fx:.2f} px "
+                    f"({e.get('fx_rel_pct', float('nan')):+.3f} % vs truth), principal point error "
+                    f"({e.get('cx_px', float('nan')):+.2f}, {e.get('cy_px', float('nan')):+.2f}) px")
+        timing["calibrate_s"] = time.perf_counter() - t
 
-    # 4. locate + evaluate + report
-    t = time.perf_counter()
-    datasets = [render_dir / s.name for s, _ in target_sets if s.name in plan["targets"]]
-    names = {str(render_dir / s.name): [s.jobs[i].name for i in only]
-             for s, only in target_sets if s.name in plan["targets"]}
-    header = {"study": study, "UTC": utc_stamp(), "specs": ", ".join(s.name for s, _ in target_sets),
-              "Mitsuba": "; ".join(variants) or "renders reused (already complete)",
-              "interpolation for undistortion": "bilinear (see edgetruth/evaluate/ranging/undistort.py)"}
-    if reuse_line:
-        header["render reuse"] = reuse_line
-    header["timings so far (s)"] = ", ".join(f"{k} {v:.1f}" for k, v in timing.items())
-    outcome: dict = {"failed": False}
+        # the kernels are cached from here on: the stages below (and their workers) load them
+        timing["kernel_wait_s"] = warmup.finish()
 
-    def wait_synthetic():  # called before the report is written: the ranging ran beside the synthetic study
-        if synthetic is None:
-            return None, {}
-        path, err = synthetic.result()
-        timing["synthetic_s"] = synthetic.seconds
-        if err is not None:
-            outcome["failed"] = True
-            console.say(f"run: synthetic study failed: {err}")
-            return None, {"synthetic study": "FAILED (see the console)"}
-        return path, {}
+        # 3b. entropy thresholds for this camera, from the disjoint threshold renders' per-point truth
+        if thr_spec is not None:
+            from edgetruth.evaluate import threshold_calibration as tcal
 
-    report = evaluate_datasets(datasets, cal, out, methods=methods, thresholds=thresholds, progress=progress,
-                               names=names, workers=workers, header=header, synthetic_report=wait_synthetic,
-                               title=f"run report (study {study})", camera_thresholds=camera_thresholds,
-                               windows_beside_full=study == "quick")
-    timing["ranging_s"] = time.perf_counter() - t
-    console.say(f"run: report {report} ({time.perf_counter() - t0:.1f} s in all: "
-                + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + ")")
-    return report, outcome["failed"]
+            t = time.perf_counter()
+            thr_names = [thr_spec.jobs[i].name for i in select_jobs(thr_spec, limit, "target")]
+            record = tcal.calibrate_renders([render_dir / thr_spec.name], names=thr_names)
+            record["provenance"]["command"] = (f"edgetruth calibrate-thresholds --dataset render/{thr_spec.name} "
+                                               "(inside edgetruth run)")
+            camera_thresholds = out / "thresholds_camera.json"
+            tcal.write(record, camera_thresholds)
+            data = record["provenance"]["data"]
+            console.say("thresholds for the camera: " + "; ".join(
+                f"{m} tau {tuple(round(v, 2) for v in r['tau'])} RMSE {r['rmse_px']:.4f} px"
+                for m, r in record["models"].items())
+                + f" ({data['on_edge_points']} points of {len(data['images'])} {thr_spec.name} images)")
+            timing["thresholds_s"] = time.perf_counter() - t
+
+        # 4. locate + evaluate + report
+        t = time.perf_counter()
+        datasets = [render_dir / s.name for s, _ in target_sets if s.name in plan["targets"]]
+        names = {str(render_dir / s.name): [s.jobs[i].name for i in only]
+                 for s, only in target_sets if s.name in plan["targets"]}
+        header = {"study": study, "UTC": utc_stamp(), "specs": ", ".join(s.name for s, _ in target_sets),
+                  "Mitsuba": "; ".join(variants) or "renders reused (already complete)",
+                  "interpolation for undistortion": "bilinear (see edgetruth/evaluate/ranging/undistort.py)"}
+        if reuse_line:
+            header["render reuse"] = reuse_line
+        header["timings so far (s)"] = ", ".join(f"{k} {v:.1f}" for k, v in timing.items())
+        outcome: dict = {"failed": False}
+
+        def wait_synthetic():  # called before the report is written: the ranging ran beside the synthetic study
+            if synthetic is None:
+                return None, {}
+            path, err = synthetic.result()
+            timing["synthetic_s"] = synthetic.seconds
+            if err is not None:
+                outcome["failed"] = True
+                console.say(f"run: synthetic study failed: {err}")
+                return None, {"synthetic study": "FAILED (see the console)"}
+            return path, {}
+
+        report = evaluate_datasets(datasets, cal, out, methods=methods, thresholds=thresholds, progress=progress,
+                                   names=names, workers=workers, header=header, synthetic_report=wait_synthetic,
+                                   title=f"run report (study {study})", camera_thresholds=camera_thresholds,
+                                   windows_beside_full=study == "quick")
+        timing["ranging_s"] = time.perf_counter() - t
+        console.say(f"run: report {report} ({time.perf_counter() - t0:.1f} s in all: "
+                    + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + ")")
+        return report, 1 if outcome["failed"] else 0
