@@ -142,6 +142,12 @@ def choose_variant(requested: str | None = None, announce=print, warn=_warn) -> 
     if requested:
         if requested not in mi.variants():
             raise InputError(f"--variant {requested}: not in this Mitsuba build (have: {', '.join(mi.variants())})")
+        # A JIT variant can be built in yet not run here (cuda_ad_* with no GPU or driver: set_variant raises;
+        # llvm_ad_* with an old libLLVM: the process aborts), so it is probed like the automatic choice.
+        ok, reason = (True, "") if requested.startswith("scalar_") else probe(requested)
+        if not ok:
+            raise InputError(f"--variant {requested}: does not run here ({reason}); leave --variant out to "
+                             "render with the best variant that does")
         mi.set_variant(requested)
         announce(f"render: using Mitsuba variant {requested} (requested)")
         return requested

@@ -48,3 +48,33 @@ def test_pip_libllvm_is_configured_when_present():
     if p is None:
         pytest.skip("karellen-llvm-core is not installed in this environment")
     assert os.environ.get("DRJIT_LIBLLVM_PATH")
+
+
+def test_requested_variant_that_does_not_run_here_is_input_error(monkeypatch):
+    """A variant built into Mitsuba that cannot run here (cuda_ad_rgb on a machine without a GPU) is one
+    InputError naming the variant, its reason and the fix, not a traceback from Mitsuba."""
+    import mitsuba as mi
+
+    before = mi.variant()
+    monkeypatch.setattr(variants, "_cache", {"cuda_ad_rgb": (False, "ImportError: the CUDA backend hasn't been "
+                                                             "initialized")})
+    with pytest.raises(InputError, match=r"--variant cuda_ad_rgb: does not run here \(ImportError.*leave --variant out"):
+        variants.choose_variant("cuda_ad_rgb", announce=lambda s: None)
+    assert mi.variant() == before  # nothing was switched
+
+
+def test_requested_cuda_variant_on_the_cli_is_one_line_and_exit_2(tmp_path):
+    """Where cuda_ad_rgb does not run (CI has no GPU), `edgetruth render --variant cuda_ad_rgb` says so in one
+    line on stderr and exits 2, writing no image."""
+    import subprocess
+    import sys
+
+    if variants.probe("cuda_ad_rgb")[0]:
+        pytest.skip("cuda_ad_rgb runs on this machine")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "edgetruth", "render", "quick", "--variant", "cuda_ad_rgb",
+                        "--only", "0", "-j", "1", "-o", str(out)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--variant cuda_ad_rgb: does not run here" in lines[0], r.stderr
+    assert not list(out.glob("*.png"))
