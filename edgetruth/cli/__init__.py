@@ -79,10 +79,18 @@ def method_list(text: str | None) -> list[str] | None:
     return method_specs(text)
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with the house's error form: bad usage is one line on stderr (argparse's own message,
+    which names the option, and where to read the usage), exit 2; subcommands' parsers inherit it."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message}; see `{self.prog} --help`\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from edgetruth.cli import commands
 
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="edgetruth",
         description="Physically-based ground truth for subpixel edge localisation and monocular ranging.",
     )
@@ -126,7 +134,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"edgetruth {__version__}")
         raise SystemExit(0)
     parser = build_parser()
-    args = parser.parse_args(argv)  # argparse itself exits 2 on bad usage
+    args, extra = parser.parse_known_args(argv)  # argparse itself exits 2 on bad usage
+    if extra:  # argparse would blame the top-level parser; name the command whose options they are not
+        where = f"edgetruth {args.command}" if getattr(args, "command", None) else "edgetruth"
+        print(f"{where}: error: unrecognized arguments: {' '.join(extra)}; see `{where} --help`", file=sys.stderr)
+        return 2
     empty = _empty_output(argv)
     if empty and getattr(args, "handler", None):
         print(f"edgetruth {args.command}: error: {empty} '': an empty path; give a file or folder name",

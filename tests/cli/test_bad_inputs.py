@@ -266,15 +266,11 @@ def _check_one_line_error(rc: int, err: str, command: str, expect: str) -> None:
     assert rc == 2, err
     assert "Traceback" not in err
     lines = [l for l in err.splitlines() if l.strip()]
+    assert len(lines) == 1, err  # argparse's usage errors too (OneLineParser)
     last = lines[-1]
-    usage = any(l.startswith("usage:") for l in lines)
     # argparse reports arguments left over after a subcommand as the top-level parser
-    prefixes = (f"edgetruth {command}: error:", "edgetruth: error:") if usage else (f"edgetruth {command}: error:",)
-    assert last.startswith(prefixes), err
+    assert last.startswith((f"edgetruth {command}: error:", "edgetruth: error:")), err
     assert expect in last, (expect, last)
-    # one line from edgetruth itself; argparse adds its usage lines before it
-    if not usage:
-        assert len(lines) == 1, err
 
 
 @pytest.fixture
