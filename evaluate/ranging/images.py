@@ -139,6 +139,20 @@ def true_pose_distance(gt: dict) -> float:
     return pose_distance("circle", size_m, K, x=pts[:, 0], y=pts[:, 1])
 
 
+def calibrated_pose_distance(gt: dict, undistorter, K) -> float:
+    """The pose-based estimate on the TRUE outline seen through the CALIBRATED camera: its distorted
+    image undistorted with the calibrated model, then the pose with the calibrated ``K``.  Its error is
+    the calibration's share of every method's pose error (true intrinsics give ``true_pose_distance``)."""
+    from edgetruth.evaluate.ranging.pose import pose_distance
+
+    pts = undistorter.undistort_points(np.asarray(gt["outline"]["distorted_px"], float))
+    K = np.asarray(K, float)
+    size_m = float(gt["target"]["size_m"])
+    if gt["target"]["shape"] == "square":
+        return pose_distance("square", size_m, K, corners_px=pts[:4])
+    return pose_distance("circle", size_m, K, x=pts[:, 0], y=pts[:, 1])
+
+
 def true_size_px(gt: dict) -> float:
     """The ranging model's l evaluated on the TRUE undistorted outline (truth, for the model floor)."""
     pts = np.asarray(gt["outline"]["undistorted_px"])
@@ -180,6 +194,10 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
     f_true = float(gt["camera"]["fx_px"])
     base["model_floor_cm"] = 100.0 * (distance_from_size(f_true, size_m, floor_l) - z_true)
     base["pose_floor_cm"] = 100.0 * (true_pose_distance(gt) - z_true)
+    try:
+        base["pose_cal_floor_cm"] = 100.0 * (calibrated_pose_distance(gt, undistorter, cal.K) - z_true)
+    except InputError:
+        base["pose_cal_floor_cm"] = float("nan")
     return range_undistorted(undistorter(image), undistorter.valid_mask(), shape, size_m, z_true, cal, methods, base,
                              keep_points=keep_points, name=name, options=options, l_true_px=floor_l)
 
@@ -237,8 +255,8 @@ def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m
 ROW_FIELDS = ("dataset", "image", "spec", "group", "slot", "levels", "off_base", "target", "shape", "true_distance_m",
               "interval", "method", "status",
               "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px", "size_seed_px", "size_error_px",
-              "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm", "n_points", "n_used", "fit_rms_px",
-              "converged_frac", "time_s")
+              "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm", "pose_cal_floor_cm", "n_points", "n_used",
+              "fit_rms_px", "converged_frac", "time_s")
 
 
 def write_rows(path: Path, rows: list[dict]) -> None:
@@ -259,7 +277,7 @@ def read_rows(path: Path) -> list[dict]:
         for r in csv.DictReader(fh):
             for k in ("true_distance_m", "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px",
                       "size_seed_px", "size_error_px", "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm",
-                      "fit_rms_px", "converged_frac", "time_s"):
+                      "pose_cal_floor_cm", "fit_rms_px", "converged_frac", "time_s"):
                 if k in r:
                     r[k] = float(r[k]) if r[k] not in ("", None) else float("nan")
             out.append(r)

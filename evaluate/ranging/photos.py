@@ -204,7 +204,8 @@ def photo_base(r: PhotoRecord) -> dict:
     size = f"{r.size_m:g} m" if r.height_m is None else f"{r.size_m:g} x {r.height_m:g} m"
     return {"image": r.image, "spec": "", "group": r.group, "target": f"{r.shape} {size}", "shape": r.shape,
             "true_distance_m": r.distance_cm / 100.0, "interval": interval_label(r.distance_cm),
-            "slot": "", "levels": "", "off_base": "", "model_floor_cm": float("nan"), "pose_floor_cm": float("nan")}
+            "slot": "", "levels": "", "off_base": "", "model_floor_cm": float("nan"), "pose_floor_cm": float("nan"),
+            "pose_cal_floor_cm": float("nan")}
 
 
 def range_photo(image: np.ndarray, record: PhotoRecord, cal, methods: list[str], keep_points: bool = False,

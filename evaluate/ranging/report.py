@@ -38,6 +38,11 @@ def _options_line(methods) -> str:
     return options_line(methods)
 
 
+def _signed(v, nd: int = 3) -> str:
+    """A signed number (a bias), or an em dash when it is missing."""
+    return "—" if v is None or not np.isfinite(v) else f"{v:+.{nd}f}"
+
+
 def _ok(rows):
     return [r for r in rows if r.get("status") == "ok" and np.isfinite(r.get("error_cm", np.nan))]
 
@@ -57,9 +62,16 @@ def method_stats(rows) -> dict:
     s["size_bias_px"] = float(np.mean(sz)) if sz.size else float("nan")
     s["rmse_ci"] = rmse_ci(e) if e.size >= 5 else (float("nan"), float("nan"))
     ep = np.array([r.get("error_pose_cm", np.nan) for r in ok], float)
-    ep = ep[np.isfinite(ep)]
+    cal = np.array([r.get("pose_cal_floor_cm", np.nan) for r in ok], float)
+    both = np.isfinite(ep) & np.isfinite(cal)
+    ep_all, ep = ep, ep[np.isfinite(ep)]
     s["pose"] = summary(ep)
     s["pose"]["rmse_ci"] = rmse_ci(ep) if ep.size >= 5 else (float("nan"), float("nan"))
+    # signed: the pose error's mean, and its mean beyond the calibration's share (the true outline through
+    # the calibrated camera), i.e. what the method's points add
+    s["pose"]["bias"] = float(ep.mean()) if ep.size else float("nan")
+    s["pose"]["bias_beyond_calibration"] = float(np.mean(ep_all[both] - cal[both])) if both.any() else float("nan")
+    s["pose"]["rmse_beyond_calibration"] = rmse(ep_all[both] - cal[both]) if both.any() else float("nan")
     return s
 
 
@@ -485,22 +497,39 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
                    _f(st[m]["median"]), _f(st[m]["iqr"]), _f(st[m]["max"]), _f(st[m]["mean_rel_pct"]), st[m]["n_failed"],
                    _f(st[m]["size_rmse_px"]), _f(st[m]["size_bias_px"], 3),
                    f"{SEED_MAE_CM[m]:.2f}/{SEED_RMSE_CM[m]:.2f}" if m in SEED_MAE_CM else ""] for m in order])]
-    pose_floor = np.array([r.get("pose_floor_cm", np.nan) for r in rows if r["method"] == methods[0]], float)
+    first = [r for r in rows if r["method"] == methods[0]]
+    pose_floor = np.array([r.get("pose_floor_cm", np.nan) for r in first], float)
+    cal_floor = np.array([r.get("pose_cal_floor_cm", np.nan) for r in first], float)
+    z_m = np.array([r.get("true_distance_m", np.nan) for r in first], float)
+    has_cal = bool(np.isfinite(cal_floor).any())
     if reference is None:
         why = ("The same refined points, the target's full pose instead of Z = fx·S/l: the tilt and off-axis floor "
                f"of the size model (mean |e| {_f(np.mean(np.abs(floor)) if floor.size else np.nan)} cm with the true "
                "outline) drops to the pose model's own floor (mean |e| "
                f"{_f(np.nanmean(np.abs(pose_floor)) if pose_floor.size else np.nan, 4)} cm with the true outline), "
-               "so what remains is the edge localisation's effect on distance.")
+               "so what remains is the edge localisation's effect on distance, and the calibration's.")
     else:
         why = ("The same refined points, the target's full pose instead of Z = fx·S/l: a tilted or off-axis target "
                "biases the size model but not the pose model (a rectangle needs height_m for its pose).")
+    if has_cal:
+        rel = 100.0 * np.nanmean(cal_floor / (100.0 * z_m))
+        why += ("  The calibration's share: the true outline seen through the calibrated camera (undistorted with "
+                f"its model, the pose with its K) reads mean e {_f(np.nanmean(cal_floor), 4)} cm "
+                f"({rel:+.4f} % of Z; RMS {_f(np.sqrt(np.nanmean(cal_floor ** 2)), 4)} cm).  Every method's pose "
+                "errors carry it, so a method whose points sit on the other side of the outline cancels part of "
+                "it: *bias* is the mean signed pose error; *beyond cal.* (mean and RMSE) is each image's error "
+                "minus that share, what the method's points alone do.")
+    cols = ["method", "n", "MAE", "RMSE", "RMSE 95 % CI"] + (
+        ["bias", "bias beyond cal.", "RMSE beyond cal."] if has_cal else [])
     L += ["", "## Table 13b — pose-based ranging (cm): PnP on the fitted square corners, conic pose of the circle",
           "", why, "",
-          _table(["method", "n", "MAE", "RMSE", "RMSE 95 % CI", "median", "max", "size-model RMSE"],
+          _table(cols + ["median", "max", "size-model RMSE"],
                  [[_label(m), st[m]["pose"]["n"], _f(st[m]["pose"]["mae"]), _f(st[m]["pose"]["rmse"]),
-                   _ci(st[m]["pose"]["rmse_ci"]), _f(st[m]["pose"]["median"]), _f(st[m]["pose"]["max"]),
-                   _f(st[m]["rmse"])]
+                   _ci(st[m]["pose"]["rmse_ci"])]
+                  + ([_signed(st[m]["pose"]["bias"]), _signed(st[m]["pose"]["bias_beyond_calibration"]),
+                      _f(st[m]["pose"]["rmse_beyond_calibration"])]
+                     if has_cal else [])
+                  + [_f(st[m]["pose"]["median"]), _f(st[m]["pose"]["max"]), _f(st[m]["rmse"])]
                   for m in sorted(methods, key=lambda m: st[m]["pose"]["rmse"] if st[m]["pose"]["n"] else np.inf)])]
     labels = [f"{a}-{b}" for a, b in INTERVALS_CM]
     if reference is not None:  # photos may lie outside the study's 50-300 cm: show them too

@@ -31,6 +31,9 @@ class _Identity:
     def valid_mask(self):
         return None
 
+    def undistort_points(self, pts_px):
+        return np.asarray(pts_px, np.float64)
+
 
 def render_clean(target: str, distance_m: float, spp: int = 64, roll_deg: float = 3.0):
     """Radiance crop (float), its (x0, y0) offset and the ground truth of a fronto-parallel target."""
@@ -80,6 +83,7 @@ def test_dynamic_erf_4p_ranges_clean_renders_within_0p1_percent(target):
         pose_errs.append(100 * abs(row["error_pose_cm"]) / (100 * d))
         assert abs(row["model_floor_cm"]) < 1e-6  # fronto-parallel: the model itself is exact
         assert abs(row["pose_floor_cm"]) < 1e-3  # the pose fit on the true outline (10 um stand-off aside)
+        assert abs(row["pose_cal_floor_cm"] - row["pose_floor_cm"]) < 1e-9  # the calibration here is the truth
     print(target, dict(zip(DISTANCES_M, np.round(errs, 4))), dict(zip(DISTANCES_M, np.round(pose_errs, 4))))
     assert max(errs) <= 0.1, dict(zip(DISTANCES_M, errs))
     assert max(pose_errs) <= 0.1, dict(zip(DISTANCES_M, pose_errs))

@@ -55,3 +55,39 @@ def test_sampson_distance_is_the_geometric_distance_near_the_conic():
     for off in (-0.3, 0.2):
         d = sampson_distance(C, cx + (r + off) * np.cos(ang), cy + (r + off) * np.sin(ang))
         np.testing.assert_allclose(d, off, atol=1e-3)
+
+
+@pytest.mark.parametrize("target", ["T1", "T2"])
+def test_calibrated_pose_floor_is_the_calibrations_share(target):
+    """The true outline seen through the calibrated camera (``pose_cal_floor_cm``): with the true model it
+    is the true pose distance; with focal lengths (1 + eps) too long, a fronto-parallel target (off axis,
+    rolled) reads exactly (1 + eps) too far, since scaling every normalised image point by 1/(1 + eps) is
+    the image of the same target at (1 + eps) Z."""
+    from edgetruth.evaluate.ranging.images import calibrated_pose_distance, true_pose_distance
+    from edgetruth.evaluate.ranging.undistort import Undistorter
+    from edgetruth.render.optics.camera import load_camera
+    from edgetruth.render.scene.ground_truth import target_ground_truth
+
+    cam = load_camera()  # the study camera, with its distortion
+    size = (cam.width_px, cam.height_px)
+    gt = target_ground_truth(cam, Pose(1.7, 0.12, -0.06, 0.0, 0.0, 10.0), target, 0.13)
+    gt["camera"] = cam.ground_truth()
+    dist = np.asarray(gt["camera"]["dist_coeffs_opencv"], float)
+    K = np.asarray(gt["camera"]["K"], float)
+    z_true = true_pose_distance(gt)
+    assert z_true == pytest.approx(1.7, rel=1e-5)
+    assert calibrated_pose_distance(gt, Undistorter(K, dist, size), K) == pytest.approx(z_true, rel=1e-9)
+    eps = 1e-3
+    K_long = K.copy()
+    K_long[0, 0] *= 1 + eps
+    K_long[1, 1] *= 1 + eps
+    z = calibrated_pose_distance(gt, Undistorter(K_long, dist, size), K_long)
+    # the distortion model is applied to the normalised coordinates of K_long: the outline's distorted
+    # image is undistorted slightly wrong, so exact only to the distortion's change over eps of the field
+    assert z / z_true - 1 == pytest.approx(eps, rel=5e-3)
+    flat = Undistorter(K_long, np.zeros(5), size)
+    gt_flat = target_ground_truth(load_camera().ideal_optics(), Pose(1.7, 0.12, -0.06, 0.0, 0.0, 10.0), target, 0.13)
+    gt_flat["camera"] = cam.ground_truth()
+    gt_flat["outline"]["distorted_px"] = gt_flat["outline"]["undistorted_px"]
+    z_flat = calibrated_pose_distance(gt_flat, flat, K_long)
+    assert z_flat / true_pose_distance(gt_flat) - 1 == pytest.approx(eps, rel=1e-6)

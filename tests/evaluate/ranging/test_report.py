@@ -57,3 +57,22 @@ def test_pairing_keys_on_spec_and_image():
     b = [{"spec": "s1", "image": "0000_T1", "status": "ok", "error_cm": 2.0}]
     ea, eb = rr.paired_errors(a, b)
     assert ea.tolist() == [1.0] and eb.tolist() == [2.0]
+
+
+def test_pose_bias_is_split_into_the_calibrations_share_and_the_points():
+    """A method's pose errors = the calibration's share (the true outline through the calibrated camera,
+    ``pose_cal_floor_cm``) + what its points add: the stats give the mean and RMSE of the difference per
+    image, exactly; rows without the share (photos) give NaN."""
+    rng = np.random.default_rng(3)
+    cal = rng.normal(0.1, 0.02, 40)  # cm, the calibration's share per image
+    pts = rng.normal(-0.03, 0.01, 40)  # cm, what the points add
+    rows = [{"image": f"{i:04d}", "status": "ok", "error_cm": 0.5, "rel_error_pct": 0.1, "size_error_px": 0.0,
+             "error_pose_cm": float(c + p), "pose_cal_floor_cm": float(c)} for i, (c, p) in enumerate(zip(cal, pts))]
+    s = rr.method_stats(rows)["pose"]
+    assert s["bias"] == np.mean(cal + pts)
+    assert abs(s["bias_beyond_calibration"] - np.mean(pts)) < 1e-12
+    assert abs(s["rmse_beyond_calibration"] - np.sqrt(np.mean(pts ** 2))) < 1e-12
+    for r in rows:
+        r["pose_cal_floor_cm"] = float("nan")
+    s = rr.method_stats(rows)["pose"]
+    assert np.isnan(s["bias_beyond_calibration"]) and np.isnan(s["rmse_beyond_calibration"])
