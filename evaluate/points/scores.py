@@ -64,6 +64,9 @@ class PointScores:
     optical_offset: np.ndarray | None = None  # (N,) optical edge's centroid offset at the candidate (px)
     optical_offset_50: np.ndarray | None = None  # (N,) its 50 % level
     bounds: dict = field(default_factory=dict)  # label -> (N,) exact per-point bound over its footprint (px)
+    # label -> (x, y, nx, ny) of the refined points in image coordinates; transient: the ranging reads them
+    # (its raw-image pose) and empties the dict before the result leaves the worker; never stored
+    points: dict = field(default_factory=dict)
 
 
 def candidate_optical_offsets(gt: dict, truth, x, y) -> tuple[np.ndarray, np.ndarray]:
@@ -184,6 +187,7 @@ def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict |
                 kw = {**camera_options(gt, sub.x + x0, sub.y + y0), **kw}
             pts = locate.refine(tc.crop, sub, mid, **kw)
             err = truth.signed_distance(pts.x + x0, pts.y + y0)
+            out.points[label] = (pts.x + x0, pts.y + y0, pts.nx, pts.ny)
             conv = np.asarray(pts.converged, bool)
             if "window" in pts.extras and mid.startswith("dynamic"):
                 out.windows[label] = np.asarray(pts.extras["window"], np.int8)

@@ -153,6 +153,45 @@ def calibrated_pose_distance(gt: dict, undistorter, K) -> float:
     return pose_distance("circle", size_m, K, x=pts[:, 0], y=pts[:, 1])
 
 
+def polyline_pose_distance(shape: str, size_m: float, points_px, undistorter, K) -> float:
+    """The pose-based estimate from a dense closed outline polyline of the raw (distorted) image, through
+    the ranging's own size fits: undistorted with ``undistorter``'s model, the pose with ``K``."""
+    from edgetruth.render.optics.optical_edge import outward_normals
+
+    u = undistorter.undistort_points(np.asarray(points_px, float))
+    n = outward_normals(u, np.roll(u, -1, axis=0) - np.roll(u, 1, axis=0))
+    K = np.asarray(K, float)
+    return size_of(shape, u[:, 0], u[:, 1], n[:, 0], n[:, 1], K[0, 0], K[1, 1], K[1, 2], K=K,
+                   size_m=size_m).get("z_pose_m", float("nan"))
+
+
+def optics_pose_distance(gt: dict) -> float:
+    """The pose-based estimate on the OPTICAL edge (the outline moved by the displacement the lens makes,
+    ``outline.optical_edge``, its centroid) through the true camera: its error is the optics' share of
+    every method's pose error.  NaN without an optical edge in the truth."""
+    from edgetruth.render.optics.optical_edge import OpticalOutline
+    from edgetruth.evaluate.ranging.undistort import from_truth
+
+    if not gt.get("outline", {}).get("optical_edge") or "polyline_distorted_px" not in gt["outline"]:
+        return float("nan")
+    poly = OpticalOutline.from_ground_truth(gt).polyline("centroid")
+    return polyline_pose_distance(gt["target"]["shape"], float(gt["target"]["size_m"]), poly, from_truth(gt),
+                                  gt["camera"]["K"])
+
+
+def raw_pose_distance(shape: str, size_m: float, x, y, nx, ny, undistorter, K) -> float:
+    """The pose-based estimate from points refined on the RAW image: the points undistorted (not the
+    image resampled), then the ranging's size fits and pose.  Beside the ranging's own estimate (points
+    refined on the undistorted image) it isolates what the image's resampling does to a method."""
+    x, y, nx, ny = (np.asarray(a, float) for a in (x, y, nx, ny))
+    ok = np.isfinite(x) & np.isfinite(y)
+    u = undistorter.undistort_points(np.column_stack([x[ok], y[ok]]))
+    K = np.asarray(K, float)
+    # undistortion is locally a near-identity linear map: the raw normals still tell the sides apart
+    return size_of(shape, u[:, 0], u[:, 1], nx[ok], ny[ok], K[0, 0], K[1, 1], K[1, 2], K=K,
+                   size_m=size_m).get("z_pose_m", float("nan"))
+
+
 def true_size_px(gt: dict) -> float:
     """The ranging model's l evaluated on the TRUE undistorted outline (truth, for the model floor)."""
     pts = np.asarray(gt["outline"]["undistorted_px"])
@@ -198,6 +237,10 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
         base["pose_cal_floor_cm"] = 100.0 * (calibrated_pose_distance(gt, undistorter, cal.K) - z_true)
     except InputError:
         base["pose_cal_floor_cm"] = float("nan")
+    try:
+        base["pose_optics_floor_cm"] = 100.0 * (optics_pose_distance(gt) - z_true)
+    except InputError:
+        base["pose_optics_floor_cm"] = float("nan")
     return range_undistorted(undistorter(image), undistorter.valid_mask(), shape, size_m, z_true, cal, methods, base,
                              keep_points=keep_points, name=name, options=options, l_true_px=floor_l)
 
@@ -255,8 +298,8 @@ def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m
 ROW_FIELDS = ("dataset", "image", "spec", "group", "slot", "levels", "off_base", "target", "shape", "true_distance_m",
               "interval", "method", "status",
               "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px", "size_seed_px", "size_error_px",
-              "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm", "pose_cal_floor_cm", "n_points", "n_used",
-              "fit_rms_px", "converged_frac", "time_s")
+              "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm", "pose_cal_floor_cm", "pose_optics_floor_cm",
+              "error_pose_raw_cm", "n_points", "n_used", "fit_rms_px", "converged_frac", "time_s")
 
 
 def write_rows(path: Path, rows: list[dict]) -> None:
@@ -277,7 +320,7 @@ def read_rows(path: Path) -> list[dict]:
         for r in csv.DictReader(fh):
             for k in ("true_distance_m", "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px",
                       "size_seed_px", "size_error_px", "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm",
-                      "pose_cal_floor_cm", "fit_rms_px", "converged_frac", "time_s"):
+                      "pose_cal_floor_cm", "pose_optics_floor_cm", "error_pose_raw_cm", "fit_rms_px", "converged_frac", "time_s"):
                 if k in r:
                     r[k] = float(r[k]) if r[k] not in ("", None) else float("nan")
             out.append(r)
@@ -333,7 +376,28 @@ def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: b
             r.scores = score_image(image, gt, methods, options, radiance=s.radiance)
         except InputError as exc:  # the raw image's target finding failed: the image has no points
             r.record["points_error"] = str(exc)
+        else:
+            add_raw_pose(r, gt, cal, _undistorter(cal))
     return r
+
+
+def add_raw_pose(r: ImageResult, gt: dict, cal, undistorter) -> None:
+    """Each row's ``error_pose_raw_cm``: the pose from the method's points refined on the raw image (the
+    scored candidates: on the target's boundary, clear of its corners), undistorted as points.  The
+    refined points then leave the result (they are not stored)."""
+    pts = r.scores.points
+    r.scores.points = {}
+    shape, size_m, z = gt["target"]["shape"], float(gt["target"]["size_m"]), float(gt["true_distance_m"])
+    if shape not in ("square", "circle"):
+        return
+    for row in r.rows:
+        p = pts.get(row["method"])
+        if p is None or row.get("status") != "ok":
+            continue
+        try:
+            row["error_pose_raw_cm"] = 100.0 * (raw_pose_distance(shape, size_m, *p, undistorter, cal.K) - z)
+        except InputError:
+            row["error_pose_raw_cm"] = float("nan")
 
 
 #: the per-image fields of ``render_points.npz``'s records

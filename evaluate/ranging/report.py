@@ -38,6 +38,33 @@ def _options_line(methods) -> str:
     return options_line(methods)
 
 
+def pose_shares_table(st: dict, methods) -> list[str]:
+    """Table 13c: each method's mean pose error split into calibration, optics, resampling and its points
+    (``pose_bias_shares``); nothing where no row has the shares (photos)."""
+    have = [m for m in methods if st[m]["pose"].get("n_shares")]
+    if not have:
+        return []
+    p0 = st[have[0]]["pose"]
+    body = []
+    for m in sorted(have, key=lambda m: st[m]["pose"]["rmse_points"]):
+        p = st[m]["pose"]
+        total = p["calibration"] + p["optics"] + p["resampling"] + p["points"]
+        body.append([_label(m), p["n_shares"], _signed(total), _signed(p["resampling"]), _signed(p["points"]),
+                     _f(p["rmse_raw"]), _f(p["rmse_points"])])
+    return ["", "## Table 13c — where the pose bias comes from (cm, mean signed error)", "",
+            "Each image's pose error, split with the truth.  *calibration*: the true outline seen through the "
+            "calibrated camera (undistorted with its model, the pose with its K): "
+            f"{_signed(p0['calibration'], 4)} cm on these images, the same for every method.  *optics*: the optical "
+            "edge (the outline moved by the displacement the lens makes: outward nearer than focus, inward beyond) "
+            f"through the true camera: {_signed(p0['optics'], 4)} cm.  *resampling*: the method's pose on the "
+            "undistorted image (the ranging's) minus its pose on the raw image with the points undistorted instead "
+            "(the scored candidates: on the boundary, clear of the corners).  *points*: the rest, what the "
+            "method's own points do.  bias = calibration + optics + resampling + points, row by row.  A method whose "
+            "points sit on the other side of the shared shares cancels them, so a low pose RMSE need not mean "
+            "accurate points: sorted by the RMSE of the points' part.", "",
+            _table(["method", "n", "bias", "resampling", "points", "RMSE raw image", "RMSE of points' part"], body)]
+
+
 def _signed(v, nd: int = 3) -> str:
     """A signed number (a bias), or an em dash when it is missing."""
     return "—" if v is None or not np.isfinite(v) else f"{v:+.{nd}f}"
@@ -62,17 +89,36 @@ def method_stats(rows) -> dict:
     s["size_bias_px"] = float(np.mean(sz)) if sz.size else float("nan")
     s["rmse_ci"] = rmse_ci(e) if e.size >= 5 else (float("nan"), float("nan"))
     ep = np.array([r.get("error_pose_cm", np.nan) for r in ok], float)
-    cal = np.array([r.get("pose_cal_floor_cm", np.nan) for r in ok], float)
-    both = np.isfinite(ep) & np.isfinite(cal)
-    ep_all, ep = ep, ep[np.isfinite(ep)]
-    s["pose"] = summary(ep)
-    s["pose"]["rmse_ci"] = rmse_ci(ep) if ep.size >= 5 else (float("nan"), float("nan"))
-    # signed: the pose error's mean, and its mean beyond the calibration's share (the true outline through
-    # the calibrated camera), i.e. what the method's points add
-    s["pose"]["bias"] = float(ep.mean()) if ep.size else float("nan")
-    s["pose"]["bias_beyond_calibration"] = float(np.mean(ep_all[both] - cal[both])) if both.any() else float("nan")
-    s["pose"]["rmse_beyond_calibration"] = rmse(ep_all[both] - cal[both]) if both.any() else float("nan")
+    s["pose"] = summary(ep[np.isfinite(ep)])
+    s["pose"]["rmse_ci"] = rmse_ci(ep[np.isfinite(ep)]) if np.isfinite(ep).sum() >= 5 else (float("nan"), float("nan"))
+    s["pose"].update(pose_bias_shares(ok))
     return s
+
+
+def pose_bias_shares(rows) -> dict:
+    """A method's mean signed pose error (cm) and where it comes from, per image then averaged over the
+    images that have every share (renders; photos have none):
+    ``calibration`` (the true outline through the calibrated camera) + ``optics`` (the optical edge through
+    the true camera) + ``resampling`` (refined on the undistorted image minus refined on the raw image, the
+    points undistorted) + ``points`` (the rest: the raw-image pose beyond calibration and optics) = the mean
+    error on those images, exactly.  ``rmse_raw``: the raw-image pose's RMSE; ``rmse_points``: the RMSE of
+    its part beyond calibration and optics."""
+    def col(k):
+        return np.array([r.get(k, np.nan) for r in rows], float)
+
+    ep, raw = col("error_pose_cm"), col("error_pose_raw_cm")
+    cal, opt = col("pose_cal_floor_cm"), col("pose_optics_floor_cm")
+    fin = np.isfinite(ep)
+    nan = float("nan")
+    out = {"bias": float(ep[fin].mean()) if fin.any() else nan}
+    every = fin & np.isfinite(raw) & np.isfinite(cal) & np.isfinite(opt)
+    if not every.any():
+        return {**out, "n_shares": 0, "calibration": nan, "optics": nan, "resampling": nan, "points": nan,
+                "rmse_raw": nan, "rmse_points": nan}
+    e, rw, c, o = ep[every], raw[every], cal[every], opt[every]
+    return {**out, "n_shares": int(every.sum()), "calibration": float(c.mean()), "optics": float(o.mean()),
+            "resampling": float(np.mean(e - rw)), "points": float(np.mean(rw - c - o)), "rmse_raw": rmse(rw),
+            "rmse_points": rmse(rw - c - o)}
 
 
 def paired_errors(rows_a, rows_b, key: str = "error_cm"):
@@ -497,40 +543,26 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
                    _f(st[m]["median"]), _f(st[m]["iqr"]), _f(st[m]["max"]), _f(st[m]["mean_rel_pct"]), st[m]["n_failed"],
                    _f(st[m]["size_rmse_px"]), _f(st[m]["size_bias_px"], 3),
                    f"{SEED_MAE_CM[m]:.2f}/{SEED_RMSE_CM[m]:.2f}" if m in SEED_MAE_CM else ""] for m in order])]
-    first = [r for r in rows if r["method"] == methods[0]]
-    pose_floor = np.array([r.get("pose_floor_cm", np.nan) for r in first], float)
-    cal_floor = np.array([r.get("pose_cal_floor_cm", np.nan) for r in first], float)
-    z_m = np.array([r.get("true_distance_m", np.nan) for r in first], float)
-    has_cal = bool(np.isfinite(cal_floor).any())
+    pose_floor = np.array([r.get("pose_floor_cm", np.nan) for r in rows if r["method"] == methods[0]], float)
     if reference is None:
         why = ("The same refined points, the target's full pose instead of Z = fx·S/l: the tilt and off-axis floor "
                f"of the size model (mean |e| {_f(np.mean(np.abs(floor)) if floor.size else np.nan)} cm with the true "
                "outline) drops to the pose model's own floor (mean |e| "
                f"{_f(np.nanmean(np.abs(pose_floor)) if pose_floor.size else np.nan, 4)} cm with the true outline), "
-               "so what remains is the edge localisation's effect on distance, and the calibration's.")
+               "so what remains is the edge localisation's effect on distance, and the calibration's (Table 13c).  "
+               "bias: the mean signed error.")
     else:
         why = ("The same refined points, the target's full pose instead of Z = fx·S/l: a tilted or off-axis target "
-               "biases the size model but not the pose model (a rectangle needs height_m for its pose).")
-    if has_cal:
-        rel = 100.0 * np.nanmean(cal_floor / (100.0 * z_m))
-        why += ("  The calibration's share: the true outline seen through the calibrated camera (undistorted with "
-                f"its model, the pose with its K) reads mean e {_f(np.nanmean(cal_floor), 4)} cm "
-                f"({rel:+.4f} % of Z; RMS {_f(np.sqrt(np.nanmean(cal_floor ** 2)), 4)} cm).  Every method's pose "
-                "errors carry it, so a method whose points sit on the other side of the outline cancels part of "
-                "it: *bias* is the mean signed pose error; *beyond cal.* (mean and RMSE) is each image's error "
-                "minus that share, what the method's points alone do.")
-    cols = ["method", "n", "MAE", "RMSE", "RMSE 95 % CI"] + (
-        ["bias", "bias beyond cal.", "RMSE beyond cal."] if has_cal else [])
+               "biases the size model but not the pose model (a rectangle needs height_m for its pose).  bias: the "
+               "mean signed error.")
+    by_pose = sorted(methods, key=lambda m: st[m]["pose"]["rmse"] if st[m]["pose"]["n"] else np.inf)
     L += ["", "## Table 13b — pose-based ranging (cm): PnP on the fitted square corners, conic pose of the circle",
           "", why, "",
-          _table(cols + ["median", "max", "size-model RMSE"],
+          _table(["method", "n", "MAE", "RMSE", "RMSE 95 % CI", "bias", "median", "max", "size-model RMSE"],
                  [[_label(m), st[m]["pose"]["n"], _f(st[m]["pose"]["mae"]), _f(st[m]["pose"]["rmse"]),
-                   _ci(st[m]["pose"]["rmse_ci"])]
-                  + ([_signed(st[m]["pose"]["bias"]), _signed(st[m]["pose"]["bias_beyond_calibration"]),
-                      _f(st[m]["pose"]["rmse_beyond_calibration"])]
-                     if has_cal else [])
-                  + [_f(st[m]["pose"]["median"]), _f(st[m]["pose"]["max"]), _f(st[m]["rmse"])]
-                  for m in sorted(methods, key=lambda m: st[m]["pose"]["rmse"] if st[m]["pose"]["n"] else np.inf)])]
+                   _ci(st[m]["pose"]["rmse_ci"]), _signed(st[m]["pose"]["bias"]), _f(st[m]["pose"]["median"]),
+                   _f(st[m]["pose"]["max"]), _f(st[m]["rmse"])] for m in by_pose])]
+    L += pose_shares_table(st, by_pose)
     labels = [f"{a}-{b}" for a, b in INTERVALS_CM]
     if reference is not None:  # photos may lie outside the study's 50-300 cm: show them too
         labels = ["<50"] + labels + [">300"]

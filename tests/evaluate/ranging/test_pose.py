@@ -91,3 +91,47 @@ def test_calibrated_pose_floor_is_the_calibrations_share(target):
     gt_flat["outline"]["distorted_px"] = gt_flat["outline"]["undistorted_px"]
     z_flat = calibrated_pose_distance(gt_flat, flat, K_long)
     assert z_flat / true_pose_distance(gt_flat) - 1 == pytest.approx(eps, rel=1e-6)
+
+
+def test_optics_share_reads_the_optical_edge_through_the_true_camera():
+    """``optics_pose_distance``: with no displacement it is the true distance; with a uniform outward
+    displacement d (px) on a fronto-parallel square of side l px the target reads larger, Z (1 - 2 d / l)
+    to first order; without an optical edge in the truth it is NaN."""
+    from edgetruth.evaluate.ranging.images import optics_pose_distance, true_pose_distance
+    from edgetruth.render.optics.camera import load_camera
+    from edgetruth.render.scene.ground_truth import target_ground_truth
+
+    cam = load_camera()
+    gt = target_ground_truth(cam, Pose(1.2, 0.05, 0.03, 0.0, 0.0, 4.0), "T1", 0.13)
+    gt["camera"] = cam.ground_truth()
+    n = len(gt["outline"]["polyline_distorted_px"])
+    gt["outline"]["optical_edge"] = {"offset_px": [0.0] * n, "offset_50_px": [0.0] * n}
+    z_true = true_pose_distance(gt)  # the target's face: 10 um in front of the board
+    assert optics_pose_distance(gt) == pytest.approx(z_true, rel=1e-8)
+    d = 0.05
+    gt["outline"]["optical_edge"] = {"offset_px": [d] * n, "offset_50_px": [d] * n}
+    l_px = cam.K[0, 0] * 0.13 / 1.2
+    assert optics_pose_distance(gt) / z_true - 1 == pytest.approx(-2 * d / l_px, rel=0.03)
+    del gt["outline"]["optical_edge"]
+    assert np.isnan(optics_pose_distance(gt))
+
+
+def test_raw_pose_of_exact_points_is_the_calibrated_floor():
+    """``raw_pose_distance`` on points exactly on the raw image's outline, with their outward normals, is
+    the pose of the true outline through that camera (the calibration floor), through the size fits."""
+    from edgetruth.evaluate.ranging.images import calibrated_pose_distance, raw_pose_distance
+    from edgetruth.evaluate.ranging.undistort import Undistorter
+    from edgetruth.render.optics.camera import load_camera
+    from edgetruth.render.optics.optical_edge import outward_normals
+    from edgetruth.render.scene.ground_truth import target_ground_truth
+
+    cam = load_camera()
+    gt = target_ground_truth(cam, Pose(2.1, -0.1, 0.04, 2.0, -1.0, 7.0), "T1", 0.13)
+    gt["camera"] = cam.ground_truth()
+    K = np.asarray(gt["camera"]["K"], float)
+    K_cal = K * [[1.0004, 1, 1], [1, 1.0004, 1], [1, 1, 1]]
+    und = Undistorter(K_cal, np.asarray(gt["camera"]["dist_coeffs_opencv"], float), (cam.width_px, cam.height_px))
+    p = np.asarray(gt["outline"]["polyline_distorted_px"], float)
+    nrm = outward_normals(p, np.roll(p, -1, axis=0) - np.roll(p, 1, axis=0))
+    z_raw = raw_pose_distance("square", 0.13, p[:, 0], p[:, 1], nrm[:, 0], nrm[:, 1], und, K_cal)
+    assert z_raw == pytest.approx(calibrated_pose_distance(gt, und, K_cal), rel=1e-6)

@@ -59,20 +59,27 @@ def test_pairing_keys_on_spec_and_image():
     assert ea.tolist() == [1.0] and eb.tolist() == [2.0]
 
 
-def test_pose_bias_is_split_into_the_calibrations_share_and_the_points():
-    """A method's pose errors = the calibration's share (the true outline through the calibrated camera,
-    ``pose_cal_floor_cm``) + what its points add: the stats give the mean and RMSE of the difference per
-    image, exactly; rows without the share (photos) give NaN."""
+def test_pose_bias_is_split_into_its_shares_exactly():
+    """A method's pose errors = calibration + optics (per image, from the truth) + resampling (ranging pose
+    minus raw-image pose) + its points (the rest): each share's mean comes back exactly, and the four add up
+    to the bias; rows without the shares (photos) give none and no Table 13c."""
     rng = np.random.default_rng(3)
-    cal = rng.normal(0.1, 0.02, 40)  # cm, the calibration's share per image
-    pts = rng.normal(-0.03, 0.01, 40)  # cm, what the points add
-    rows = [{"image": f"{i:04d}", "status": "ok", "error_cm": 0.5, "rel_error_pct": 0.1, "size_error_px": 0.0,
-             "error_pose_cm": float(c + p), "pose_cal_floor_cm": float(c)} for i, (c, p) in enumerate(zip(cal, pts))]
+    cal, opt, res, pts = (rng.normal(mu, 0.01, 40) for mu in (0.1, 0.02, 0.015, -0.03))
+    rows = [{"image": f"{i:04d}", "method": "erf4p_fixed11", "status": "ok", "error_cm": 0.5, "rel_error_pct": 0.1,
+             "size_error_px": 0.0, "error_pose_cm": float(c + o + r + p), "error_pose_raw_cm": float(c + o + p),
+             "pose_cal_floor_cm": float(c), "pose_optics_floor_cm": float(o)}
+            for i, (c, o, r, p) in enumerate(zip(cal, opt, res, pts))]
     s = rr.method_stats(rows)["pose"]
-    assert s["bias"] == np.mean(cal + pts)
-    assert abs(s["bias_beyond_calibration"] - np.mean(pts)) < 1e-12
-    assert abs(s["rmse_beyond_calibration"] - np.sqrt(np.mean(pts ** 2))) < 1e-12
+    assert s["n_shares"] == 40
+    for key, want in (("calibration", cal), ("optics", opt), ("resampling", res), ("points", pts)):
+        assert abs(s[key] - np.mean(want)) < 1e-12, key
+    assert abs(s["calibration"] + s["optics"] + s["resampling"] + s["points"] - s["bias"]) < 1e-12
+    assert abs(s["rmse_points"] - np.sqrt(np.mean(pts ** 2))) < 1e-12
+    assert abs(s["rmse_raw"] - np.sqrt(np.mean((cal + opt + pts) ** 2))) < 1e-12
+    table = "\n".join(rr.pose_shares_table({"erf4p_fixed11": rr.method_stats(rows)}, ["erf4p_fixed11"]))
+    assert "Table 13c" in table and f"{np.mean(res):+.3f}" in table and f"{np.mean(pts):+.3f}" in table
     for r in rows:
-        r["pose_cal_floor_cm"] = float("nan")
+        r["error_pose_raw_cm"] = float("nan")
     s = rr.method_stats(rows)["pose"]
-    assert np.isnan(s["bias_beyond_calibration"]) and np.isnan(s["rmse_beyond_calibration"])
+    assert s["n_shares"] == 0 and np.isnan(s["points"]) and abs(s["bias"] - np.mean(cal + opt + res + pts)) < 1e-12
+    assert rr.pose_shares_table({"erf4p_fixed11": rr.method_stats(rows)}, ["erf4p_fixed11"]) == []
