@@ -39,6 +39,14 @@ def add_backend_options(p: argparse.ArgumentParser, workers_help: str) -> None:
                         "else a local Ray instance)")
 
 
+def add_undistort_option(p: argparse.ArgumentParser) -> None:
+    """Where the ranging undistorts (``edgetruth.evaluate.ranging.images.UNDISTORT_MODES``)."""
+    p.add_argument("--undistort", choices=("image", "points"), default="image",
+                   help="image (default: the seed's pipeline): remap the image, then every method refines it; "
+                        "points: every method refines the raw image and its points are undistorted, so no "
+                        "resampling moves them (the report's Table 13c says what resampling does)")
+
+
 #: how a colour photo becomes the gray image every method reads (edgetruth.image_io.GRAY_RULES)
 CHANNEL_CHOICES = ("luma", "r", "g", "b")
 

@@ -221,8 +221,9 @@ def design_fields(gt: dict) -> dict:
 
 
 def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[str], keep_points: bool = False,
-                  name: str = "image", options: dict | None = None) -> ImageResult:
-    """Run steps 1-5 on one image; ``gt`` supplies only the target's shape/size (and the scoring truth)."""
+                  name: str = "image", options: dict | None = None, undistort: str = "image") -> ImageResult:
+    """Run steps 1-5 on one image; ``gt`` supplies only the target's shape/size (and the scoring truth).
+    ``undistort``: "image" (remap it, then refine) or "points" (refine the raw image, undistort the points)."""
     shape = gt["target"]["shape"]
     size_m = float(gt["target"]["size_m"])
     z_true = float(gt["true_distance_m"])
@@ -241,6 +242,9 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
         base["pose_optics_floor_cm"] = 100.0 * (optics_pose_distance(gt) - z_true)
     except InputError:
         base["pose_optics_floor_cm"] = float("nan")
+    if check_undistort(undistort) == "points":
+        return range_undistorted(image, None, shape, size_m, z_true, cal, methods, base, keep_points=keep_points,
+                                 name=name, options=options, l_true_px=floor_l, points_undistorter=undistorter)
     return range_undistorted(undistorter(image), undistorter.valid_mask(), shape, size_m, z_true, cal, methods, base,
                              keep_points=keep_points, name=name, options=options, l_true_px=floor_l)
 
@@ -248,11 +252,13 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
 def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m: float, cal, methods: list[str],
                       base: dict, keep_points: bool = False, name: str = "image", options: dict | None = None,
                       l_true_px: float = float("nan"), polarity: str = "dark",
-                      height_m: float | None = None) -> ImageResult:
+                      height_m: float | None = None, points_undistorter=None) -> ImageResult:
     """Steps 2-5 on an undistorted image: find the target (``polarity``: see target_finding), refine
     its boundary with every method, size it and range it; errors against ``z_ref_m`` (the truth of a
     render, or a photo's reference distance), size errors against ``l_true_px`` when it is known.
-    ``base``: the fields every row of this image starts from."""
+    ``base``: the fields every row of this image starts from.  With ``points_undistorter`` the image is
+    the RAW one (``valid`` None): every method refines it, and its points are undistorted before the size
+    and pose fits (``Undistorter.undistort_points``), so no resampling touches the pixels."""
     from edgetruth import locate
     from edgetruth.evaluate.method_order import resolve
     from edgetruth.evaluate.ranging.target import target_candidates
@@ -280,8 +286,13 @@ def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m
         try:
             mid, kw = resolve(m, options)
             pts = locate.refine(tc.crop, tc.candidates, mid, **kw)
-            x, y = pts.x + x0, pts.y + y0
-            s = size_of(shape, x, y, pts.nx, pts.ny, fx, fy, cy, K=cal.K, size_m=size_m, height_m=height_m)
+            x, y, nx, ny = pts.x + x0, pts.y + y0, pts.nx, pts.ny
+            if points_undistorter is not None:
+                ok = np.isfinite(x) & np.isfinite(y)
+                u = points_undistorter.undistort_points(np.column_stack([x[ok], y[ok]]))
+                # undistortion is locally a near-identity linear map: the raw normals still tell the sides apart
+                x, y, nx, ny = u[:, 0], u[:, 1], np.asarray(nx)[ok], np.asarray(ny)[ok]
+            s = size_of(shape, x, y, nx, ny, fx, fy, cy, K=cal.K, size_m=size_m, height_m=height_m)
             z = distance_from_size(fx, size_m, s["size_px"])
             row.update(s, status="ok", converged_frac=float(np.mean(pts.converged)), time_s=pts.elapsed_s,
                        z_hat_m=z, error_cm=100.0 * (z - z_ref_m), rel_error_pct=100.0 * abs(z - z_ref_m) / z_ref_m,
@@ -293,6 +304,24 @@ def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m
                        rel_error_pct=float("nan"))
         res.rows.append(row)
     return res
+
+
+#: where the ranging undistorts: the image (bilinear remap, then every method refines it: the seed's pipeline)
+#: or the points (every method refines the raw image; its points are undistorted, cv2.undistortPoints)
+UNDISTORT_MODES = ("image", "points")
+#: the report's line for each ``--undistort`` mode
+UNDISTORT_LINES = {
+    "image": "the image, bilinear remap (edgetruth/evaluate/ranging/undistort.py), then every method refines it: the "
+             "seed's pipeline (Table 13c: what the resampling does)",
+    "points": "the points: every method refines the raw image, and its points are undistorted (cv2.undistortPoints) "
+              "before the size and pose fits",
+}
+
+
+def check_undistort(mode: str) -> str:
+    if mode not in UNDISTORT_MODES:
+        raise InputError(f"--undistort {mode!r}: choose one of {', '.join(UNDISTORT_MODES)}")
+    return mode
 
 
 ROW_FIELDS = ("dataset", "image", "spec", "group", "slot", "levels", "off_base", "target", "shape", "true_distance_m",
@@ -349,7 +378,7 @@ def ranging_methods(labels: list[str], options: dict | None = None) -> list[str]
 
 
 def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: bool, options: dict,
-                score_points: bool = True):
+                score_points: bool = True, undistort: str = "image"):
     """One task (a pure function of its arguments): range target image ``name`` of ``dataset`` with
     every method and score every method's points on the raw image against the exact outline
     (``edgetruth.evaluate.points.scores``); None for a checkerboard.  Runs in worker processes."""
@@ -368,7 +397,7 @@ def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: b
     # the size and pose rows read the undistorted (resampled) image, where a camera model's edge-spread
     # tables no longer describe the blur: methods that need them (patch_esf_fit) are scored per point only
     r = process_image(image, gt, cal, _undistorter(cal), ranging_methods(methods, options), keep_points,
-                      name=name, options=options)
+                      name=name, options=options, undistort=undistort)
     if r.rows:
         r.record = {k: r.rows[0].get(k, "") for k in POINT_RECORD_FIELDS}
     if score_points and not r.error:
@@ -412,8 +441,9 @@ def _range_task(i, *args):
 def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | None = None,
                 progress: bool = True, names: dict | None = None, figure_examples: int = 2,
                 options: dict | None = None, backend: str = "local", workers: int | None = 1,
-                address: str | None = None, score_points: bool = True) -> dict:
-    """Range every target image of ``datasets`` with every method; write ``ranging_rows.csv``.
+                address: str | None = None, score_points: bool = True, undistort: str = "image") -> dict:
+    """Range every target image of ``datasets`` with every method; write ``ranging_rows.csv``
+    (``undistort``: ``process_image``).
 
     Images are independent tasks on ``backend`` (in-process, local pool or Ray, with the caller's
     plug-in methods shipped to the workers); rows come back in dataset/index order whatever the
@@ -440,7 +470,9 @@ def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | N
         if len(keep) < figure_examples and shape not in shown:
             keep.add(k)
             shown.add(shape)
-    tasks = [(k, ds, n, cal, methods, k in keep, options or {}, score_points) for k, (ds, n, _) in enumerate(jobs)]
+    check_undistort(undistort)
+    tasks = [(k, ds, n, cal, methods, k in keep, options or {}, score_points, undistort)
+             for k, (ds, n, _) in enumerate(jobs)]
     results: dict = {}
     t0 = time.perf_counter()
     n_workers = 1 if workers is None else int(workers)

@@ -18,6 +18,7 @@ from edgetruth.errors import InputError
 from edgetruth.fileio import read_json, write_json
 from edgetruth.evaluate.run_dir import prepare_run_dir, utc_stamp
 
+
 STUDIES = {
     "quick": {"calibration": "quick", "targets": ["quick"], "thresholds": "thresholds_quick"},
     "full": {"calibration": "calibration", "targets": ["study"], "thresholds": "thresholds"},
@@ -232,7 +233,7 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
                       progress: bool = True, names: dict | None = None, backend: str = "local",
                       workers: int | None = 1, address: str | None = None, header: dict | None = None,
                       synthetic_report: Path | None = None, title: str = "evaluation report",
-                      camera_thresholds=None, windows_beside_full: bool = False) -> Path:
+                      camera_thresholds=None, windows_beside_full: bool = False, undistort: str = "image") -> Path:
     """Range every target image of ``datasets`` with every method, score every method's points
     against the exact outline, and write ``report.md`` into ``out``.  ``camera_thresholds``: a file
     of thresholds calibrated for the camera (``calibrate-thresholds --dataset``); the dynamic methods
@@ -240,7 +241,7 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
     methods' window shares beside the full study's (the quick run's report)."""
     from edgetruth import locate
     from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.ranging.images import run_ranging
+    from edgetruth.evaluate.ranging.images import UNDISTORT_LINES, run_ranging
     from edgetruth.evaluate.ranging.report import write_report
     from edgetruth.evaluate.threshold_calibration import check_disjoint
     from edgetruth.render.dataset.reader import open_dataset
@@ -255,10 +256,11 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
         methods = mo.ordered(list(methods or locate.METHODS) + [
             v for v in mo.variant_labels(options) if options[v]["method"] in (methods or locate.METHODS)])
     result = run_ranging(datasets, calibration, out, methods=methods, progress=progress, names=names,
-                         options=options, backend=backend, workers=workers, address=address)
+                         options=options, backend=backend, workers=workers, address=address, undistort=undistort)
     head = dict(header or {})
     head.setdefault("target images", len({(r.get("spec"), r["image"]) for r in result["rows"]}))
     head.setdefault("methods", len(result["methods"]))
+    head.setdefault("undistortion", UNDISTORT_LINES[undistort])
     head["entropy thresholds"] = f"2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']})"
     if camera_thresholds is not None:
         ct = mo.thresholds_in_use(camera_thresholds)
@@ -276,13 +278,14 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
 def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int | None = None,
                  calib_limit: int | None = None, methods=None, variant: str | None = None,
                  skip_synthetic: bool = False, progress: bool = True, thresholds=None,
-                 workers: int | None = None, camera_thresholds=None) -> tuple[Path, int]:
+                 workers: int | None = None, camera_thresholds=None, undistort: str = "image") -> tuple[Path, int]:
     """The whole study in one call (``edgetruth run``); returns (report path, exit code)."""
     from contextlib import nullcontext
 
     from edgetruth.backends import default_workers, numba_threads, worker_threads
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.calibration import calibrate_dataset
+    from edgetruth.evaluate.ranging.images import UNDISTORT_LINES, check_undistort
 
     from edgetruth.render.dataset.driver import RenderPool, check_variant_name, render_spec
     from edgetruth.render.dataset.spec import load_spec
@@ -298,6 +301,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     if camera_thresholds is not None:
         mo.thresholds_in_use(camera_thresholds)
     check_variant_name(variant)
+    check_undistort(undistort)
     plan = STUDIES[study]
     cal_spec = load_spec(plan["calibration"])
     target_specs = [load_spec(n) for n in plan["targets"]]
@@ -305,7 +309,8 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     out = prepare_run_dir(out or default_runs_dir() / utc_stamp(), "run",
                           {"study": study, "limit": limit, "calib_limit": calib_limit, "methods": methods,
                            "thresholds": str(thresholds) if thresholds else None,
-                           "camera_thresholds": str(camera_thresholds) if camera_thresholds else None})
+                           "camera_thresholds": str(camera_thresholds) if camera_thresholds else None,
+                           "undistort": undistort})
     workers = default_workers() if workers is None else workers
     t0 = time.perf_counter()
     timing: dict = {}
@@ -395,7 +400,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
                  for s, only in target_sets if s.name in plan["targets"]}
         header = {"study": study, "UTC": utc_stamp(), "specs": ", ".join(s.name for s, _ in target_sets),
                   "Mitsuba": "; ".join(variants) or "renders reused (already complete)",
-                  "interpolation for undistortion": "bilinear (see edgetruth/evaluate/ranging/undistort.py)"}
+                  "undistortion": UNDISTORT_LINES[undistort]}
         if reuse_line:
             header["render reuse"] = reuse_line
         header["timings so far (s)"] = ", ".join(f"{k} {v:.1f}" for k, v in timing.items())
@@ -415,7 +420,7 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
         report = evaluate_datasets(datasets, cal, out, methods=methods, thresholds=thresholds, progress=progress,
                                    names=names, workers=workers, header=header, synthetic_report=wait_synthetic,
                                    title=f"run report (study {study})", camera_thresholds=camera_thresholds,
-                                   windows_beside_full=study == "quick")
+                                   windows_beside_full=study == "quick", undistort=undistort)
         timing["ranging_s"] = time.perf_counter() - t
         console.say(f"run: report {report} ({time.perf_counter() - t0:.1f} s in all: "
                     + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + ")")

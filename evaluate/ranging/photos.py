@@ -209,22 +209,26 @@ def photo_base(r: PhotoRecord) -> dict:
 
 
 def range_photo(image: np.ndarray, record: PhotoRecord, cal, methods: list[str], keep_points: bool = False,
-                options: dict | None = None, undistorter=None) -> ImageResult:
-    """Undistort one photo (a 2-D array) with ``cal``, find its target and range it with every method."""
-    from edgetruth.evaluate.ranging.images import range_undistorted
+                options: dict | None = None, undistorter=None, undistort: str = "image") -> ImageResult:
+    """Undistort one photo (a 2-D array) with ``cal``, find its target and range it with every method;
+    ``undistort="points"``: refine the raw photo and undistort the points instead (``process_image``)."""
+    from edgetruth.evaluate.ranging.images import check_undistort, range_undistorted
     from edgetruth.evaluate.ranging.undistort import from_calibration
 
     und = undistorter or from_calibration(cal)
-    img = und(np.asarray(image, np.float64))
-    return range_undistorted(img, und.valid_mask(), record.shape, record.size_m, record.distance_cm / 100.0, cal,
-                             methods, photo_base(record), keep_points=keep_points, name=record.image,
-                             options=options, polarity=record.polarity, height_m=record.height_m)
+    raw = np.asarray(image, np.float64)
+    kw = dict(keep_points=keep_points, name=record.image, options=options, polarity=record.polarity,
+              height_m=record.height_m)
+    args = (record.shape, record.size_m, record.distance_cm / 100.0, cal, methods, photo_base(record))
+    if check_undistort(undistort) == "points":
+        return range_undistorted(raw, None, *args, points_undistorter=und, **kw)
+    return range_undistorted(und(raw), und.valid_mask(), *args, **kw)
 
 
 _undistorters: dict = {}
 
 
-def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options, channel):
+def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options, channel, undistort="image"):
     """One photo (a pure function of its arguments; runs in worker processes)."""
     from edgetruth.evaluate.ranging.undistort import from_calibration
     from edgetruth.image_io import read_gray
@@ -233,13 +237,13 @@ def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options,
     if key not in _undistorters:
         _undistorters[key] = from_calibration(cal)
     image = read_gray(record.path, channel=channel)
-    return k, range_photo(image, record, cal, methods, keep_points, options, _undistorters[key])
+    return k, range_photo(image, record, cal, methods, keep_points, options, _undistorters[key], undistort)
 
 
 def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir: str | Path | None = None,
                       methods: list[str] | None = None, options: dict | None = None, channel: str = "luma",
                       progress: bool = True, backend: str = "local", workers: int | None = 1,
-                      address: str | None = None, figure_examples: int = 3) -> dict:
+                      address: str | None = None, figure_examples: int = 3, undistort: str = "image") -> dict:
     """Range every photo with every method; write ``ranging_rows.csv`` and ``ranging_images.json``.
     Returns {"rows", "examples", "per_image", "methods"} (as ``ranging.run_ranging``)."""
     from edgetruth import console, locate
@@ -256,7 +260,7 @@ def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir
         if len(keep) < figure_examples and r.shape not in shown:
             keep.add(k)
             shown.add(r.shape)
-    tasks = [(k, r, cal, methods, k in keep, options or {}, channel) for k, r in enumerate(records)]
+    tasks = [(k, r, cal, methods, k in keep, options or {}, channel, undistort) for k, r in enumerate(records)]
     n_workers = min(1 if workers is None else int(workers), max(1, len(tasks)))
     init, initargs = plugins.backend_initializer(backend, n_workers, methods)
     results: dict = {}
@@ -315,7 +319,7 @@ def photo_section(per_image: list[dict]) -> list[str]:
 def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_dir: str | Path | None = None,
                     methods=None, thresholds=None, camera_thresholds=None, channel: str = "luma",
                     progress: bool = True, backend: str = "local", workers: int | None = 1,
-                    address: str | None = None, header: dict | None = None) -> Path:
+                    address: str | None = None, header: dict | None = None, undistort: str = "image") -> Path:
     """Range every photo of ``records`` with every method and write ``report.md`` into ``out``
     (Tables 13-17, paired tests and verdicts against the reference distances)."""
     from edgetruth import locate
@@ -329,9 +333,13 @@ def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_d
         methods = mo.ordered(list(methods or free) + [
             v for v in mo.variant_labels(options) if options[v]["method"] in (methods or free)])
     result = run_photo_ranging(records, calibration, out, photos_dir, methods=methods, options=options,
-                               channel=channel, progress=progress, backend=backend, workers=workers, address=address)
+                               channel=channel, progress=progress, backend=backend, workers=workers, address=address,
+                               undistort=undistort)
     head = dict(header or {})
     head.setdefault("photos", len(records))
+    from edgetruth.evaluate.ranging.images import UNDISTORT_LINES
+
+    head.setdefault("undistortion", UNDISTORT_LINES[undistort])
     head.setdefault("methods", len(result["methods"]))
     head["entropy thresholds"] = f"2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']})"
     if camera_thresholds is not None:

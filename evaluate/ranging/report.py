@@ -56,9 +56,10 @@ def pose_shares_table(st: dict, methods) -> list[str]:
             "calibrated camera (undistorted with its model, the pose with its K): "
             f"{_signed(p0['calibration'], 4)} cm on these images, the same for every method.  *optics*: the optical "
             "edge (the outline moved by the displacement the lens makes: outward nearer than focus, inward beyond) "
-            f"through the true camera: {_signed(p0['optics'], 4)} cm.  *resampling*: the method's pose on the "
-            "undistorted image (the ranging's) minus its pose on the raw image with the points undistorted instead "
-            "(the scored candidates: on the boundary, clear of the corners).  *points*: the rest, what the "
+            f"through the true camera: {_signed(p0['optics'], 4)} cm.  *resampling*: the ranging's pose minus the "
+            "method's pose from its points on the raw image, undistorted as points (the scored candidates: on the "
+            "boundary, clear of the corners): what remapping the image does (with `--undistort points` the ranging "
+            "reads the raw image too, and this is ~0).  *points*: the rest, what the "
             "method's own points do.  bias = calibration + optics + resampling + points, row by row.  A method whose "
             "points sit on the other side of the shared shares cancels them, so a low pose RMSE need not mean "
             "accurate points: sorted by the RMSE of the points' part.", "",

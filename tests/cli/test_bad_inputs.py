@@ -168,6 +168,8 @@ CASES += [
     ("study-negative", ["study", "synthetic", "--images-per-scenario", "-3", "-o", "{O}/s"], "must be at least 1"),
     ("study-method", ["study", "synthetic", "--methods", "nope", "-o", "{O}/s"], "unknown method"),
     ("study-which", ["study", "nosuch"], "invalid choice"),
+    ("run-undistort", ["run", "--undistort", "both", "-o", "{O}/r"], "invalid choice: 'both'"),
+    ("evaluate-undistort", ["evaluate", "{B}/adir", "--undistort", "pixels"], "invalid choice: 'pixels'"),
     ("calib-step-0", ["calibrate-thresholds", "--step", "0", "-o", "{O}/t.json"], "--step"),
     ("calib-step-big", ["calibrate-thresholds", "--step", "2", "-o", "{O}/t.json"], "--step"),
     ("calib-count-0", ["calibrate-thresholds", "--images-per-scenario", "0", "-o", "{O}/t.json"],

@@ -17,7 +17,7 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    from edgetruth.cli import (add_backend_options, add_image_options, add_plugin_option, add_progress_option,
+    from edgetruth.cli import (add_backend_options, add_undistort_option, add_image_options, add_plugin_option, add_progress_option,
                                methods_help)
 
     p = sub.add_parser("evaluate", help="rank every method on datasets you rendered (ranging + edge error report)",
@@ -40,6 +40,7 @@ def register(sub) -> None:
                         "from these): the dynamic methods also run with them, as '(camera τ)' rows")
     p.add_argument("-o", "--output", metavar="DIR", type=Path, default=None,
                    help="report directory (default ./runs/<UTC stamp>-evaluate)")
+    add_undistort_option(p)
     add_backend_options(p, "worker processes (default: the cores)")
     add_image_options(p)
     add_plugin_option(p)
@@ -102,14 +103,14 @@ def run(args: argparse.Namespace) -> int:
     out = prepare_run_dir(out, "evaluate", {"datasets": [str(d) for d in args.datasets],
                                             "calibration": args.calibration, "methods": methods,
                                             "thresholds": args.thresholds,
-                                            "camera_thresholds": args.camera_thresholds})
+                                            "camera_thresholds": args.camera_thresholds, "undistort": args.undistort})
     write_json(out / "calibration.json", cal.to_dict())
     header = {"datasets": ", ".join(f"{d} ({ds.spec_name})" for d, ds in zip(args.datasets, sets)),
               "calibration": source, "UTC": utc_stamp()}
     report = evaluate_datasets(args.datasets, cal, out, methods=methods, thresholds=args.thresholds,
                                progress=not args.no_progress, backend=args.backend,
                                workers=args.workers or default_workers(), address=args.address, header=header,
-                               camera_thresholds=args.camera_thresholds)
+                               camera_thresholds=args.camera_thresholds, undistort=args.undistort)
     console.say(f"evaluate: report {report}")
     return 0
 
@@ -148,7 +149,7 @@ def run_photos(args: argparse.Namespace, methods) -> int:
     out = prepare_run_dir(out, "evaluate", {"photos": str(args.photos), "distances": str(args.distances),
                                             "calibration": str(args.calibration), "methods": methods,
                                             "channel": args.channel, "thresholds": args.thresholds,
-                                            "camera_thresholds": args.camera_thresholds})
+                                            "camera_thresholds": args.camera_thresholds, "undistort": args.undistort})
     write_json(out / "calibration.json", cal.to_dict())
     header = {"photos": f"{args.photos} ({len(records)} in {args.distances.name}"
                         + (f"; {len(extra)} more image files there are not in the CSV and were not evaluated"
@@ -158,6 +159,7 @@ def run_photos(args: argparse.Namespace, methods) -> int:
     report = evaluate_photos(records, cal, out, args.photos, methods=methods, thresholds=args.thresholds,
                              camera_thresholds=args.camera_thresholds, channel=args.channel,
                              progress=not args.no_progress, backend=args.backend,
-                             workers=args.workers or default_workers(), address=args.address, header=header)
+                             workers=args.workers or default_workers(), address=args.address, header=header,
+                             undistort=args.undistort)
     console.say(f"evaluate: report {report}")
     return 0

@@ -19,7 +19,7 @@ from pathlib import Path
 
 
 def register(subparsers) -> None:
-    from edgetruth.cli import add_plugin_option, add_progress_option, methods_help, positive_int
+    from edgetruth.cli import add_plugin_option, add_undistort_option, add_progress_option, methods_help, positive_int
     from edgetruth.evaluate.ranging.main_job import STUDIES
 
     p = subparsers.add_parser(
@@ -42,6 +42,7 @@ def register(subparsers) -> None:
     p.add_argument("-j", "--workers", type=positive_int, default=None, metavar="N",
                    help="worker processes for the renders, the evaluation and the synthetic study (default: the cores)")
     p.add_argument("--skip-synthetic", action="store_true", help="do not run the synthetic study's quick preset")
+    add_undistort_option(p)
     add_plugin_option(p)
     add_progress_option(p)
     p.set_defaults(handler=run)
@@ -54,5 +55,5 @@ def run(args: argparse.Namespace) -> int:
     _, code = run_main_job(args.study, args.output, args.limit, args.calib_limit, method_list(args.methods),
                            args.variant, args.skip_synthetic, progress=not args.no_progress,
                            thresholds=args.thresholds, workers=args.workers,
-                           camera_thresholds=args.camera_thresholds)
+                           camera_thresholds=args.camera_thresholds, undistort=args.undistort)
     return code

@@ -87,3 +87,27 @@ def test_dynamic_erf_4p_ranges_clean_renders_within_0p1_percent(target):
     print(target, dict(zip(DISTANCES_M, np.round(errs, 4))), dict(zip(DISTANCES_M, np.round(pose_errs, 4))))
     assert max(errs) <= 0.1, dict(zip(DISTANCES_M, errs))
     assert max(pose_errs) <= 0.1, dict(zip(DISTANCES_M, pose_errs))
+
+
+def test_undistorting_the_points_equals_undistorting_the_image_when_the_model_is_identity():
+    """``--undistort points`` refines the raw image and undistorts the points; with an identity model the
+    raw image is the undistorted one, so every row is the same as ``--undistort image`` (the plumbing),
+    and a mode that is neither is one InputError."""
+    from edgetruth.errors import InputError
+    from edgetruth.evaluate.calibration import Calibration
+    from edgetruth.evaluate.ranging.images import process_image
+
+    img, (x0, y0), gt, cam = render_clean("T1", 1.5)
+    K = cam.K - np.array([[0, 0, x0], [0, 0, y0], [0, 0, 0]])
+    cal = Calibration(K=K, dist=np.zeros(5), image_size=(cam.width_px, cam.height_px), rms_px=0.0, n_views=0)
+    for k in ("distorted_px", "undistorted_px"):
+        gt["outline"][k] = (np.asarray(gt["outline"][k]) - [x0, y0]).tolist()
+    gt["camera"]["K"] = K.tolist()
+    methods = ["dynamic_erf_4p", "ser_cis", "canny_devernay"]
+    by_image = process_image(img, gt, cal, _Identity(), methods, undistort="image").rows
+    by_points = process_image(img, gt, cal, _Identity(), methods, undistort="points").rows
+    keys = ("status", "z_hat_m", "size_px", "z_pose_m", "n_used")
+    assert [[r[k] for k in keys] for r in by_points] == [[r[k] for k in keys] for r in by_image]
+    assert all(r["status"] == "ok" and abs(r["rel_error_pct"]) < 0.1 for r in by_points)
+    with pytest.raises(InputError, match="--undistort 'both'"):
+        process_image(img, gt, cal, _Identity(), methods, undistort="both")

@@ -260,3 +260,27 @@ def test_photos_or_datasets_exactly_one(photo_set, capsys, tmp_path, argv, words
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and words in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_undistorting_the_points_of_distortion_free_photos_changes_no_row(photo_set, evaluated):
+    """``--undistort points`` (refine the raw photo, undistort the points): with a distortion-free
+    calibration the remap is the identity, so every row but its time is the default's (to 1e-6: undistorting
+    a point normalises it with K and projects it back, exact only to rounding, which the circle's iterative
+    pose carries to ~1e-10 of the distance), and the report says which undistortion ran."""
+    out = photo_set[0] / "report_points"  # beside the default's: the rows' dataset paths match
+    assert main(_args(photo_set, out) + ["--undistort", "points"]) == 0
+    a, b = _rows(evaluated), _rows(out)
+    assert len(a) == len(b) > 0
+    for ra, rb in zip(a, b):
+        for k, va in ra.items():
+            if k == "time_s":
+                continue
+            try:
+                fa, fb = float(va), float(rb[k])
+            except ValueError:
+                assert va == rb[k], (ra["image"], ra["method"], k)
+                continue
+            # errors are differences (cm, px): 1e-6 absolute is ~1e-10 of a distance
+            assert fb == pytest.approx(fa, rel=1e-6, abs=1e-6, nan_ok=True), (ra["image"], ra["method"], k)
+    assert "every method refines the raw image" in (out / "report.md").read_text()
+    assert "bilinear remap" in (evaluated / "report.md").read_text()
