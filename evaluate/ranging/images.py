@@ -179,16 +179,22 @@ def optics_pose_distance(gt: dict) -> float:
                                   gt["camera"]["K"])
 
 
+def undistorted_points(x, y, nx, ny, undistorter):
+    """Refined points of the raw image -> (x, y, nx, ny) undistorted, the non-finite ones dropped.  The
+    normals stay as refined: undistortion is locally a near-identity linear map, so they still tell the
+    sides apart for the size fits."""
+    x, y, nx, ny = (np.asarray(a, float) for a in (x, y, nx, ny))
+    ok = np.isfinite(x) & np.isfinite(y)
+    u = undistorter.undistort_points(np.column_stack([x[ok], y[ok]]))
+    return u[:, 0], u[:, 1], nx[ok], ny[ok]
+
+
 def raw_pose_distance(shape: str, size_m: float, x, y, nx, ny, undistorter, K) -> float:
     """The pose-based estimate from points refined on the RAW image: the points undistorted (not the
     image resampled), then the ranging's size fits and pose.  Beside the ranging's own estimate (points
     refined on the undistorted image) it isolates what the image's resampling does to a method."""
-    x, y, nx, ny = (np.asarray(a, float) for a in (x, y, nx, ny))
-    ok = np.isfinite(x) & np.isfinite(y)
-    u = undistorter.undistort_points(np.column_stack([x[ok], y[ok]]))
     K = np.asarray(K, float)
-    # undistortion is locally a near-identity linear map: the raw normals still tell the sides apart
-    return size_of(shape, u[:, 0], u[:, 1], nx[ok], ny[ok], K[0, 0], K[1, 1], K[1, 2], K=K,
+    return size_of(shape, *undistorted_points(x, y, nx, ny, undistorter), K[0, 0], K[1, 1], K[1, 2], K=K,
                    size_m=size_m).get("z_pose_m", float("nan"))
 
 
@@ -288,10 +294,7 @@ def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m
             pts = locate.refine(tc.crop, tc.candidates, mid, **kw)
             x, y, nx, ny = pts.x + x0, pts.y + y0, pts.nx, pts.ny
             if points_undistorter is not None:
-                ok = np.isfinite(x) & np.isfinite(y)
-                u = points_undistorter.undistort_points(np.column_stack([x[ok], y[ok]]))
-                # undistortion is locally a near-identity linear map: the raw normals still tell the sides apart
-                x, y, nx, ny = u[:, 0], u[:, 1], np.asarray(nx)[ok], np.asarray(ny)[ok]
+                x, y, nx, ny = undistorted_points(x, y, nx, ny, points_undistorter)
             s = size_of(shape, x, y, nx, ny, fx, fy, cy, K=cal.K, size_m=size_m, height_m=height_m)
             z = distance_from_size(fx, size_m, s["size_px"])
             row.update(s, status="ok", converged_frac=float(np.mean(pts.converged)), time_s=pts.elapsed_s,
@@ -327,8 +330,9 @@ def check_undistort(mode: str) -> str:
 ROW_FIELDS = ("dataset", "image", "spec", "group", "slot", "levels", "off_base", "target", "shape", "true_distance_m",
               "interval", "method", "status",
               "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px", "size_seed_px", "size_error_px",
-              "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm", "pose_cal_floor_cm", "pose_optics_floor_cm",
-              "error_pose_raw_cm", "n_points", "n_used", "fit_rms_px", "converged_frac", "time_s")
+              "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm", "pose_cal_floor_cm",
+              "pose_optics_floor_cm", "error_pose_raw_cm", "n_points", "n_used", "fit_rms_px", "converged_frac",
+              "time_s")
 
 
 def write_rows(path: Path, rows: list[dict]) -> None:
@@ -349,7 +353,8 @@ def read_rows(path: Path) -> list[dict]:
         for r in csv.DictReader(fh):
             for k in ("true_distance_m", "z_hat_m", "error_cm", "rel_error_pct", "size_px", "size_tb_px",
                       "size_seed_px", "size_error_px", "model_floor_cm", "z_pose_m", "error_pose_cm", "pose_floor_cm",
-                      "pose_cal_floor_cm", "pose_optics_floor_cm", "error_pose_raw_cm", "fit_rms_px", "converged_frac", "time_s"):
+                      "pose_cal_floor_cm", "pose_optics_floor_cm", "error_pose_raw_cm", "fit_rms_px", "converged_frac",
+                      "time_s"):
                 if k in r:
                     r[k] = float(r[k]) if r[k] not in ("", None) else float("nan")
             out.append(r)

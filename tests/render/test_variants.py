@@ -58,7 +58,8 @@ def test_requested_variant_that_does_not_run_here_is_input_error(monkeypatch):
     before = mi.variant()
     monkeypatch.setattr(variants, "_cache", {"cuda_ad_rgb": (False, "ImportError: the CUDA backend hasn't been "
                                                              "initialized")})
-    with pytest.raises(InputError, match=r"--variant cuda_ad_rgb: does not run here \(ImportError.*leave --variant out"):
+    with pytest.raises(InputError,
+                       match=r"--variant cuda_ad_rgb: does not run here \(ImportError.*leave --variant out"):
         variants.choose_variant("cuda_ad_rgb", announce=lambda s: None)
     assert mi.variant() == before  # nothing was switched
 

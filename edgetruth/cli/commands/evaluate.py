@@ -17,8 +17,8 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    from edgetruth.cli import (add_backend_options, add_undistort_option, add_image_options, add_plugin_option, add_progress_option,
-                               methods_help)
+    from edgetruth.cli import (add_backend_options, add_image_options, add_plugin_option, add_progress_option,
+                               add_undistort_option, methods_help)
 
     p = sub.add_parser("evaluate", help="rank every method on datasets you rendered (ranging + edge error report)",
                        description=__doc__.split("\n\n")[1], formatter_class=argparse.RawDescriptionHelpFormatter)
