@@ -9,6 +9,11 @@ def num(v, nd=3) -> str:
     return "—" if v is None or not np.isfinite(v) else f"{v:.{nd}f}"
 
 
+def signed(v, nd=3) -> str:
+    """A signed number (a bias) with ``nd`` decimals, or an em dash when it is missing."""
+    return "—" if v is None or not np.isfinite(v) else f"{v:+.{nd}f}"
+
+
 def table(header, body) -> str:
     """A Markdown table."""
     out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]

@@ -127,30 +127,30 @@ def size_of(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float, K=None, s
     return out
 
 
-def true_pose_distance(gt: dict) -> float:
-    """The pose-based estimate on the TRUE undistorted outline with the true K (its model floor)."""
+def outline_pose_distance(gt: dict, points_px, K) -> float:
+    """The pose-based estimate from the truth's outline points (undistorted px: a square's four corners, a
+    circle's polyline) with the intrinsic matrix ``K``."""
     from edgetruth.evaluate.ranging.pose import pose_distance
 
-    pts = np.asarray(gt["outline"]["undistorted_px"], float)
-    K = np.asarray(gt["camera"]["K"], float)
+    pts = np.asarray(points_px, float)
+    K = np.asarray(K, float)
     size_m = float(gt["target"]["size_m"])
     if gt["target"]["shape"] == "square":
         return pose_distance("square", size_m, K, corners_px=pts[:4])
     return pose_distance("circle", size_m, K, x=pts[:, 0], y=pts[:, 1])
+
+
+def true_pose_distance(gt: dict) -> float:
+    """The pose-based estimate on the TRUE undistorted outline with the true K (its model floor)."""
+    return outline_pose_distance(gt, gt["outline"]["undistorted_px"], gt["camera"]["K"])
 
 
 def calibrated_pose_distance(gt: dict, undistorter, K) -> float:
     """The pose-based estimate on the TRUE outline seen through the CALIBRATED camera: its distorted
     image undistorted with the calibrated model, then the pose with the calibrated ``K``.  Its error is
     the calibration's share of every method's pose error (true intrinsics give ``true_pose_distance``)."""
-    from edgetruth.evaluate.ranging.pose import pose_distance
-
     pts = undistorter.undistort_points(np.asarray(gt["outline"]["distorted_px"], float))
-    K = np.asarray(K, float)
-    size_m = float(gt["target"]["size_m"])
-    if gt["target"]["shape"] == "square":
-        return pose_distance("square", size_m, K, corners_px=pts[:4])
-    return pose_distance("circle", size_m, K, x=pts[:, 0], y=pts[:, 1])
+    return outline_pose_distance(gt, pts, K)
 
 
 def polyline_pose_distance(shape: str, size_m: float, points_px, undistorter, K) -> float:

@@ -13,7 +13,7 @@ import numpy as np
 
 from edgetruth.evaluate.ranging.design_cells import factor_tables, group_rows, main_rows, plain_groups
 from edgetruth.evaluate.ranging.images import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13
-from edgetruth.evaluate.report_format import ci as _ci, num as _f, table as _table
+from edgetruth.evaluate.report_format import ci as _ci, num as _f, signed as _signed, table as _table
 from edgetruth.evaluate.stats import (bootstrap_ci, holm, rank_biserial, rmse, rmse_ci, rmse_difference_ci,
                                       summary, wilcoxon_paired)
 
@@ -64,11 +64,6 @@ def pose_shares_table(st: dict, methods) -> list[str]:
             "points sit on the other side of the shared shares cancels them, so a low pose RMSE need not mean "
             "accurate points: sorted by the RMSE of the points' part.", "",
             _table(["method", "n", "bias", "resampling", "points", "RMSE raw image", "RMSE of points' part"], body)]
-
-
-def _signed(v, nd: int = 3) -> str:
-    """A signed number (a bias), or an em dash when it is missing."""
-    return "—" if v is None or not np.isfinite(v) else f"{v:+.{nd}f}"
 
 
 def _ok(rows):
