@@ -218,7 +218,7 @@ def _look(model: BoardModel, h0: np.ndarray, quads: np.ndarray, m_idx: np.ndarra
     return score
 
 
-def _rotation_deg(h: np.ndarray, model: BoardModel) -> float:
+def rotation_deg(h: np.ndarray, model: BoardModel) -> float:
     """Angle (deg) of the image direction of model +x at the board's centre, from image +x."""
     c = model.centres.mean(axis=0)
     scale = float(np.ptp(model.corners[..., 0])) or 1.0
@@ -270,7 +270,7 @@ def match_squares(model: BoardModel, quads: np.ndarray) -> Correspondence | None
     tied = [x for x in hyps if x[0] == best]
     floor = min(x[1] for x in tied)
     tied = [x for x in tied if x[1] <= 1.05 * floor + 0.05]
-    pick = min(tied, key=lambda x: (x[2], abs(_rotation_deg(x[3], model))))
+    pick = min(tied, key=lambda x: (x[2], abs(rotation_deg(x[3], model))))
     _, _, mirrored, h, match = pick
     # refine with all squares; a quad whose corners stray from the homography by more than
     # OUTLIER_FRACTION of its size is not the whole square (cut by the border, merged with a smudge): drop it
@@ -288,4 +288,4 @@ def match_squares(model: BoardModel, quads: np.ndarray) -> Correspondence | None
     corners = np.full(model.corners.shape, np.nan)
     corners[found] = rolled
     res = float(np.sqrt(np.mean(np.sum((rolled - pc) ** 2, axis=2))))
-    return Correspondence(corners, found, h, res, bool(mirrored), _rotation_deg(h, model))
+    return Correspondence(corners, found, h, res, bool(mirrored), rotation_deg(h, model))

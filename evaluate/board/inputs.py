@@ -1,8 +1,10 @@
 """What the board study reads: photos (files, folders or a shipped set's name), the model, the reference.
 
-``resolve_inputs`` checks everything it can before any work starts (paths exist and are files,
-a shipped set is known, at least ``MIN_PHOTOS`` photos, no photo twice, a model given) and
-returns a ``BoardInputs``; ``load_photos`` then reads every photo (decodable, gray, one size).
+The model is a file of separate squares (``--model``) or a chessboard (``--pattern COLSxROWS``,
+``--square SIZE``; ``chessboard``).  ``resolve_inputs`` checks everything it can before any work
+starts (paths exist and are files, a shipped set is known, at least ``MIN_PHOTOS`` photos, no
+photo twice, one model given) and returns a ``BoardInputs``; ``load_photos`` then reads every
+photo (decodable, gray, one size).
 """
 from __future__ import annotations
 
@@ -44,8 +46,39 @@ def _shipped_names() -> list[str]:
     return shipped_real_set_names()
 
 
-def resolve_inputs(items: list[str], model_path: str | None = None) -> BoardInputs:
-    """Photos, folders or one shipped set name -> ``BoardInputs`` (one InputError line on bad input)."""
+def board_model(model_path: str | None, pattern: str | None, square: str | float | None) -> BoardModel:
+    """The model the user gave: a model file, or a chessboard (``--pattern``, ``--square``; side lengths in squares
+    when no square size is given).  One InputError line when there is none, or both."""
+    from edgetruth.evaluate.board.chessboard import chessboard_model
+    from edgetruth.evaluate.calibration import parse_pattern
+
+    if model_path is not None and pattern is not None:
+        raise InputError("board study: --model and --pattern both given; give --model FILE for a board of separate "
+                         "squares or --pattern COLSxROWS for a chessboard")
+    if square is not None and pattern is None:
+        raise InputError("--square: only a chessboard (--pattern COLSxROWS) takes a square size; a model file gives "
+                         "its squares' corners in its own units")
+    if pattern is not None:
+        size = 1.0
+        if square is not None:
+            try:
+                size = float(square)
+            except ValueError:
+                size = float("nan")
+            if not (size > 0 and np.isfinite(size)):
+                raise InputError(f"--square {square!r}: give the side of one square, a positive number (in the unit "
+                                 "side lengths should be reported in)")
+        return chessboard_model(parse_pattern(pattern), size, "squares" if square is None else "board units")
+    if model_path is None:
+        raise InputError("board study: no board model; give --model FILE (one square per line: x y of its "
+                         "four corners) or, for a chessboard, --pattern COLSxROWS (inner corners)")
+    return read_model(model_path)
+
+
+def resolve_inputs(items: list[str], model_path: str | None = None, pattern: str | None = None,
+                   square: str | float | None = None) -> BoardInputs:
+    """Photos, folders or one shipped set name -> ``BoardInputs`` (one InputError line on bad input).  The model:
+    ``model_path`` (separate squares) or ``pattern``/``square`` (a chessboard), or the shipped set's own."""
     if not items:
         raise InputError("board study: no photos; give photo files, folders, or a shipped set name "
                          f"({', '.join(_shipped_names())})")
@@ -54,9 +87,18 @@ def resolve_inputs(items: list[str], model_path: str | None = None) -> BoardInpu
         name = shipped[0]
         if len(items) > 1:
             raise InputError(f"{name}: a shipped set is studied on its own; give either {name} or photo paths")
-        if model_path is not None:
-            raise InputError(f"{name}: the shipped set supplies its own model; drop --model")
+        given = [f for f, v in (("--model", model_path), ("--pattern", pattern), ("--square", square)) if v is not None]
+        if given:
+            raise InputError(f"{name}: the shipped set supplies its own model; drop {' and '.join(given)}")
         s = shipped_set(name)
+        if s is not None and "chessboard" in s:
+            from edgetruth.evaluate.board.chessboard import chessboard_model
+            from edgetruth.evaluate.calibration import parse_pattern
+
+            b = s["chessboard"]
+            model = chessboard_model(parse_pattern(str(b["pattern"])), float(b["square"]), str(b["units"]),
+                                     source=s["source"])
+            return BoardInputs(list(s["photos"]), model, set_name=name)
         if s is None:
             raise InputError(f"{name}: this shipped set has no board model (Model.txt); the board study "
                              "needs one (give the photos with --model FILE)")
@@ -91,10 +133,7 @@ def resolve_inputs(items: list[str], model_path: str | None = None) -> BoardInpu
     if len(photos) < MIN_PHOTOS:
         raise InputError(f"board study: {len(photos)} photo(s); calibration with leave-one-image-out needs at "
                          f"least {MIN_PHOTOS} photos of the board")
-    if model_path is None:
-        raise InputError("board study: no board model; give --model FILE (one square per line: x y of its "
-                         "four corners)")
-    return BoardInputs(photos, read_model(model_path))
+    return BoardInputs(photos, board_model(model_path, pattern, square))
 
 
 def load_photos(photos: list[Path], channel: str = "luma") -> list[np.ndarray]:

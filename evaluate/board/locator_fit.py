@@ -49,7 +49,7 @@ def locator_misfit(images, cands, model, names, **options) -> list[dict]:
         lines = board_lines(np.asarray(img, np.float64), model)
         sd = float("nan")
         if lines is not None:
-            nz = noise(np.asarray(img, np.float64), lines)
+            nz = noise(np.asarray(img, np.float64), lines, model.pattern is not None)
             sds = [nz[k]["sd"] for k in ("black", "white") if np.isfinite(nz[k]["sd"])]
             sd = max(sds) if sds else float("nan")
         out.append({"photo": name, "residual_sd": res, "noise_sd": sd, "misfit_ratio": misfit_ratio(res, sd),

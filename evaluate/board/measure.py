@@ -15,12 +15,16 @@ from edgetruth.evaluate.board.sides import SideFits, side_fits
 #: The label of the reference row: the shipped set's own corners in place of a method's.
 REFERENCE_ROW = "zhang_corners"
 REFERENCE_LABEL = "Zhang's corners"
+#: A chessboard's reference row: the cornerSubPix corners OpenCV finds the board by (``chessboard``).
+OPENCV_ROW = "opencv_corners"
+#: Every reference row (corners given by a set or a corner detector, in place of a method's) -> its label.
+REFERENCE_ROWS = {REFERENCE_ROW: REFERENCE_LABEL, OPENCV_ROW: "OpenCV's corners (cornerSubPix)"}
 
 
 @dataclass
 class Row:
-    """label: method label in the study's list (or REFERENCE_ROW); corners: per photo (S, 4, 2), NaN where missing;
-    sides: per photo SideFits (None for given corners); converged/candidates: counts over all photos."""
+    """label: method label in the study's list (or a key of REFERENCE_ROWS); corners: per photo (S, 4, 2), NaN where
+    missing; sides: per photo SideFits (None for given corners); converged/candidates: counts over all photos."""
 
     label: str
     corners: list
@@ -40,10 +44,13 @@ class Row:
         return self.sides is not None
 
 
-def method_row(label: str, method: str, options: dict, images, cands, quads, smaps, keep_points: bool = False) -> Row:
+def method_row(label: str, method: str, options: dict, images, cands, quads, smaps, keep_points: bool = False,
+               junctions=None) -> Row:
     """Refine each photo's candidates with ``method`` and fit the squares' sides (``quads``: per photo (S, 4, 2)
     detected corners in the model's order, NaN rows for squares not found; ``smaps``: their ``square_map``).
-    ``keep_points``: keep each photo's refined points and their side labels (``Row.points``)."""
+    ``keep_points``: keep each photo's refined points and their side labels (``Row.points``).  ``junctions`` (a
+    chessboard's, ``chessboard.junctions``): the row's corners are the junctions' (``chessboard.junction_corners``)
+    in place of each square's own."""
     fits, corners, conv, n, spent = [], [], 0, 0, 0.0
     kept = [] if keep_points else None
     for img, cand, q, smap in zip(images, cands, quads, smaps):
@@ -52,7 +59,12 @@ def method_row(label: str, method: str, options: dict, images, cands, quads, sma
         spent += time.perf_counter() - t0
         f: SideFits = side_fits(q, smap, pts.x, pts.y, pts.nx, pts.ny, pts.converged)
         fits.append(f)
-        corners.append(f.corners)
+        if junctions is None:
+            corners.append(f.corners)
+        else:
+            from edgetruth.evaluate.board.chessboard import junction_corners
+
+            corners.append(junction_corners(junctions, f, pts.x, pts.y, pts.nx, pts.ny, pts.converged))
         conv += int(pts.converged.sum())
         n += len(pts)
         if kept is not None:

@@ -27,6 +27,10 @@ class BoardModel:
     corners: np.ndarray
     source: str
     units: str = "model units"
+    #: a chessboard's (COLS, ROWS) inner corners (``chessboard.chessboard_model``), None for a board of separate squares
+    pattern: tuple[int, int] | None = None
+    #: a chessboard's dark colour class: square (r, c) is dark where (r + c) % 2 == parity
+    parity: int = 0
 
     def __len__(self) -> int:
         return int(self.corners.shape[0])
@@ -35,6 +39,11 @@ class BoardModel:
     def side_lengths(self) -> np.ndarray:
         """(S, 4) length of side k (corner k -> corner k+1), board units."""
         return np.linalg.norm(np.roll(self.corners, -1, axis=1) - self.corners, axis=2)
+
+    @property
+    def square(self) -> float:
+        """A chessboard's square side (board units): its first square's first side."""
+        return float(np.linalg.norm(self.corners[0, 1] - self.corners[0, 0]))
 
     @property
     def centres(self) -> np.ndarray:

@@ -22,7 +22,8 @@ that the two can be compared like with like:
   above its bright plateau (and dips below its dark one) near the edge, in % of the step -- the
   mark of sharpening.
 - **Noise in flat regions.**  Black: each square's inside, ``FLAT_MARGIN_PX`` in from its side
-  lines; white: a ring around each square from ``FLAT_MARGIN_PX`` to ``RING_OUTER_PX`` out.  Each
+  lines; white: a ring around each square from ``FLAT_MARGIN_PX`` to ``RING_OUTER_PX`` out (on a
+  chessboard, only the ring's parts beside the sides: its corners touch the next dark square).  Each
   region's pixels minus a quadratic surface fitted to them (shading, a reflection's gradient);
   the residual SD (degrees of freedom taken off), the lag-1 correlation of the residuals along x
   and along y (< 0: error-diffusion dithering pushes neighbours apart; > 0: an analog low-pass),
@@ -70,11 +71,10 @@ class BoardLines:
 def board_lines(image: np.ndarray, model: BoardModel) -> BoardLines | None:
     """The side lines of the model's squares found on ``image`` (None when the board is not found)."""
     from edgetruth import locate
-    from edgetruth.evaluate.board.correspond import match_squares
-    from edgetruth.evaluate.board.quads import find_quads
     from edgetruth.evaluate.board.sides import near_sides, side_fits, square_map
+    from edgetruth.evaluate.board.squares import board_squares
 
-    c = match_squares(model, find_quads(image))
+    c = board_squares(image, model)[0]
     if c is None:
         return None
     cand = locate.candidates(image)
@@ -269,11 +269,8 @@ def _iqr(a) -> float:
 
 
 # --- flat regions: noise, levels, dithering --------------------------------------------------------
-def _offset_quads(lines: BoardLines, margin_px: float) -> np.ndarray:
-    """(S, 4, 2) each square's outline moved ``margin_px`` outward (< 0: inward) along its side normals; NaN
-    where a side is missing."""
-    from edgetruth.evaluate.board.sides import intersect_sides
-
+def _outward(lines: BoardLines) -> tuple[np.ndarray, np.ndarray]:
+    """The side lines n . p = d (S, 4, 2) / (S, 4) with every normal pointing out of its square."""
     with np.errstate(invalid="ignore"):
         centre = lines.corners.mean(axis=1)  # (S, 2); NaN for a square with a missing corner (left out anyway)
     n = lines.normal.copy()
@@ -282,17 +279,42 @@ def _offset_quads(lines: BoardLines, margin_px: float) -> np.ndarray:
     flip = inside > 0
     n[flip] *= -1.0
     d[flip] *= -1.0
+    return n, d
+
+
+def _offset_quads(lines: BoardLines, margin_px: float) -> np.ndarray:
+    """(S, 4, 2) each square's outline moved ``margin_px`` outward (< 0: inward) along its side normals; NaN
+    where a side is missing."""
+    from edgetruth.evaluate.board.sides import intersect_sides
+
+    n, d = _outward(lines)
     return intersect_sides(n, d + margin_px)
 
 
-def flat_labels(shape: tuple[int, int], lines: BoardLines) -> tuple[np.ndarray, np.ndarray]:
+def _side_bands(lines: BoardLines, near_px: float, far_px: float, cap_px: float) -> np.ndarray:
+    """(S, 4, 4, 2) beside each side k, the quad between its line moved ``near_px`` and ``far_px`` outward, capped
+    by the neighbouring sides' lines moved ``cap_px`` inward: the light ground beside the side alone, clear of
+    what lies diagonally off the square's corners (on a chessboard, the next dark square)."""
+    from edgetruth.evaluate.board.sides import intersect as meet
+
+    n, d = _outward(lines)
+    n0, d0 = np.roll(n, 1, axis=1), np.roll(d, 1, axis=1) - cap_px  # side k - 1, moved inward
+    n1, d1 = np.roll(n, -1, axis=1), np.roll(d, -1, axis=1) - cap_px  # side k + 1
+    return np.stack([meet(n0, d0, n, d + near_px), meet(n, d + near_px, n1, d1), meet(n1, d1, n, d + far_px),
+                     meet(n, d + far_px, n0, d0)], axis=2)
+
+
+def flat_labels(shape: tuple[int, int], lines: BoardLines, beside_sides: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(black, white) int32 label images: square s + 1 inside the square (``FLAT_MARGIN_PX`` in) and in its ring
-    (``FLAT_MARGIN_PX`` to ``RING_OUTER_PX`` out); 0 elsewhere.  Squares with a missing side are left out."""
+    (``FLAT_MARGIN_PX`` to ``RING_OUTER_PX`` out); 0 elsewhere.  Squares with a missing side are left out.
+    ``beside_sides`` (a chessboard, whose dark squares touch at their corners): the white region is only the ring's
+    parts beside the sides (``_side_bands``), ``FLAT_MARGIN_PX`` clear of the lines through the corners."""
     import cv2
 
     inner = _offset_quads(lines, -FLAT_MARGIN_PX)
     near = _offset_quads(lines, FLAT_MARGIN_PX)
     outer = _offset_quads(lines, RING_OUTER_PX)
+    bands = _side_bands(lines, FLAT_MARGIN_PX, RING_OUTER_PX, FLAT_MARGIN_PX) if beside_sides else None
     black = np.zeros(shape, np.int32)
     white = np.zeros(shape, np.int32)
     claimed = np.zeros(shape, np.int32)  # rings that overlap another square's ring or square are dropped there
@@ -302,8 +324,13 @@ def flat_labels(shape: tuple[int, int], lines: BoardLines) -> tuple[np.ndarray, 
             continue
         cv2.fillPoly(black, [np.round(inner[s] * 16).astype(np.int32)], int(s) + 1, shift=4)
         ring = np.zeros(shape, np.uint8)
-        cv2.fillPoly(ring, [np.round(outer[s] * 16).astype(np.int32)], 1, shift=4)
-        cv2.fillPoly(ring, [np.round(near[s] * 16).astype(np.int32)], 0, shift=4)
+        if bands is not None:
+            if not np.all(np.isfinite(bands[s])):
+                continue
+            cv2.fillPoly(ring, [np.round(b * 16).astype(np.int32) for b in bands[s]], 1, shift=4)
+        else:
+            cv2.fillPoly(ring, [np.round(outer[s] * 16).astype(np.int32)], 1, shift=4)
+            cv2.fillPoly(ring, [np.round(near[s] * 16).astype(np.int32)], 0, shift=4)
         claimed += ring
         white[ring > 0] = int(s) + 1
     white[claimed > 1] = 0
@@ -357,9 +384,10 @@ def srgb_slope(encoded_8bit: float) -> float:
     return float((srgb_decode((e + h) / 255.0) - srgb_decode((e - h) / 255.0)) / (2 * h))
 
 
-def noise(image: np.ndarray, lines: BoardLines) -> dict:
-    """Black and white flat regions: noise, levels, dithering; and the noise carried to linear values."""
-    black, white = flat_labels(image.shape, lines)
+def noise(image: np.ndarray, lines: BoardLines, beside_sides: bool = False) -> dict:
+    """Black and white flat regions: noise, levels, dithering; and the noise carried to linear values.
+    ``beside_sides``: a chessboard's white regions (``flat_labels``)."""
+    black, white = flat_labels(image.shape, lines, beside_sides)
     out = {"black": region_noise(image, black), "white": region_noise(image, white)}
     for k in ("black", "white"):
         r = out[k]
@@ -404,7 +432,7 @@ def measure_photo(image: np.ndarray, model: BoardModel, name: str = "", path=Non
     out["found"] = True
     out["sides_covered"] = int(lines.covered.sum())
     out["blur"] = blur(img, lines)
-    out["noise"] = noise(img, lines)
+    out["noise"] = noise(img, lines, model.pattern is not None)
     out["channel_means"] = channel_means(path, lines, img.shape) if path is not None else None
     return out
 

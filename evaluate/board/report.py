@@ -10,7 +10,7 @@ import numpy as np
 
 from edgetruth.evaluate.board import figures
 from edgetruth.evaluate.board import locator_fit as LF
-from edgetruth.evaluate.board.measure import REFERENCE_LABEL, REFERENCE_ROW
+from edgetruth.evaluate.board.measure import REFERENCE_ROWS
 from edgetruth.evaluate.board.summary import INTRINSICS
 from edgetruth.evaluate.report_format import ci, num, table
 from edgetruth.fileio import atomic_write_text, write_json
@@ -20,7 +20,8 @@ SUMMARY_COLUMNS = (
     "sides_covered", "sides_total", "side_coverage", "points_per_side", "converged_fraction", "corners_used",
     "corners_total", "calib_rms_px", "calib_rms_ci_lo", "calib_rms_ci_hi", "loo_rms_px", "loo_rms_ci_lo",
     "loo_rms_ci_hi", *INTRINSICS, *(f"d_{k}" for k in INTRINSICS), "length_bias_model", "length_rmse_model",
-    "length_bias_px",    "length_rmse_px", "length_sides", "corner_vs_reference_px", "refine_s", "failure")
+    "length_bias_px", "length_rmse_px", "length_sides", "corner_vs_reference_px", "junction_split_px",
+    "own_corner_outward_px", "refine_s", "failure")
 
 
 def _csv_text(header, rows) -> str:
@@ -75,8 +76,9 @@ def calibration_json(row, summary: dict, photo_names: list[str]) -> dict:
 
 # ------------------------------------------------------------------------------------------- markdown
 def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str, methods: list[str], options: dict,
-                 thresholds, reference: dict | None, reference_row: bool, elapsed_s: float) -> list[str]:
-    """The report's header: version, time, inputs, method options, the procedure in one line."""
+                 thresholds, reference: dict | None, reference_row: str | None, elapsed_s: float) -> list[str]:
+    """The report's header: version, time, inputs, method options, the procedure in one line.  ``reference_row``:
+    the key of the reference row in ``REFERENCE_ROWS``, None when there is none."""
     from edgetruth import __version__
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.run_dir import utc_stamp
@@ -84,31 +86,42 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
 
     tau = mo.thresholds_in_use(thresholds)
     w, h = size
+    chess = inp.model.pattern is not None
+    if chess:
+        squares = ("OpenCV's chessboard corners (findChessboardCorners, cornerSubPix) → the dark squares between "
+                   "them (a 180° turn or a mirror puts the dark squares on the model's)")
+        model_line = (f"- Model: {inp.model.source}: the {len(inp.model)} dark squares between the "
+                      f"{inp.model.pattern[0]}×{inp.model.pattern[1]} inner corners, side "
+                      f"{inp.model.square:.4g} {inp.model.units}.")
+    else:
+        squares = "dark quads → the model's squares by a homography (symmetric boards: no mirror, model +x closest " \
+                  "to image +x)"
+        model_line = (f"- Model: `{inp.model.source}`, {len(inp.model)} squares, side "
+                      f"{np.median(inp.model.side_lengths):.4g} {inp.model.units}.")
+    ref_line = "the set's own corners" if not chess else "the inner corners OpenCV finds the board by"
     return [
         f"edgetruth {__version__}, commit {source_commit()[:12]}; {utc_stamp()} (UTC); study time {elapsed_s:.1f} s.",
         "",
         f"- Photos: {', '.join(inp.names)} ({w}×{h} px, read as gray with rule `{channel}`); used: "
         f"{', '.join(used_names)}.",
-        f"- Model: `{inp.model.source}`, {len(inp.model)} squares, side {np.median(inp.model.side_lengths):.4g} "
-        f"{inp.model.units}.",
+        model_line,
         f"- Reference: {reference['source'] if reference else 'none'}"
-        + (f"; reference row: the set's own corners ({REFERENCE_ROW})" if reference_row else "") + ".",
+        + (f"; reference row: {ref_line} ({reference_row})" if reference_row else "") + ".",
         f"- Methods ({len(methods)}): {', '.join(methods)}; entropy thresholds "
         f"2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']}).",
         f"- {mo.options_line(methods, options)}",
         "- Candidates: `locate.candidates` (Canny on the σ = 1 px smoothed image), once per photo, the same for "
         "every method; those within 5 px of a detected square's side are refined.",
-        "- Procedure (docs/board.md): dark quads → the model's squares by a homography (symmetric boards: no mirror, "
-        "model +x closest to image +x) → each method's converged points within 3 px then 1.5 px of a side, 3 px "
-        "from its corners, normal within 30° → total-least-squares line per side → corners by intersection → "
-        "OpenCV calibrateCamera (k1, k2; CALIB_ZERO_TANGENT_DIST | CALIB_FIX_K3).",
+        f"- Procedure (docs/board.md): {squares} → each method's converged points within 3 px then 1.5 px of a "
+        "side, 3 px from its corners, normal within 30° → total-least-squares line per side → corners by "
+        "intersection → OpenCV calibrateCamera (k1, k2; CALIB_ZERO_TANGENT_DIST | CALIB_FIX_K3).",
     ]
 
 
 def _straightness_table(sums) -> str:
     body = [[s["label"], num(s["straightness_px"]), ci(s["straightness_ci"]), num(s["straightness_median_px"]),
              f"{s['sides_covered']}/{s['sides_total']}", num(s["points_per_side"], 1),
-             num(100 * s["converged_fraction"], 1)] for s in sums if s["row"] != REFERENCE_ROW]
+             num(100 * s["converged_fraction"], 1)] for s in sums if s["row"] not in REFERENCE_ROWS]
     return table(["method", "straightness RMS (px)", "95 % CI", "median side RMS (px)", "sides covered",
                   "points / side", "converged (%)"], body)
 
@@ -135,6 +148,14 @@ def _difference_table(sums) -> str:
              *(num(s[f"d_{k}"], 4) for k in ("k1", "k2")), num(s.get("corner_vs_reference_px", float("nan")))]
             for s in sums if "d_fx" in s]
     return table(["row", "Δfx", "Δfy", "Δcx", "Δcy", "Δk1", "Δk2", "mean |corner − set's corner| (px)"], body)
+
+
+def _junction_table(sums) -> str:
+    nan = float("nan")
+    body = [[s["label"], num(s.get("corner_vs_reference_px", nan)), num(s.get("junction_split_px", nan)),
+             num(s.get("own_corner_outward_px", nan))] for s in sums if "corner_vs_reference_px" in s]
+    return table(["row", "mean |corner − OpenCV's corner| (px)", "the two squares' own corners apart (px)",
+                  "own corner outward of the junction (px)"], body)
 
 
 def _length_table(sums, units: str) -> str:
@@ -182,8 +203,8 @@ def reading(sums, comparisons, reference) -> list[str]:
     """A short reading of the measured tables: rankings as measured, nothing tuned."""
     from scipy import stats as st
 
-    methods = [s for s in sums if s["row"] != REFERENCE_ROW]
-    ref = next((s for s in sums if s["row"] == REFERENCE_ROW), None)
+    methods = [s for s in sums if s["row"] not in REFERENCE_ROWS]
+    ref = next((s for s in sums if s["row"] in REFERENCE_ROWS), None)
     lines = ["Rankings as measured (lowest first):", "",
              f"- Straightness (px): {_ranking(methods, 'straightness_px')}.",
              f"- Calibration RMS (px): {_ranking(sums, 'calib_rms_px')}.",
@@ -197,14 +218,14 @@ def reading(sums, comparisons, reference) -> list[str]:
                       f"{'' if rho > 0.5 and p < 0.05 else 'not clearly '}give a better calibration here."]
     if ref is not None and "calib_rms_px" in ref:
         below = [s["label"] for s in methods if s.get("calib_rms_px", np.inf) < ref["calib_rms_px"]]
-        lines += ["", f"{REFERENCE_LABEL} calibrate to {ref['calib_rms_px']:.3f} px (LOO {ref['loo_rms_px']:.3f} px); "
+        lines += ["", f"{ref['label']} calibrate to {ref['calib_rms_px']:.3f} px (LOO {ref['loo_rms_px']:.3f} px); "
                       + (f"{len(below)} method(s) come below: {', '.join(below)}." if below else
                          "no method's corners come below them.")]
     lengths = [s for s in sums if np.isfinite(s.get("length_bias_px", np.nan))]
     if lengths:
         lo, hi = min(s["length_bias_px"] for s in lengths), max(s["length_bias_px"] for s in lengths)
         lines += ["", f"Side lengths in the board plane: the bias lies between {lo:.3f} and {hi:.3f} px across rows"
-                      + (f" ({REFERENCE_LABEL}: {ref['length_bias_px']:.3f} px)" if ref is not None and
+                      + (f" ({ref['label']}: {ref['length_bias_px']:.3f} px)" if ref is not None and
                          "length_bias_px" in ref else "")
                       + ("; every row shares its sign, so it belongs to the board as photographed (its print, the "
                          "camera's blur of dark on white) more than to any method." if lo * hi > 0 else ".")]
@@ -278,6 +299,16 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
                   f"cy {reference['cy']:.2f}, k1 {reference['k1']:.4f}, k2 {reference['k2']:.4f}); last column: mean "
                   "distance of the row's corners to the set's own corners.", "",
                   _difference_table(summaries), ""]
+    elif model.pattern is not None:
+        lines += ["## Table 3 — junctions: corners against OpenCV's, and each square's own", "",
+                  "A chessboard's corners are its junctions, where two dark squares meet: a method's corner there is "
+                  "the intersection of the two grid lines through it, each fitted to both squares' sides that meet "
+                  "there.  Against OpenCV's corner (cornerSubPix) at the same junction; and how far apart the two "
+                  "squares' own corners (from each square's own side lines) fall, a distance that any difference "
+                  "between how large dark and light squares print or image puts there, and the mean signed distance "
+                  "of a square's own corner from the junction along the square's diagonal (< 0: its own side lines "
+                  "make the dark square smaller; docs/board.md).", "",
+                  _junction_table(summaries), ""]
     lines += ["## Table 4 — side lengths in the board plane", "",
               "Corners back-projected with the row's own calibration and pose; error = measured − model; px: the "
               "error at the side's image scale.", "", _length_table(summaries, model.units), "",

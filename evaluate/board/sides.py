@@ -83,6 +83,19 @@ def near_sides(quads: np.ndarray, x, y, margin_px: float) -> np.ndarray:
     return mask[np.round(y).astype(int), np.round(x).astype(int)] > 0
 
 
+def near_segments(segments: np.ndarray, x, y, margin_px: float) -> np.ndarray:
+    """True for points within ``margin_px`` of one of the (M, 2, 2) segments (start, end)."""
+    seg = np.asarray(segments, np.float64).reshape(-1, 2, 2)
+    seg = seg[np.all(np.isfinite(seg), axis=(1, 2))]
+    if not len(seg) or not np.size(x):
+        return np.zeros(np.shape(x), bool)
+    w = int(np.ceil(max(np.max(x), seg[..., 0].max()) + margin_px + 2))
+    h = int(np.ceil(max(np.max(y), seg[..., 1].max()) + margin_px + 2))
+    mask = np.zeros((h, w), np.uint8)
+    cv2.polylines(mask, list(np.round(seg).astype(np.int32)), False, 1, thickness=2 * int(np.ceil(margin_px)) + 1)
+    return mask[np.round(y).astype(int), np.round(x).astype(int)] > 0
+
+
 def assign(quads: np.ndarray, smap: np.ndarray, x, y, nx, ny, ok, band_px: float) -> np.ndarray:
     """Side label ``4 * square + side`` of each point, -1 where none (module docstring).  ``quads`` (S, 4, 2):
     the current corners; ``smap``: ``square_map`` of the photo."""
@@ -109,11 +122,9 @@ def assign(quads: np.ndarray, smap: np.ndarray, x, y, nx, ny, ok, band_px: float
     return np.where(hit, 4 * sq + k, -1).astype(np.int64)
 
 
-def fit_lines(label: np.ndarray, x, y, n_squares: int) -> SideFits:
-    """Total-least-squares line of each side's points (labels from ``assign``) and the corners they give."""
-    m = label >= 0
-    g, px, py = label[m], np.asarray(x, float)[m], np.asarray(y, float)[m]
-    nb = 4 * n_squares
+def tls_lines(g: np.ndarray, px: np.ndarray, py: np.ndarray, nb: int):
+    """Total-least-squares line of each group's points (group ``g`` of each point, ``nb`` groups): (nb, 2) unit
+    normals n and (nb,) offsets d of n.p = d, the RMS distance of the points to their line and the counts."""
     cnt = np.bincount(g, minlength=nb).astype(float)
     with np.errstate(invalid="ignore", divide="ignore"):
         mx = np.bincount(g, px, nb) / cnt
@@ -125,6 +136,15 @@ def fit_lines(label: np.ndarray, x, y, n_squares: int) -> SideFits:
         d = n[:, 0] * mx + n[:, 1] * my
         r = n[g, 0] * px + n[g, 1] * py - d[g]
         rms = np.sqrt(np.bincount(g, r * r, nb) / cnt)
+    return n, d, rms, cnt
+
+
+def fit_lines(label: np.ndarray, x, y, n_squares: int) -> SideFits:
+    """Total-least-squares line of each side's points (labels from ``assign``) and the corners they give."""
+    m = label >= 0
+    g, px, py = label[m], np.asarray(x, float)[m], np.asarray(y, float)[m]
+    nb = 4 * n_squares
+    n, d, rms, cnt = tls_lines(g, px, py, nb)
     bad = cnt < MIN_POINTS
     n[bad], d[bad], rms[bad] = np.nan, np.nan, np.nan
     n = n.reshape(n_squares, 4, 2)
@@ -133,16 +153,21 @@ def fit_lines(label: np.ndarray, x, y, n_squares: int) -> SideFits:
                     intersect_sides(n, d))
 
 
-def intersect_sides(n: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Corner k = intersection of side k-1 and side k: (S, 4, 2), NaN where a line is missing or parallel."""
-    n0, d0 = np.roll(n, 1, axis=1), np.roll(d, 1, axis=1)  # side k-1
-    det = n0[..., 0] * n[..., 1] - n0[..., 1] * n[..., 0]
+def intersect(n1: np.ndarray, d1: np.ndarray, n2: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    """(..., 2) the intersection of the lines n1.p = d1 and n2.p = d2, NaN where one is missing or they are
+    (nearly) parallel."""
+    det = n1[..., 0] * n2[..., 1] - n1[..., 1] * n2[..., 0]
     with np.errstate(invalid="ignore", divide="ignore"):
-        cx = (d0 * n[..., 1] - n0[..., 1] * d) / det
-        cy = (n0[..., 0] * d - d0 * n[..., 0]) / det
+        cx = (d1 * n2[..., 1] - n1[..., 1] * d2) / det
+        cy = (n1[..., 0] * d2 - d1 * n2[..., 0]) / det
     c = np.stack([cx, cy], axis=-1)
     c[~np.isfinite(c).all(axis=-1) | ~(np.abs(det) >= 1e-6)] = np.nan
     return c
+
+
+def intersect_sides(n: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Corner k = intersection of side k-1 and side k: (S, 4, 2), NaN where a line is missing or parallel."""
+    return intersect(np.roll(n, 1, axis=1), np.roll(d, 1, axis=1), n, d)
 
 
 def side_fits(quads: np.ndarray, smap: np.ndarray, x, y, nx, ny, converged) -> SideFits:

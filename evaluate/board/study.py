@@ -8,8 +8,9 @@ model).  Steps (docs/board.md):
 
 1. photos, model and (for a shipped set) the set's own corners and calibration
    (``inputs``, ``model``, ``reference``); everything checked before any work;
-2. per photo: the dark quads (``quads``) and the model's squares among them (``correspond``),
-   and the Canny candidates, once, shared by every method;
+2. per photo: the dark quads (``quads``) and the model's squares among them (``correspond``), or for a
+   chessboard its squares from OpenCV's corner grid (``chessboard``), and the Canny candidates, once,
+   shared by every method;
 3. per method: the refined points, side lines and corners (``sides``, ``measure``); then per row
    (every method, and the set's own corners as the reference row) the calibration, LOO and side
    lengths (``calibrate``);
@@ -22,7 +23,7 @@ with other settings it is refused.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -33,11 +34,11 @@ from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board import locator_fit as LF
 from edgetruth.evaluate.board.compare import compare_all
-from edgetruth.evaluate.board.correspond import match_squares
 from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, resolve_inputs
-from edgetruth.evaluate.board.measure import REFERENCE_ROW, Row, calibrate_row, method_row
-from edgetruth.evaluate.board.quads import find_quads
-from edgetruth.evaluate.board.sides import near_sides, square_map
+from edgetruth.evaluate.board import chessboard as cb
+from edgetruth.evaluate.board.measure import OPENCV_ROW, REFERENCE_ROW, Row, calibrate_row, method_row
+from edgetruth.evaluate.board.sides import near_segments, near_sides, square_map
+from edgetruth.evaluate.board.squares import board_squares
 from edgetruth.evaluate.board.summary import per_side_rows, row_summary
 
 KIND = "study board"
@@ -64,14 +65,23 @@ def check_output(out: Path, settings: dict) -> Path:
     return check_same_settings(out, KIND, settings, "a board study")
 
 
+def find_board(inp: BoardInputs, images, progress: bool):
+    """Per photo, the model's squares (``squares.board_squares``) and, for a chessboard, OpenCV's corners in the
+    model's order (else None); and the model, whose chessboard parity the photos may settle."""
+    model = inp.model if inp.model.pattern is None else cb.settle_parity(images, inp.model)
+    photos = console.track(images, desc="squares", unit="photo", enabled=progress)
+    found, refs = zip(*(board_squares(img, model) for img in photos))
+    return list(found), (list(refs) if model.pattern is not None else None), model
+
+
 def locate_squares(inp: BoardInputs, images, progress: bool):
     """Per photo: the Canny candidates near the detected squares' sides, the detected quads in the model's order,
-    their square map, and a line for the report; photos with too few squares are left out."""
+    their square map, and a line for the report; photos with too few squares are left out.  Also, per photo, the
+    reference corners OpenCV found a chessboard by (None for other boards), and the model (``find_board``)."""
     cands, quads, smaps, table, keep = [], [], [], [], []
-    n_sq = len(inp.model)
-    for i, (name, img) in enumerate(console.track(list(zip(inp.names, images)), desc="squares + candidates",
-                                                   unit="photo", enabled=progress)):
-        c = match_squares(inp.model, find_quads(img))
+    found_all, refs, model = find_board(inp, images, progress)
+    n_sq = len(model)
+    for i, (name, img, c) in enumerate(zip(inp.names, images, found_all)):
         found = 0 if c is None else int(c.found.sum())
         line = {"photo": name, "squares_found": found, "squares_total": n_sq,
                 "missing": "all" if c is None else " ".join(map(str, c.missing)),
@@ -82,13 +92,16 @@ def locate_squares(inp: BoardInputs, images, progress: bool):
             console.warn(f"{name}: found {found} of the model's {n_sq} squares; photo left out")
             continue
         cand = locate.candidates(img)
-        cand = cand.subset(near_sides(c.corners, cand.x, cand.y, CANDIDATE_MARGIN_PX))
+        near = near_sides(c.corners, cand.x, cand.y, CANDIDATE_MARGIN_PX)
+        if model.pattern is not None:  # a chessboard's grid lines run on past its border corners
+            near |= near_segments(cb.grid_segments(c.corners), cand.x, cand.y, CANDIDATE_MARGIN_PX)
+        cand = cand.subset(near)
         line.update({"candidates_near_sides": len(cand), "used": "yes"})
         cands.append(cand)
         quads.append(c.corners)
         smaps.append(square_map(c.corners, img.shape))
         keep.append(i)
-    return cands, quads, smaps, table, keep
+    return cands, quads, smaps, table, keep, refs, model
 
 
 @dataclass
@@ -104,7 +117,8 @@ class BoardRun:
     per_side: list
     photo_table: list
     reference: dict | None
-    has_reference_corners: bool
+    #: the reference row's key (``measure.REFERENCE_ROWS``), None when there is none
+    reference_row: str | None
     elapsed_s: float
     #: edgetruth's locator against the best method and its model misfit (``locator_fit``), when it ran
     locator: dict | None = None
@@ -120,7 +134,15 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
     images = load_photos(inp.photos, channel) if images is None else images
     h, w = images[0].shape
 
-    cands, quads, smaps, photo_table, keep = locate_squares(inp, images, progress)
+    cands, quads, smaps, photo_table, keep, chess_refs, model = locate_squares(inp, images, progress)
+    if model is not inp.model:
+        inp = replace(inp, model=model)
+    ref_row = REFERENCE_ROW if inp.reference_corners is not None else None
+    jn = None
+    if chess_refs is not None:  # a chessboard: corners at the junctions; OpenCV's own corners are the reference row
+        jn = cb.junctions(model)
+        inp = replace(inp, reference_corners=chess_refs)
+        ref_row = OPENCV_ROW
     if len(keep) < MIN_PHOTOS:
         raise InputError(f"board study: the model's squares were found on {len(keep)} photo(s) "
                          f"({', '.join(inp.names[i] for i in keep) or 'none'}); need {MIN_PHOTOS}: check the model "
@@ -131,9 +153,10 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
     rows: list[Row] = []
     for label in console.track(methods, desc="methods", unit="method", enabled=progress):
         method, kw = mo.resolve(label, options)
-        rows.append(method_row(label, method, kw, used_images, cands, quads, smaps, keep_points=keep_points))
-    if inp.reference_corners is not None:
-        rows.append(Row(REFERENCE_ROW, [inp.reference_corners[i] for i in keep]))
+        rows.append(method_row(label, method, kw, used_images, cands, quads, smaps, keep_points=keep_points,
+                               junctions=jn))
+    if ref_row is not None:
+        rows.append(Row(ref_row, [inp.reference_corners[i] for i in keep]))
     for r in console.track(rows, desc="calibration", unit="row", enabled=progress):
         calibrate_row(r, inp.model, (w, h))
 
@@ -153,7 +176,7 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
             locator = LF.locator_summary(rows, summaries, label, misfit)
             break
     return BoardRun(inp, names, (w, h), rows, summaries, comparisons, per_side, photo_table, reference,
-                    ref_corners is not None, time.perf_counter() - t0, locator)
+                    ref_row, time.perf_counter() - t0, locator)
 
 
 def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], options: dict, thresholds,
@@ -163,7 +186,7 @@ def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], 
 
     inp = run.inp
     header = header_lines(inp, run.names, run.size, channel, methods, options, thresholds, run.reference,
-                          run.has_reference_corners, run.elapsed_s)
+                          run.reference_row, run.elapsed_s)
     title = title or f"Board study — {inp.set_name or f'{len(inp.photos)} photos'}"
     return write_outputs(out, title=title, header_lines=header, photos_table=run.photo_table, rows=run.rows,
                          summaries=run.summaries, comparisons=run.comparisons, reference=run.reference,
@@ -171,11 +194,12 @@ def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], 
 
 
 def run_board_study(items: list[str], out, model: str | None = None, methods=None, channel: str = "luma",
-                    thresholds=None, progress: bool = True) -> Path:
-    """Run the board study (module docstring) into ``out``; returns the path of its report.md."""
+                    thresholds=None, progress: bool = True, pattern: str | None = None, square=None) -> Path:
+    """Run the board study (module docstring) into ``out``; returns the path of its report.md.  The board: ``model``
+    (a model file of separate squares), ``pattern``/``square`` (a chessboard), or the shipped set's own."""
     from edgetruth.evaluate.run_dir import prepare_run_dir
 
-    inp = resolve_inputs(list(items), model)
+    inp = resolve_inputs(list(items), model, pattern, square)
     # all methods but those that need a camera model (patch_esf_fit's PSF tables): there is none here
     methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:

@@ -18,7 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from edgetruth.evaluate.board.measure import REFERENCE_LABEL, REFERENCE_ROW, Row
+from edgetruth.evaluate.board.measure import REFERENCE_ROWS, Row
 from edgetruth.evaluate.board.model import BoardModel
 
 N_BOOT = 2000
@@ -74,7 +74,7 @@ def _flat(arrs) -> np.ndarray:
 
 def row_summary(row: Row, model: BoardModel, reference: dict | None, reference_corners=None) -> dict:
     """The figures of one row (module docstring); NaN where they do not apply."""
-    label = REFERENCE_LABEL if row.label == REFERENCE_ROW else _label(row.label)
+    label = REFERENCE_ROWS[row.label] if row.label in REFERENCE_ROWS else _label(row.label)
     out: dict = {"row": row.label, "label": label}
     if row.is_method:
         rms = _flat([f.rms_px for f in row.sides])
@@ -88,6 +88,13 @@ def row_summary(row: Row, model: BoardModel, reference: dict | None, reference_c
                    converged_fraction=row.converged / row.candidates if row.candidates else float("nan"),
                    points_per_side=float(np.mean(n[covered])) if covered.any() else float("nan"),
                    refine_s=row.refine_s)
+        if model.pattern is not None:  # a chessboard: how far apart the two dark squares put a junction
+            from edgetruth.evaluate.board.chessboard import junction_split, junctions
+
+            jn = junctions(model)
+            split = _flat([junction_split(jn, f.corners) for f in row.sides])
+            out["junction_split_px"] = float(np.nanmean(split)) if np.isfinite(split).any() else float("nan")
+            out["own_corner_outward_px"] = _outward_offset(row, jn)
     else:
         out.update(straightness_px=float("nan"), straightness_ci=(float("nan"),) * 2,
                    straightness_median_px=float("nan"), sides_covered=0, sides_total=0, side_coverage=float("nan"),
@@ -119,6 +126,24 @@ def row_summary(row: Row, model: BoardModel, reference: dict | None, reference_c
                length_rmse_px=float(np.sqrt(np.mean(err_px[ok] ** 2))) if ok.any() else float("nan"),
                length_sides=int(ok.sum()))
     return out
+
+
+def _outward_offset(row: Row, jn) -> float:
+    """Mean signed distance (px) of each square's own corner from the junction's corner, along the direction from
+    the square's centre to that corner: > 0 when its side lines put the square larger than the junctions do."""
+    vals = []
+    for f, c in zip(row.sides, row.corners):
+        own = f.corners.reshape(-1, 2)
+        with np.errstate(invalid="ignore"):
+            centre = np.repeat(np.asarray(c).mean(axis=1), 4, axis=0)  # (S*4, 2) the square's centre per slot
+        slot = jn.slots.ravel()
+        junction = np.asarray(c).reshape(-1, 2)[slot]
+        u = junction - centre[slot]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            u /= np.linalg.norm(u, axis=1, keepdims=True)
+        vals.append(((own[slot] - junction) * u).sum(axis=1))
+    v = _flat(vals)
+    return float(np.nanmean(v)) if np.isfinite(v).any() else float("nan")
 
 
 def _label(method_label: str) -> str:

@@ -221,3 +221,9 @@ def test_wheel_runs_the_board_study_on_the_shipped_real_photos(installed):
     ref = rows["zhang_corners"]
     assert abs(float(ref["calib_rms_px"]) - 0.337) <= 0.01 and abs(float(ref["fx"]) - 832.2) <= 1.0
     assert float(rows["canny_devernay"]["straightness_px"]) > 0
+    # OpenCV's chessboard photos and their board.toml are package data too
+    _run([py.parent / "edgetruth", "study", "board", "opencv_left", "--methods", "canny_devernay",
+          "-o", work / "board" / "ocv", "--no-progress"], work / "board")
+    rows = {r["row"]: r for r in csv.DictReader(open(work / "board" / "ocv" / "summary.csv"))}
+    assert list(rows) == ["canny_devernay", "opencv_corners"]
+    assert abs(float(rows["opencv_corners"]["fx"]) - 532.8) <= 5.0

@@ -11,7 +11,7 @@ from edgetruth.errors import InputError
 #: options that belong to one kind of study only (dest -> the kind), refused with the other
 _SYNTHETIC_ONLY = {"preset": "--preset", "images_per_scenario": "--images-per-scenario", "workers": "-j/--workers",
                    "address": "--address"}
-_BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model"}
+_BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model", "pattern": "--pattern", "square": "--square"}
 _TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant"}
 
 
@@ -25,7 +25,9 @@ def register(sub) -> None:
                                    "board: every method on real photos of a board of squares (straightness of the "
                                    "sides, Zhang calibration of the corners, leave-one-image-out, side lengths; "
                                    "docs/board.md), e.g. `edgetruth study board zhang1998 -o DIR` or "
-                                   "`edgetruth study board PHOTOS... --model Model.txt -o DIR`. "
+                                   "`edgetruth study board PHOTOS... --model Model.txt -o DIR`, or for a chessboard "
+                                   "`edgetruth study board opencv_left -o DIR` or "
+                                   "`edgetruth study board PHOTOS... --pattern 9x6 --square 25 -o DIR`. "
                                    "twin: the digital twin of a shipped photo set, `edgetruth study twin zhang1998 "
                                    "-o DIR`: renders the set's twin scene (scenes/zhang1998_twin.toml: the camera, "
                                    "board and poses, with optics, noise and output measured on the photos) into "
@@ -37,10 +39,17 @@ def register(sub) -> None:
     p.add_argument("kind", choices=["synthetic", "board", "twin"], help="which study")
     p.add_argument("inputs", nargs="*", metavar="PHOTOS",
                    help="board: photo files, folders of photos, or a shipped set's name (zhang1998: its photos, "
-                        "model, corners and published calibration); twin: the shipped set's name (zhang1998)")
+                        "model, corners and published calibration; opencv_left: OpenCV's chessboard photos); twin: "
+                        "the shipped set's name (zhang1998)")
     p.add_argument("--model", default=None, metavar="FILE",
                    help="board: the board model, one square per line, x y of its four corners in board units "
                         "(Zhang's Model.txt layout)")
+    p.add_argument("--pattern", default=None, metavar="COLSxROWS",
+                   help="board: the photos show a chessboard of this many inner corners (OpenCV's patternSize; a "
+                        "board of 10 x 7 squares is 9x6); its dark squares between the inner corners are studied")
+    p.add_argument("--square", default=None, metavar="SIZE",
+                   help="board, with --pattern: the side of one square, in the unit side lengths are reported in "
+                        "(default 1: lengths in squares)")
     p.add_argument("--images", default=None, metavar="LIST",
                    help="twin: which of the set's photos (1-based, comma-separated, at least 3; default all), e.g. "
                         "1,2,3")
@@ -82,7 +91,7 @@ def run(args) -> int:
     if args.kind == "twin":
         from edgetruth.evaluate.board.twin import run_twin_study
 
-        _refuse(args, _SYNTHETIC_ONLY | {"model": "--model"}, "twin")
+        _refuse(args, _SYNTHETIC_ONLY | {k: v for k, v in _BOARD_ONLY.items() if k != "inputs"}, "twin")
         if args.backend != "local":
             raise InputError("--backend: not an option of `study twin` (it renders in-process); drop it")
         if len(args.inputs) != 1:
@@ -98,7 +107,8 @@ def run(args) -> int:
         _refuse(args, _SYNTHETIC_ONLY | _TWIN_ONLY, "board")
         if args.backend != "local":
             raise InputError("--backend: not an option of `study board` (it runs in-process); drop it")
-        report = run_board_study(args.inputs, out, model=args.model, methods=method_list(args.methods),
+        report = run_board_study(args.inputs, out, model=args.model, pattern=args.pattern, square=args.square,
+                                 methods=method_list(args.methods),
                                  channel=args.channel, thresholds=args.thresholds, progress=not args.no_progress)
         console.say(f"report: {report}")
         return 0
