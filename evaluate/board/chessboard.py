@@ -20,7 +20,7 @@ squares puts them, and no corner of the grid says where they are.
    cornerSubPix), a grid of ROWS x COLS points in OpenCV's order;
 2. which squares are dark: the mean gray at the centres of the two colour classes.  OpenCV's
    order does not know colour, so where the dark class is not the model's the grid is turned by
-   180 degrees (when COLS + ROWS is odd) or mirrored (otherwise).  A mirror of a planar board is
+   180 degrees (when COLS + ROWS is odd) or mirrored (both odd).  A mirror of a planar board is
    a rotation of it in space (x -> -x, z -> -z), so the calibration is the same.  When COLS and
    ROWS are both even, no symmetry swaps the colours: the model's parity is then the photos' own
    (``settle_parity``);
@@ -30,6 +30,10 @@ squares puts them, and no corner of the grid says where they are.
 
 The same grid gives the study's reference row, **OpenCV's corners**: every dark square's corners
 at their cornerSubPix positions.
+
+**Corners of a method** (``junction_corners``): at each inner corner, where the two grid lines
+through it meet, each fitted to the method's points on both its halves; a square's own side lines
+would move its corners with any difference in how large dark and light squares print or image.
 """
 from __future__ import annotations
 
