@@ -78,7 +78,7 @@ def test_a_board_too_small_is_refused(pattern):
 def test_found_squares_are_the_dark_ones_at_their_true_corners(rvec, turn):
     """Rendered with exact edges (sigma 0.5 px): every dark square between the inner corners is found, dark,
     its corners within 0.05 px of the truth (cornerSubPix on an exact junction); the photo turned by 180
-    degrees gives the same squares (OpenCV's order changes, the model's colours do not)."""
+    degrees gives the same squares (perhaps numbered from the other end)."""
     model = cb.chessboard_model((9, 6), 1.0)
     img, h = render((9, 6), rvec)
     truth = apply_h(h, model.corners)
@@ -94,17 +94,58 @@ def test_found_squares_are_the_dark_ones_at_their_true_corners(rvec, turn):
     assert np.array_equal(v.reference, v.squares.corners)
 
 
-def test_a_square_cut_by_the_border_is_left_out():
+def test_a_square_with_a_corner_at_the_border_is_left_out(monkeypatch):
+    """OpenCV finds a board only with every inner corner in view, so a square reaches the border only when an inner
+    corner lies within 2 px of it: that square is left out, the others keep their numbers."""
     model = cb.chessboard_model((9, 6), 1.0)
-    img, h = render((9, 6), ROTATIONS[0])
-    corners = cb.find_squares(img, model).squares.corners
-    x_cut = float(np.nanmax(corners[..., 0])) - 1.0  # crop the image just inside the right-most corner
-    cut = img[:, :int(x_cut) + 1]
-    v = cb.find_squares(cut, model)
-    if v is None:  # OpenCV needs every inner corner: a crop that cuts one loses the board, also acceptable
+    img, _ = render((9, 6), ROTATIONS[0])
+    grid = cb.find_squares(img, model).reference.copy()
+    inner = cb._detect(img, (9, 6)).copy()
+    k = int(np.argmin(inner[:, 0]))  # the left-most inner corner, moved to 1 px from the left border
+    touching = np.flatnonzero(np.any(np.all(np.isclose(grid, inner[k]), axis=2), axis=1))
+    assert len(touching) == 1  # the left-most corner is a corner of one dark square
+    inner[k, 0] = 1.0
+    monkeypatch.setattr(cb, "_detect", lambda image, pattern: inner)
+    v = cb.find_squares(img, model)
+    lost = np.flatnonzero(~v.squares.found)
+    assert np.array_equal(lost, touching)
+    assert np.all(np.isnan(v.squares.corners[lost])) and np.all(np.isnan(v.reference[lost]))
+    kept = v.squares.found
+    assert np.allclose(v.squares.corners[kept], grid[kept])
+
+
+@pytest.mark.parametrize("pattern, mirrors", [((9, 6), False), ((7, 5), True), ((8, 6), None)])
+def test_the_grids_turn_swaps_the_colours_of_its_squares(pattern, mirrors):
+    """Read in the turned order, the model's dark class is the other class of squares: a 180 degree turn when
+    COLS + ROWS is odd, a mirror when both are odd, none when both are even."""
+    cols, rows = pattern
+    grid = np.stack(np.meshgrid(np.arange(cols), np.arange(rows)), axis=2).astype(float)
+    turned = cb._turned(grid)
+    if mirrors is None:
+        assert turned is None
         return
-    assert not v.squares.found.all() and v.squares.found.any()
-    assert np.all(np.isnan(v.squares.corners[~v.squares.found]))
+    g, mirrored = turned
+    assert mirrored == mirrors
+
+    def squares(q):
+        return {tuple(sorted(map(tuple, sq))) for sq in q}
+
+    assert squares(cb.square_corners(g, 0)) == squares(cb.square_corners(grid, 1))
+
+
+def test_a_board_whose_turn_is_a_mirror_is_found_dark():
+    """7x5 inner corners: OpenCV's order shows the model's dark class on the photo and the other on its mirror
+    image (measured), and the mirror puts the dark squares back on the model's."""
+    model = cb.chessboard_model((7, 5), 1.0)
+    seen = set()
+    for r in ROTATIONS[:2]:
+        img, _ = render((7, 5), r)
+        for im in (img, img[:, ::-1]):
+            v = cb.find_squares(im, model)
+            seen.add(v.parity_seen)
+            assert v.squares.mirrored == (v.parity_seen != model.parity)
+            assert v.squares.found.all() and is_dark(im, v.squares.corners).all()
+    assert seen == {0, 1}
 
 
 @pytest.mark.parametrize("parity", [0, 1])
