@@ -32,10 +32,10 @@ from edgetruth import console, locate
 from edgetruth.locate.registry import camera_free
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.board import chessboard as cb
 from edgetruth.evaluate.board import locator_fit as LF
 from edgetruth.evaluate.board.compare import compare_all
 from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, resolve_inputs
-from edgetruth.evaluate.board import chessboard as cb
 from edgetruth.evaluate.board.measure import OPENCV_ROW, REFERENCE_ROW, Row, calibrate_row, method_row
 from edgetruth.evaluate.board.sides import near_segments, near_sides, square_map
 from edgetruth.evaluate.board.squares import board_squares
