@@ -24,6 +24,11 @@ SUMMARY_COLUMNS = (
     "own_corner_outward_px", "refine_s", "failure")
 
 
+#: The reading calls a chessboard's dark squares smaller or larger when every method's own corners lie at least
+#: this far (px) on one side of the junctions (an exact render: 0.0004 px; OpenCV's photos: 0.16 px).
+OWN_CORNER_NOTICE_PX = 0.01
+
+
 def _csv_text(header, rows) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -229,6 +234,20 @@ def reading(sums, comparisons, reference) -> list[str]:
                          "length_bias_px" in ref else "")
                       + ("; every row shares its sign, so it belongs to the board as photographed (its print, the "
                          "camera's blur of dark on white) more than to any method." if lo * hi > 0 else ".")]
+    own = [s["own_corner_outward_px"] for s in methods if np.isfinite(s.get("own_corner_outward_px", np.nan))]
+    if own:
+        lo, hi = min(own), max(own)
+        if hi < -OWN_CORNER_NOTICE_PX or lo > OWN_CORNER_NOTICE_PX:
+            where, what = (("inside", "smaller than the light ones (a tone curve after the blur does this, and so "
+                            "does flare)") if hi < 0 else ("outside", "larger than the light ones (ink spread does "
+                                                           "this)"))
+            lines += ["", f"Each dark square's own side lines put its corners {min(abs(lo), abs(hi)):.3f}–"
+                          f"{max(abs(lo), abs(hi)):.3f} px {where} the junctions: the dark squares image {what}.  "
+                          "The corners at the junctions, on lines through both halves, do not see it (Table 3; "
+                          "docs/board.md, Chessboards)."]
+        else:
+            lines += ["", f"Each dark square's own side lines put its corners within {lo:+.3f} to {hi:+.3f} px of "
+                          "the junctions (Table 3)."]
     if reference and both:
         dfx = [abs(s["d_fx"]) for s in both if "d_fx" in s]
         if dfx:
@@ -301,9 +320,10 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
                   _difference_table(summaries), ""]
     elif model.pattern is not None:
         lines += ["## Table 3 — junctions: corners against OpenCV's, and each square's own", "",
-                  "A chessboard's corners are its junctions, where two dark squares meet: a method's corner there is "
-                  "the intersection of the two grid lines through it, each fitted to both squares' sides that meet "
-                  "there.  Against OpenCV's corner (cornerSubPix) at the same junction; and how far apart the two "
+                  "A method's corner at an inner corner of a chessboard is the intersection of the two grid lines "
+                  "through it, each fitted to the points on both its halves (a side of either dark square; on the "
+                  "grid's border, the side continued into the outer ring).  Against OpenCV's corner (cornerSubPix) "
+                  "at the same inner corner; and, where two dark squares meet, how far apart the two "
                   "squares' own corners (from each square's own side lines) fall, a distance that any difference "
                   "between how large dark and light squares print or image puts there, and the mean signed distance "
                   "of a square's own corner from the junction along the square's diagonal (< 0: its own side lines "

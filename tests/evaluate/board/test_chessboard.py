@@ -251,6 +251,7 @@ def test_a_rendered_chessboard_gives_back_its_camera_and_its_corners(rendered_ru
     text = (out / "report.md").read_text()
     assert "the 20 dark squares between the 9×6 inner corners, side 25 board units" in text
     assert "## Table 3 — junctions: corners against OpenCV's, and each square's own" in text
+    assert "Each dark square's own side lines put its corners within" in text
 
 
 def test_a_tone_curve_shrinks_each_square_but_not_its_junctions(tone_curve_run):
@@ -310,6 +311,7 @@ def test_opencvs_photos_dark_squares_image_small_and_the_junctions_undo_it(openc
         assert abs(float(r["length_bias_px"])) < 0.02
         assert int(r["corners_used"]) == int(r["corners_total"]) == 13 * 80
         assert float(r["calib_rms_px"]) < float(rows["opencv_corners"]["calib_rms_px"])
+    assert "px inside the junctions: the dark squares image smaller" in (out / "report.md").read_text()
 
 
 # --------------------------------------------------------------------------------------------- bad input
