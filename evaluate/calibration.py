@@ -323,13 +323,22 @@ class PhotoResult:
                 "subpix_window_px": self.subpix_window_px}
 
 
+#: Fewest measured corners a photo needs to take part in a calibration (a homography needs 4; some to spare).
+MIN_CORNERS_PER_PHOTO = 6
+
+
 def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, int], square_m: float,
                      model: str = DEFAULT_DIST_MODEL, window_px: int | None = None, channel: str = "luma",
-                     progress=None) -> tuple[Calibration, list[PhotoResult]]:
+                     progress=None, corner_finder=None,
+                     corner_label: str | None = None) -> tuple[Calibration, list[PhotoResult]]:
     """Zhang's calibration from real photos of a chessboard: ``photos`` = [(name, path)] (``find_photos``).
 
     Each photo is read with ``edgetruth.image_io.read_gray(path, channel)``; its corners with
-    ``detect_corners(image, pattern_size, window_px)``.  A photo where the board is not found is
+    ``detect_corners(image, pattern_size, window_px)``, or with ``corner_finder(image, pattern_size)`` when given:
+    (COLS * ROWS, 2) in OpenCV's order, NaN where it measured none, None when the board is not found (e.g.
+    ``edgetruth.evaluate.board.grid_corners.line_corners``); ``corner_label`` then names it in the calibration's
+    method line.  Each photo uses its measured corners (at least ``MIN_CORNERS_PER_PHOTO``).  A photo where the
+    board is not found is
     kept in the results (``found = False``) and left out of the fit; fewer than 3 boards, or photos
     of different sizes, raise ``InputError``.  ``square_m`` (metres) scales the board, hence the
     poses only: K and the distortion do not depend on it.
@@ -355,14 +364,18 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
         elif (w, h) != size:
             raise InputError(f"{name}: {w} x {h} px, but {first} is {size[0]} x {size[1]} px; calibrate photos of "
                              "one camera at one resolution and orientation")
-        corners = detect_corners(image, pattern_size, window_px)
-        if corners is None:
+        corners = detect_corners(image, pattern_size, window_px) if corner_finder is None else \
+            corner_finder(image, pattern_size)
+        ok = None if corners is None else np.all(np.isfinite(corners), axis=1)
+        if corners is None or ok.sum() < MIN_CORNERS_PER_PHOTO:
             results.append(PhotoResult(name, False, 0))
             continue
-        win = subpix_window(corners, pattern_size) if window_px is None else int(window_px)
-        results.append(PhotoResult(name, True, len(corners), subpix_window_px=win))
-        obj_list.append(obj)
-        img_list.append(corners.astype(np.float32).reshape(-1, 1, 2))
+        win = None
+        if corner_finder is None:
+            win = subpix_window(corners, pattern_size) if window_px is None else int(window_px)
+        results.append(PhotoResult(name, True, int(ok.sum()), subpix_window_px=win))
+        obj_list.append(obj[ok])
+        img_list.append(corners[ok].astype(np.float32).reshape(-1, 1, 2))
     used = [r.photo for r in results if r.found]
     if len(used) < 3:
         missing = ", ".join(r.photo for r in results if not r.found)
@@ -373,7 +386,8 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     for r, v in zip([r for r in results if r.found], per_view):
         r.rms_px = v
     window = "0.4 of the smallest imaged square side" if window_px is None else f"half-window {int(window_px)} px"
+    corners_used = corner_label or f"cornerSubPix corners ({window})"
     cal = Calibration(K=K, dist=dist, image_size=size, rms_px=rms, n_views=len(used), per_view_rms_px=per_view,
                       used=used, rejected=[r.photo for r in results if not r.found],
-                      method=f"Zhang (cv2.calibrateCamera, {words}), cornerSubPix corners ({window})")
+                      method=f"Zhang (cv2.calibrateCamera, {words}), {corners_used}")
     return cal, results

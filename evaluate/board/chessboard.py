@@ -51,11 +51,13 @@ from edgetruth.evaluate.board.quads import BORDER_PX
 @dataclass(frozen=True)
 class ChessboardView:
     """One photo: ``squares`` the model's squares found (as the quad matcher gives them), ``reference`` (S, 4, 2)
-    OpenCV's corners in the model's order, ``parity_seen`` the dark class in OpenCV's order before any turn."""
+    OpenCV's corners in the model's order, ``parity_seen`` the dark class in OpenCV's order before any turn,
+    ``inner`` (ROWS * COLS, 2) the inner corners as OpenCV gives them (its order)."""
 
     squares: Correspondence
     reference: np.ndarray
     parity_seen: int
+    inner: np.ndarray
 
 
 def chessboard_model(pattern: tuple[int, int], square: float, units: str = "model units", parity: int = 0,
@@ -140,7 +142,7 @@ def find_squares(image: np.ndarray, model: BoardModel) -> ChessboardView | None:
     hom, _ = cv2.findHomography(src, grid.reshape(-1, 2), 0)
     residual = float(np.sqrt(np.mean(np.sum((project(hom, src) - grid.reshape(-1, 2)) ** 2, axis=1))))
     return ChessboardView(Correspondence(corners, found, hom, residual, mirrored, rotation_deg(hom, model)),
-                          reference, seen)
+                          reference, seen, inner)
 
 
 def settle_parity(images, model: BoardModel) -> BoardModel:

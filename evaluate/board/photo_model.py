@@ -71,14 +71,13 @@ class BoardLines:
 def board_lines(image: np.ndarray, model: BoardModel) -> BoardLines | None:
     """The side lines of the model's squares found on ``image`` (None when the board is not found)."""
     from edgetruth import locate
-    from edgetruth.evaluate.board.sides import near_sides, side_fits, square_map
-    from edgetruth.evaluate.board.squares import board_squares
+    from edgetruth.evaluate.board.sides import side_fits, square_map
+    from edgetruth.evaluate.board.squares import board_candidates, board_squares
 
     c = board_squares(image, model)[0]
     if c is None:
         return None
-    cand = locate.candidates(image)
-    cand = cand.subset(near_sides(c.corners, cand.x, cand.y, 5.0))
+    cand = board_candidates(image, c.corners, chessboard=False)  # the side lines alone
     pts = locate.refine(image, cand, "canny_devernay")
     f = side_fits(c.corners, square_map(c.corners, image.shape), pts.x, pts.y, pts.nx, pts.ny, pts.converged)
     ok = f.covered & np.all(np.isfinite(f.corners), axis=2) & np.roll(np.all(np.isfinite(f.corners), axis=2), -1, 1)

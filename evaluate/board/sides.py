@@ -28,6 +28,8 @@ import cv2
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
+#: Candidates refined: those within this distance of a side (the rest cannot be assigned).
+CANDIDATE_MARGIN_PX = 5.0
 CORNER_EXCLUSION_PX = 3.0
 MIN_POINTS = 5
 MAX_NORMAL_ANGLE_DEG = 30.0

@@ -37,15 +37,13 @@ from edgetruth.evaluate.board import locator_fit as LF
 from edgetruth.evaluate.board.compare import compare_all
 from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, resolve_inputs
 from edgetruth.evaluate.board.measure import OPENCV_ROW, REFERENCE_ROW, Row, calibrate_row, method_row
-from edgetruth.evaluate.board.sides import near_segments, near_sides, square_map
-from edgetruth.evaluate.board.squares import board_squares
+from edgetruth.evaluate.board.sides import square_map
+from edgetruth.evaluate.board.squares import board_candidates, board_squares
 from edgetruth.evaluate.board.summary import per_side_rows, row_summary
 
 KIND = "study board"
 #: A photo on which fewer than this share of the model's squares are found is left out (with a warning).
 MIN_FOUND_SHARE = 0.5
-#: Candidates refined: those within this distance of a detected quad's side (the rest cannot be assigned).
-CANDIDATE_MARGIN_PX = 5.0
 
 
 def settings_of(inp: BoardInputs, methods: list[str], options: dict, channel: str) -> dict:
@@ -91,11 +89,7 @@ def locate_squares(inp: BoardInputs, images, progress: bool):
         if found < MIN_FOUND_SHARE * n_sq:
             console.warn(f"{name}: found {found} of the model's {n_sq} squares; photo left out")
             continue
-        cand = locate.candidates(img)
-        near = near_sides(c.corners, cand.x, cand.y, CANDIDATE_MARGIN_PX)
-        if model.pattern is not None:  # a chessboard's grid lines run on past its border corners
-            near |= near_segments(cb.grid_segments(c.corners), cand.x, cand.y, CANDIDATE_MARGIN_PX)
-        cand = cand.subset(near)
+        cand = board_candidates(img, c.corners, model.pattern is not None)
         line.update({"candidates_near_sides": len(cand), "used": "yes"})
         cands.append(cand)
         quads.append(c.corners)

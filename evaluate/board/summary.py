@@ -7,7 +7,7 @@
 - intrinsics and their differences from the set's published calibration;
 - side lengths in the board plane: bias (mean error) and RMSE, in board units and in px;
 - coverage: sides with at least ``sides.MIN_POINTS`` points, and the share of the candidates the
-  method refined (``converged``; the candidates within ``study.CANDIDATE_MARGIN_PX`` of a detected
+  method refined (``converged``; the candidates within ``sides.CANDIDATE_MARGIN_PX`` of a detected
   square's side, all photos);
 - per photo: straightness, calibration RMS and LOO RMS;
 - corners vs the set's own corners (mean distance, px) where the set has them.

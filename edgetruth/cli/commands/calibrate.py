@@ -37,6 +37,13 @@ def register(sub) -> None:
                    help="cornerSubPix half-window in px (OpenCV's winSize; the window is 2N+1 px wide): 'auto' "
                         "(default) = 0.4 of the smallest imaged square side, per photo; 5 = the window of OpenCV's "
                         "sample and regression test (docs/formats.md has both measured on its left01-14 photos)")
+    p.add_argument("--corners", default="subpix", metavar="subpix|lines[:METHOD]",
+                   help="how each inner corner is measured: 'subpix' (default) = OpenCV's cornerSubPix; 'lines' = "
+                        "where the two grid lines through it meet, each fitted to an edge method's points on both "
+                        "its halves (free of dark squares imaging smaller or larger than light ones; docs/board.md, "
+                        "Chessboards), with erf4p_fixed11 or the METHOD given (options as in --methods, e.g. "
+                        "lines:canny_devernay); a grid corner whose one square between the inner corners is light has "
+                        "no such lines and is left out")
     p.add_argument("-o", "--output", required=True, help="JSON file to write (written atomically)")
     add_image_options(p)
     add_progress_option(p)
@@ -70,6 +77,42 @@ def _window(text: str) -> int | None:
     return n
 
 
+def _corner_finder(text: str, pattern: tuple[int, int], window: int | None):
+    """``--corners``: (corner_finder, label) for ``calibrate_photos``; (None, None) for cornerSubPix."""
+    from edgetruth.errors import InputError
+
+    kind, _, spec = str(text).partition(":")
+    if kind == "subpix" and not spec:
+        return None, None
+    if kind != "lines":
+        raise InputError(f"--corners {text!r}: give 'subpix' or 'lines' (or lines:METHOD, e.g. lines:canny_devernay)")
+    if window is not None:
+        raise InputError("--subpix-window: only with --corners subpix (the line corners use no cornerSubPix window); "
+                         "drop one")
+    from edgetruth import locate
+    from edgetruth.evaluate import method_order as mo
+    from edgetruth.evaluate.board.chessboard import chessboard_model
+    from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD, line_corners
+    from edgetruth.locate.registry import camera_free
+
+    spec = spec or DEFAULT_METHOD
+    method, options = mo.resolve(spec, mo.study_options())
+    locate.get_method(method)
+    if not camera_free([method]):
+        raise InputError(f"--corners {text!r}: {method} needs a camera model, which a calibration does not have yet; "
+                         "choose another method (`edgetruth methods`)")
+    try:
+        chessboard_model(pattern, 1.0)
+    except InputError:
+        raise InputError(f"--corners lines: a {pattern[0]}x{pattern[1]} board has too few squares between its inner "
+                         "corners (need 4x4 inner corners or more); use --corners subpix") from None
+
+    def finder(image, pattern_size):
+        return line_corners(image, pattern_size, method, **options)
+
+    return finder, f"corners where the grid lines of {spec}'s points meet (edgetruth.evaluate.board.grid_corners)"
+
+
 def run(args: argparse.Namespace) -> int:
     from edgetruth import console
     from edgetruth.errors import InputError
@@ -79,14 +122,17 @@ def run(args: argparse.Namespace) -> int:
     pattern = parse_pattern(args.pattern)
     square_m = _square_m(args.square_m)
     window = _window(args.subpix_window)
+    finder, corner_label = _corner_finder(args.corners, pattern, window)
     photos = find_photos(args.photos)
     out = check_output_file(args.output, "-o", inputs=[path for _, path in photos])
     cal, results = calibrate_photos(
         photos, pattern, square_m, model=args.model, window_px=window, channel=args.channel,
+        corner_finder=finder, corner_label=corner_label,
         progress=lambda it: console.track(it, desc="calibrate", unit="photo", enabled=not args.no_progress))
     doc = cal.to_dict()
     doc.update({"pattern_size": list(pattern), "square_m": square_m, "model": args.model,
-                "subpix_window": "auto" if window is None else window, "channel": args.channel,
+                "subpix_window": "auto" if window is None else window, "corners": args.corners,
+                "channel": args.channel,
                 "photos": [r.to_dict() for r in results]})
     try:
         write_json(out, doc)
