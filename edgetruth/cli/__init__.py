@@ -51,6 +51,14 @@ def add_undistort_option(p: argparse.ArgumentParser) -> None:
 CHANNEL_CHOICES = ("luma", "r", "g", "b")
 
 
+def add_pattern_option(p: argparse.ArgumentParser, what: str, required: bool = False) -> None:
+    """``--pattern COLSxROWS``: a chessboard's inner corners, as every command that reads one counts them
+    (``edgetruth.evaluate.calibration.parse_pattern``); ``what`` says what the command does with the board."""
+    p.add_argument("--pattern", required=required, default=None, metavar="COLSxROWS",
+                   help="inner corners of the chessboard, per row x per column (OpenCV's patternSize; a board of "
+                        f"10 x 7 squares is 9x6); {what}")
+
+
 def add_image_options(p: argparse.ArgumentParser) -> None:
     """Options of every command that reads photos: how colour becomes gray."""
     p.add_argument("--channel", choices=CHANNEL_CHOICES, default="luma",

@@ -17,11 +17,12 @@ from edgetruth.errors import InputError
 from edgetruth.evaluate.board.model import BoardModel, read_model
 from edgetruth.evaluate.board.reference import read_corners, read_zhang_calibration, shipped_set
 from edgetruth.fileio import check_input_file
+from edgetruth.image_io import SUFFIXES
 
 #: Leave-one-image-out calibrates on the other photos: Zhang's method needs at least 2 views.
 MIN_PHOTOS = 3
 #: File types read from a folder (``edgetruth.image_io`` reads them).
-PHOTO_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".pgm", ".bmp", ".exr", ".npy")
+PHOTO_SUFFIXES = SUFFIXES
 
 
 @dataclass

@@ -9,6 +9,7 @@ import numpy as np
 
 from edgetruth import locate
 from edgetruth.evaluate.board import calibrate as cb
+from edgetruth.evaluate.board.chessboard import junction_corners
 from edgetruth.evaluate.board.model import BoardModel
 from edgetruth.evaluate.board.sides import SideFits, side_fits
 
@@ -62,8 +63,6 @@ def method_row(label: str, method: str, options: dict, images, cands, quads, sma
         if junctions is None:
             corners.append(f.corners)
         else:
-            from edgetruth.evaluate.board.chessboard import junction_corners
-
             corners.append(junction_corners(junctions, f, pts.x, pts.y, pts.nx, pts.ny, pts.converged))
         conv += int(pts.converged.sum())
         n += len(pts)

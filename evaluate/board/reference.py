@@ -59,7 +59,9 @@ def shipped_set(name: str) -> dict | None:
     model = root / "Model.txt"
     if (root / CHESSBOARD_FILE).is_file():
         board = read_toml(root / CHESSBOARD_FILE)
-        photos = sorted(p for p in root.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg") and p.is_file())
+        from edgetruth.image_io import SUFFIXES
+
+        photos = sorted(p for p in root.iterdir() if p.suffix.lower() in SUFFIXES and p.is_file())
         return {"name": name, "photos": photos, "chessboard": board, "source": f"{name}/{CHESSBOARD_FILE}"}
     if not model.is_file():
         return None

@@ -104,6 +104,8 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
         model_line = (f"- Model: `{inp.model.source}`, {len(inp.model)} squares, side "
                       f"{np.median(inp.model.side_lengths):.4g} {inp.model.units}.")
     ref_line = "the set's own corners" if not chess else "the inner corners OpenCV finds the board by"
+    corners = ("corners where the two grid lines through each inner corner meet, each fitted to the points on both "
+               "its halves" if chess else "corners by intersection")
     return [
         f"edgetruth {__version__}, commit {source_commit()[:12]}; {utc_stamp()} (UTC); study time {elapsed_s:.1f} s.",
         "",
@@ -118,8 +120,8 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
         "- Candidates: `locate.candidates` (Canny on the σ = 1 px smoothed image), once per photo, the same for "
         "every method; those within 5 px of a detected square's side are refined.",
         f"- Procedure (docs/board.md): {squares} → each method's converged points within 3 px then 1.5 px of a "
-        "side, 3 px from its corners, normal within 30° → total-least-squares line per side → corners by "
-        "intersection → OpenCV calibrateCamera (k1, k2; CALIB_ZERO_TANGENT_DIST | CALIB_FIX_K3).",
+        f"side, 3 px from its corners, normal within 30° → total-least-squares line per side → {corners} → "
+        "OpenCV calibrateCamera (k1, k2; CALIB_ZERO_TANGENT_DIST | CALIB_FIX_K3).",
     ]
 
 

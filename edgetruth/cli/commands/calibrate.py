@@ -12,7 +12,7 @@ import argparse
 
 
 def register(sub) -> None:
-    from edgetruth.cli import add_image_options, add_progress_option
+    from edgetruth.cli import add_image_options, add_pattern_option, add_progress_option
     from edgetruth.evaluate.calibration import DEFAULT_DIST_MODEL, DIST_MODELS
 
     p = sub.add_parser("calibrate", help="calibrate a camera from photos of a chessboard (Zhang) -> JSON",
@@ -23,9 +23,7 @@ def register(sub) -> None:
     p.add_argument("photos", nargs="*", metavar="PHOTOS",  # none: our own one-line error, not argparse's usage
                    help="image files, folders (every image inside, sorted), glob patterns (quoted), or the name "
                         "of a shipped photo set (opencv_left)")
-    p.add_argument("--pattern", required=True, metavar="COLSxROWS",
-                   help="inner corners of the board, per row x per column (OpenCV's patternSize; a board of "
-                        "10 x 7 squares has 9x6)")
+    add_pattern_option(p, "the board the photos show", required=True)
     p.add_argument("--square-m", required=True, metavar="METRES",
                    help="side of one printed square in metres (e.g. 0.025); it scales the board poses only, "
                         "not K or the distortion")

@@ -16,8 +16,8 @@ _TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant"}
 
 
 def register(sub) -> None:
-    from edgetruth.cli import (add_backend_options, add_image_options, add_plugin_option, add_progress_option,
-                               methods_help, positive_int)
+    from edgetruth.cli import (add_backend_options, add_image_options, add_pattern_option, add_plugin_option,
+                               add_progress_option, methods_help, positive_int)
 
     p = sub.add_parser("study", help="run a study and write its report",
                        description="synthetic: the seed's synthetic study (Tables 3-8, Figures 4-7) on analytic "
@@ -44,9 +44,8 @@ def register(sub) -> None:
     p.add_argument("--model", default=None, metavar="FILE",
                    help="board: the board model, one square per line, x y of its four corners in board units "
                         "(Zhang's Model.txt layout)")
-    p.add_argument("--pattern", default=None, metavar="COLSxROWS",
-                   help="board: the photos show a chessboard of this many inner corners (OpenCV's patternSize; a "
-                        "board of 10 x 7 squares is 9x6); its dark squares between the inner corners are studied")
+    add_pattern_option(p, "board: the photos show this chessboard, and its dark squares between the inner corners "
+                          "are studied (in place of --model)")
     p.add_argument("--square", default=None, metavar="SIZE",
                    help="board, with --pattern: the side of one square, in the unit side lengths are reported in "
                         "(default 1: lengths in squares)")
