@@ -309,7 +309,10 @@ GRAY_RULES = {
 LUMA_WEIGHTS_RGB = (0.299, 0.587, 0.114)
 
 
-def _opaque_level(dtype: np.dtype) -> float:
+def full_scale(dtype) -> float:
+    """The value of full white for stored values of ``dtype``: its largest integer (255 for 8-bit, 65535 for
+    16-bit), or 1.0 for floats (EXR, float arrays)."""
+    dtype = np.dtype(dtype)
     return float(np.iinfo(dtype).max) if np.issubdtype(dtype, np.integer) else 1.0
 
 
@@ -324,7 +327,7 @@ def to_gray(img: np.ndarray, channel: str = "luma", order: str = "BGR", name: st
     n = img.shape[2]
     if n in (2, 4):
         alpha = img[..., -1]
-        level = _opaque_level(img.dtype)
+        level = full_scale(img.dtype)
         clear = int(np.count_nonzero(alpha != level))
         if clear:
             raise InputError(f"{name}: {clear} of {alpha.size} pixels are not fully opaque (alpha below {level:g}); "
@@ -347,6 +350,11 @@ def to_gray(img: np.ndarray, channel: str = "luma", order: str = "BGR", name: st
 
 
 def read_gray(path, channel: str = "luma") -> np.ndarray:
+    """Read an image file as one gray 2-D array of its stored values (``read_gray_scaled`` without the scale)."""
+    return read_gray_scaled(path, channel)[0]
+
+
+def read_gray_scaled(path, channel: str = "luma") -> tuple[np.ndarray, float]:
     """Read an image file as one gray 2-D array of its stored values, upright by its EXIF orientation.
 
     Formats: PNG 8/16-bit (palette PNGs too), JPEG, TIFF, PGM, BMP, EXR (float) and ``.npy`` (an
@@ -363,13 +371,17 @@ def read_gray(path, channel: str = "luma") -> np.ndarray:
     Zhang's), is returned unchanged with its dtype, whatever ``channel`` says.  An alpha channel
     (gray + alpha, colour + alpha) that is fully opaque (255, 65535, or 1.0 for float) is dropped; any
     other alpha is refused (``InputError``): what lies behind a transparent pixel is unknown.
+
+    Returns the gray array and the full scale of the file's stored values (``full_scale`` of its dtype before
+    any gray rule: 255 for an 8-bit colour photo read as float luma).
     """
     if channel not in GRAY_RULES:
         raise InputError(f"channel {channel!r}: unknown gray rule; choose one of {', '.join(GRAY_RULES)}")
     p = check_input_file(path, "image")
     suffix = p.suffix.lower()
     if suffix == ".npy":
-        return _read_npy(p)  # an array is taken as it is; edgetruth.locate checks its shape and values
+        arr = _read_npy(p)  # an array is taken as it is; edgetruth.locate checks its shape and values
+        return arr, full_scale(arr.dtype)
     if suffix == ".exr":
         img, order = _read_exr(p)
     else:
@@ -384,4 +396,4 @@ def read_gray(path, channel: str = "luma") -> np.ndarray:
             raise InputError(f"{p}: cannot be decoded as an image (corrupt, truncated, too large or unsupported); "
                              "use PNG, TIFF, JPEG, EXR or .npy")
         order = "BGR"
-    return to_gray(img, channel, order, name=str(p))
+    return to_gray(img, channel, order, name=str(p)), full_scale(img.dtype)

@@ -139,11 +139,17 @@ def resolve_inputs(items: list[str], model_path: str | None = None, pattern: str
 
 def load_photos(photos: list[Path], channel: str = "luma") -> list[np.ndarray]:
     """Every photo as a 2-D array (``edgetruth.image_io.read_gray``), all of one size."""
-    from edgetruth.image_io import read_gray
+    return load_photos_scaled(photos, channel)[0]
 
-    images = []
+
+def load_photos_scaled(photos: list[Path], channel: str = "luma") -> tuple[list[np.ndarray], list[float]]:
+    """``load_photos``, and each photo's full scale of stored values (``image_io.full_scale``)."""
+    from edgetruth.image_io import read_gray_scaled
+
+    images, scales = [], []
     for p in photos:
-        img = read_gray(p, channel=channel)
+        img, scale = read_gray_scaled(p, channel=channel)
+        scales.append(scale)
         if img.ndim != 2:
             raise InputError(f"{p}: expected a gray image, got an array of shape {img.shape}; give a 2-D image")
         if images and img.shape != images[0].shape:
@@ -151,4 +157,4 @@ def load_photos(photos: list[Path], channel: str = "luma") -> list[np.ndarray]:
                              f"{images[0].shape[1]}x{images[0].shape[0]}; every photo must come from one camera "
                              "at one resolution")
         images.append(img)
-    return images
+    return images, scales

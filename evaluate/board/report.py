@@ -81,9 +81,11 @@ def calibration_json(row, summary: dict, photo_names: list[str]) -> dict:
 
 # ------------------------------------------------------------------------------------------- markdown
 def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str, methods: list[str], options: dict,
-                 thresholds, reference: dict | None, reference_row: str | None, elapsed_s: float) -> list[str]:
+                 thresholds, reference: dict | None, reference_row: str | None, elapsed_s: float,
+                 tone: dict | None = None) -> list[str]:
     """The report's header: version, time, inputs, method options, the procedure in one line.  ``reference_row``:
-    the key of the reference row in ``REFERENCE_ROWS``, None when there is none."""
+    the key of the reference row in ``REFERENCE_ROWS``, None when there is none; ``tone``: how the stored values
+    were decoded (``study.tone_summary``; None: as stored)."""
     from edgetruth import __version__
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.run_dir import utc_stamp
@@ -114,6 +116,7 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
         model_line,
         f"- Reference: {reference['source'] if reference else 'none'}"
         + (f"; reference row: {ref_line} ({reference_row})" if reference_row else "") + ".",
+        tone_line(tone),
         f"- Methods ({len(methods)}): {', '.join(methods)}; entropy thresholds "
         f"2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']}).",
         f"- {mo.options_line(methods, options)}",
@@ -123,6 +126,43 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
         f"side, 3 px from its corners, normal within 30° → total-least-squares line per side → {corners} → "
         "OpenCV calibrateCamera (k1, k2; CALIB_ZERO_TANGENT_DIST | CALIB_FIX_K3).",
     ]
+
+
+def tone_line(tone: dict | None) -> str:
+    """The header's line on the tone (``--tone``, evaluate/board/tone.py)."""
+    if tone is None:
+        return ("- Tone: the stored values, as stored (`--tone` decodes them first: srgb, power:G, or auto on a "
+                "chessboard).")
+    fit = tone.get("fit")
+    if not fit:
+        return f"- Tone (`--tone {tone['spec']}`): {tone['describe']}."
+    per = list(fit["per_photo"].values())
+    return (f"- Tone (`--tone {tone['spec']}`): power {fit['power']:.3f} (95 % CI {fit['ci95'][0]:.3f}–"
+            f"{fit['ci95'][1]:.3f}, {len(per)} photos; per photo {min(per):.2f}–{max(per):.2f}), measured as the "
+            f"power at which {fit['method']}'s own corners meet the junctions (mean offset "
+            f"{fit['offset_stored_px']:+.3f} px as stored, {fit['offset_fit_px']:+.4f} px decoded; tone.json); "
+            f"{tone['describe']}; "
+            + ("one power fits every photo" if fit["one_power_fits"] else "one power does not fit every photo "
+               f"(Cochran's Q p {p_text(fit['cochran_q_p'])}; Reading)") + ".")
+
+
+def p_text(p: float) -> str:
+    """'= 0.012' or '< 1e-300' (a p below what a double holds)."""
+    return "< 1e-300" if p < 1e-300 else f"= {p:.2g}"
+
+
+def tone_agreement(fit: dict) -> str:
+    """Whether one power describes every photo (Cochran's Q), and how the per-photo powers follow the white level."""
+    per = list(fit["per_photo"].values())
+    q = f"Cochran's Q = {fit['cochran_q']:.1f}, p {p_text(fit['cochran_q_p'])}, {len(per)} photos"
+    rho = (f"Spearman ρ = {fit['spearman_rho_power_white']:+.2f}, p {p_text(fit['spearman_p_power_white'])}"
+           if np.isfinite(fit["spearman_rho_power_white"]) else "ρ undefined")
+    if fit["one_power_fits"]:
+        return f"One power describes every photo ({q}; per photo {min(per):.2f}–{max(per):.2f})."
+    return (f"One power does not describe every photo ({q}): per photo it runs from {min(per):.2f} to "
+            f"{max(per):.2f}, against the photos' white level {rho} (tone.json).  A power that changes with the "
+            "exposure is a tone curve that is not a power law (a highlight shoulder, clipping), or not a tone curve "
+            "at all; the decoded study corrects the set on average only.")
 
 
 def _straightness_table(sums) -> str:
@@ -206,7 +246,7 @@ def _ranking(sums, key: str, nd: int = 3) -> str:
     return ", ".join(f"{s['label']} {s[key]:.{nd}f}" for s in rows)
 
 
-def reading(sums, comparisons, reference) -> list[str]:
+def reading(sums, comparisons, reference, tone: dict | None = None) -> list[str]:
     """A short reading of the measured tables: rankings as measured, nothing tuned."""
     from scipy import stats as st
 
@@ -250,6 +290,13 @@ def reading(sums, comparisons, reference) -> list[str]:
         else:
             lines += ["", f"Each dark square's own side lines put its corners within {lo:+.3f} to {hi:+.3f} px of "
                           "the junctions (Table 3)."]
+    if tone is not None and tone.get("fit"):
+        fit = tone["fit"]
+        lines += ["", f"The photos were decoded with the power {fit['power']:.3f} measured at the junctions, so "
+                      f"{fit['method']}'s own corners meet them on average by construction; the other methods' "
+                      "offsets (Table 3) are measured.  A power above 1 says the stored edges had their dark side "
+                      "lifted, as a tone curve does; flare would do the same, and the power does not tell them "
+                      "apart.  " + tone_agreement(fit)]
     if reference and both:
         dfx = [abs(s["d_fx"]) for s in both if "d_fx" in s]
         if dfx:
@@ -269,8 +316,9 @@ def reading(sums, comparisons, reference) -> list[str]:
 
 
 def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_table: list[dict], rows, summaries,
-                  comparisons, reference, model, photo_names, per_side, locator=None) -> Path:
-    """Every output file of the study; returns report.md's path."""
+                  comparisons, reference, model, photo_names, per_side, locator=None, tone=None) -> Path:
+    """Every output file of the study; returns report.md's path.  ``tone``: how the stored values were decoded
+    (``study.tone_summary``), written as tone.json when given."""
     (out / "calibration").mkdir(exist_ok=True)
     (out / "figures").mkdir(exist_ok=True)
     atomic_write_text(out / "summary.csv", _csv_text(SUMMARY_COLUMNS, [_flat_summary(s) for s in summaries]))
@@ -292,6 +340,8 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
     atomic_write_text(out / "paired_tests.csv", _csv_text(cols, tests))
     if locator:
         write_json(out / "locator.json", _json_safe(locator))
+    if tone:
+        write_json(out / "tone.json", _json_safe(tone))
     for row, s in zip(rows, summaries):
         write_json(out / "calibration" / f"{row.label}.json", calibration_json(row, s, photo_names))
     errors_px = {r.label: np.concatenate([e.ravel() for e in r.lengths["error_px"]]) for r in rows if r.lengths}
@@ -341,7 +391,7 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
               "Every row against the baseline on the units all rows have; Holm-adjusted within each family; "
               "rank-biserial > 0: the row's values tend to be larger (worse) than the baseline's.", "",
               *_paired_tables(comparisons, labels),
-              "## Reading", "", *reading(summaries, comparisons, reference), "",
+              "## Reading", "", *reading(summaries, comparisons, reference, tone), "",
               *([*LF.reading_lines(locator), ""] if locator else []),
               "## Figures", ""]
     for f, cap in zip(figs, ("straightness per method", "calibration and leave-one-out RMS",

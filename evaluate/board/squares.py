@@ -1,13 +1,20 @@
 """The model's squares in a photo, whatever the board: separate squares by their dark quads and a homography
-(``quads``, ``correspond``), a chessboard by OpenCV's grid of its inner corners (``chessboard``)."""
+(``quads``, ``correspond``), a chessboard by OpenCV's grid of its inner corners (``chessboard``); and, for a set of
+photos, the squares and the Canny candidates beside their sides that every method of the study refines
+(``locate_squares``)."""
 from __future__ import annotations
 
 import numpy as np
 
+from edgetruth import console
 from edgetruth.evaluate.board import chessboard as cb
 from edgetruth.evaluate.board.correspond import Correspondence, match_squares
 from edgetruth.evaluate.board.model import BoardModel
 from edgetruth.evaluate.board.quads import find_quads
+from edgetruth.evaluate.board.sides import square_map
+
+#: A photo on which fewer than this share of the model's squares are found is left out (with a warning).
+MIN_FOUND_SHARE = 0.5
 
 
 def board_squares(image: np.ndarray, model: BoardModel) -> tuple[Correspondence | None, np.ndarray | None]:
@@ -32,3 +39,38 @@ def board_candidates(image: np.ndarray, corners: np.ndarray, chessboard: bool):
     if chessboard:
         near |= near_segments(cb.grid_segments(corners), cand.x, cand.y, CANDIDATE_MARGIN_PX)
     return cand.subset(near)
+
+
+def find_board(inp: BoardInputs, images, progress: bool):
+    """Per photo, the model's squares (``squares.board_squares``) and, for a chessboard, OpenCV's corners in the
+    model's order (else None); and the model, whose chessboard parity the photos may settle."""
+    model = inp.model if inp.model.pattern is None else cb.settle_parity(images, inp.model)
+    photos = console.track(images, desc="squares", unit="photo", enabled=progress)
+    found, refs = zip(*(board_squares(img, model) for img in photos))
+    return list(found), (list(refs) if model.pattern is not None else None), model
+
+
+def locate_squares(inp: BoardInputs, images, progress: bool):
+    """Per photo: the Canny candidates near the detected squares' sides, the detected quads in the model's order,
+    their square map, and a line for the report; photos with too few squares are left out.  Also, per photo, the
+    reference corners OpenCV found a chessboard by (None for other boards), and the model (``find_board``)."""
+    cands, quads, smaps, table, keep = [], [], [], [], []
+    found_all, refs, model = find_board(inp, images, progress)
+    n_sq = len(model)
+    for i, (name, img, c) in enumerate(zip(inp.names, images, found_all)):
+        found = 0 if c is None else int(c.found.sum())
+        line = {"photo": name, "squares_found": found, "squares_total": n_sq,
+                "missing": "all" if c is None else " ".join(map(str, c.missing)),
+                "quad_residual_px": c.residual_px if c is not None else float("nan"),
+                "candidates_near_sides": "", "used": "no"}
+        table.append(line)
+        if found < MIN_FOUND_SHARE * n_sq:
+            console.warn(f"{name}: found {found} of the model's {n_sq} squares; photo left out")
+            continue
+        cand = board_candidates(img, c.corners, model.pattern is not None)
+        line.update({"candidates_near_sides": len(cand), "used": "yes"})
+        cands.append(cand)
+        quads.append(c.corners)
+        smaps.append(square_map(c.corners, img.shape))
+        keep.append(i)
+    return cands, quads, smaps, table, keep, refs, model

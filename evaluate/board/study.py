@@ -34,16 +34,15 @@ from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board import chessboard as cb
 from edgetruth.evaluate.board import locator_fit as LF
+from edgetruth.evaluate.board import tone as tone_mod
 from edgetruth.evaluate.board.compare import compare_all
-from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, resolve_inputs
+from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, load_photos_scaled, resolve_inputs
 from edgetruth.evaluate.board.measure import OPENCV_ROW, REFERENCE_ROW, Row, calibrate_row, method_row
-from edgetruth.evaluate.board.sides import square_map
-from edgetruth.evaluate.board.squares import board_candidates, board_squares
+from edgetruth.evaluate.board.squares import locate_squares
 from edgetruth.evaluate.board.summary import per_side_rows, row_summary
+from edgetruth.evaluate.board.tone_fit import estimate_power, require_chessboard
 
 KIND = "study board"
-#: A photo on which fewer than this share of the model's squares are found is left out (with a warning).
-MIN_FOUND_SHARE = 0.5
 
 
 def settings_of(inp: BoardInputs, methods: list[str], options: dict, channel: str) -> dict:
@@ -61,41 +60,6 @@ def check_output(out: Path, settings: dict) -> Path:
     from edgetruth.evaluate.run_dir import check_same_settings
 
     return check_same_settings(out, KIND, settings, "a board study")
-
-
-def find_board(inp: BoardInputs, images, progress: bool):
-    """Per photo, the model's squares (``squares.board_squares``) and, for a chessboard, OpenCV's corners in the
-    model's order (else None); and the model, whose chessboard parity the photos may settle."""
-    model = inp.model if inp.model.pattern is None else cb.settle_parity(images, inp.model)
-    photos = console.track(images, desc="squares", unit="photo", enabled=progress)
-    found, refs = zip(*(board_squares(img, model) for img in photos))
-    return list(found), (list(refs) if model.pattern is not None else None), model
-
-
-def locate_squares(inp: BoardInputs, images, progress: bool):
-    """Per photo: the Canny candidates near the detected squares' sides, the detected quads in the model's order,
-    their square map, and a line for the report; photos with too few squares are left out.  Also, per photo, the
-    reference corners OpenCV found a chessboard by (None for other boards), and the model (``find_board``)."""
-    cands, quads, smaps, table, keep = [], [], [], [], []
-    found_all, refs, model = find_board(inp, images, progress)
-    n_sq = len(model)
-    for i, (name, img, c) in enumerate(zip(inp.names, images, found_all)):
-        found = 0 if c is None else int(c.found.sum())
-        line = {"photo": name, "squares_found": found, "squares_total": n_sq,
-                "missing": "all" if c is None else " ".join(map(str, c.missing)),
-                "quad_residual_px": c.residual_px if c is not None else float("nan"),
-                "candidates_near_sides": "", "used": "no"}
-        table.append(line)
-        if found < MIN_FOUND_SHARE * n_sq:
-            console.warn(f"{name}: found {found} of the model's {n_sq} squares; photo left out")
-            continue
-        cand = board_candidates(img, c.corners, model.pattern is not None)
-        line.update({"candidates_near_sides": len(cand), "used": "yes"})
-        cands.append(cand)
-        quads.append(c.corners)
-        smaps.append(square_map(c.corners, img.shape))
-        keep.append(i)
-    return cands, quads, smaps, table, keep, refs, model
 
 
 @dataclass
@@ -116,12 +80,16 @@ class BoardRun:
     elapsed_s: float
     #: edgetruth's locator against the best method and its model misfit (``locator_fit``), when it ran
     locator: dict | None = None
+    #: how the stored values were decoded (``tone_summary``); None: as stored
+    tone: dict | None = None
 
 
 def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, channel: str = "luma",
-                        progress: bool = True, images=None, keep_points: bool = False) -> BoardRun:
+                        progress: bool = True, images=None, keep_points: bool = False,
+                        tone: dict | None = None) -> BoardRun:
     """Steps 2-4 of the study (module docstring) on checked inputs; nothing is written.  ``images``: the photos
-    already read (else read here); ``keep_points``: each method row keeps its refined points (``Row.points``)."""
+    already read, and decoded by their tone (else read here, as stored); ``keep_points``: each method row keeps its
+    refined points (``Row.points``); ``tone``: how ``images`` were decoded (``tone_summary``), for the report."""
     from edgetruth.evaluate.board.summary import INTRINSICS
 
     t0 = time.perf_counter()
@@ -170,7 +138,49 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
             locator = LF.locator_summary(rows, summaries, label, misfit)
             break
     return BoardRun(inp, names, (w, h), rows, summaries, comparisons, per_side, photo_table, reference,
-                    ref_row, time.perf_counter() - t0, locator)
+                    ref_row, time.perf_counter() - t0, locator, tone)
+
+
+def check_tone(text: str | None, inp: BoardInputs) -> tone_mod.Tone:
+    """``--tone`` parsed and checked before any work: ``auto`` needs a chessboard and a camera-free method."""
+    from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD
+
+    t = tone_mod.parse_tone(text, DEFAULT_METHOD)
+    if t.kind != "auto":
+        return t
+    require_chessboard(inp.model)
+    method = mo.resolve(t.method)[0]
+    try:
+        locate.get_method(method)
+    except InputError as exc:
+        raise InputError(f"--tone {t.spec}: {exc}") from None
+    if not camera_free([method]):
+        raise InputError(f"--tone {t.spec}: {method} needs a camera model, which the board study does not have; "
+                         "choose another method (`edgetruth methods`)")
+    return t
+
+
+def decode_photos(inp: BoardInputs, tone: tone_mod.Tone, channel: str, options: dict, progress: bool):
+    """The photos read and decoded by ``tone`` (for ``auto``, by the power ``tone_fit.estimate_power`` measures), and
+    the tone's summary for the report (``tone_summary``; None for stored values)."""
+    images, scales = load_photos_scaled(inp.photos, channel)
+    fit = None
+    if tone.kind == "auto":
+        if progress:
+            console.say(f"tone: measuring the power at the junctions with {tone.method} ...")
+        method, kw = mo.resolve(tone.method, options)
+        fit = estimate_power(inp, images, scales, tone.method, method, kw)
+        tone = fit.tone()
+    return [tone_mod.decode(img, tone, f) for img, f in zip(images, scales)], tone_summary(tone, scales, fit)
+
+
+def tone_summary(tone: tone_mod.Tone, scales: list[float], fit=None) -> dict | None:
+    """What the report says of the tone: its option text, a phrase, the full scale, and the fit (``PowerFit``)."""
+    if tone.kind == "stored" and fit is None:
+        return None
+    full = scales[0] if len(set(scales)) == 1 else None
+    return {"spec": tone.spec if fit is None else f"auto:{fit.method}", "power": tone.power,
+            "describe": tone.describe(full), "fit": fit.as_json() if fit is not None else None}
 
 
 def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], options: dict, thresholds,
@@ -180,17 +190,20 @@ def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], 
 
     inp = run.inp
     header = header_lines(inp, run.names, run.size, channel, methods, options, thresholds, run.reference,
-                          run.reference_row, run.elapsed_s)
+                          run.reference_row, run.elapsed_s, run.tone)
     title = title or f"Board study — {inp.set_name or f'{len(inp.photos)} photos'}"
     return write_outputs(out, title=title, header_lines=header, photos_table=run.photo_table, rows=run.rows,
                          summaries=run.summaries, comparisons=run.comparisons, reference=run.reference,
-                         model=inp.model, photo_names=run.names, per_side=run.per_side, locator=run.locator)
+                         model=inp.model, photo_names=run.names, per_side=run.per_side, locator=run.locator,
+                         tone=run.tone)
 
 
 def run_board_study(items: list[str], out, model: str | None = None, methods=None, channel: str = "luma",
-                    thresholds=None, progress: bool = True, pattern: str | None = None, square=None) -> Path:
+                    thresholds=None, progress: bool = True, pattern: str | None = None, square=None,
+                    tone: str | None = None) -> Path:
     """Run the board study (module docstring) into ``out``; returns the path of its report.md.  The board: ``model``
-    (a model file of separate squares), ``pattern``/``square`` (a chessboard), or the shipped set's own."""
+    (a model file of separate squares), ``pattern``/``square`` (a chessboard), or the shipped set's own.  ``tone``:
+    how the stored values are decoded before locating (``tone.parse_tone``; default as stored)."""
     from edgetruth.evaluate.run_dir import prepare_run_dir
 
     inp = resolve_inputs(list(items), model, pattern, square)
@@ -199,8 +212,12 @@ def run_board_study(items: list[str], out, model: str | None = None, methods=Non
     for m in methods:
         locate.get_method(mo.resolve(m)[0])
     options = mo.study_options(thresholds)
+    tone_t = check_tone(tone, inp)
     settings = settings_of(inp, methods, options, channel)
+    if tone_t.kind != "stored":  # absent when stored, so earlier runs' directories still match
+        settings["tone"] = tone_t.spec
     out = check_output(Path(out), settings)
-    run = compute_board_study(inp, methods, options, channel, progress)
+    images, summary = decode_photos(inp, tone_t, channel, options, progress)
+    run = compute_board_study(inp, methods, options, channel, progress, images=images, tone=summary)
     out = prepare_run_dir(out, KIND, settings)
     return write_board_run(run, out, channel, methods, options, thresholds)

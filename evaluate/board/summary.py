@@ -131,6 +131,13 @@ def row_summary(row: Row, model: BoardModel, reference: dict | None, reference_c
 def _outward_offset(row: Row, jn) -> float:
     """Mean signed distance (px) of each square's own corner from the junction's corner, along the direction from
     the square's centre to that corner: > 0 when its side lines put the square larger than the junctions do."""
+    v = _flat(outward_offsets(row, jn))
+    return float(np.nanmean(v)) if np.isfinite(v).any() else float("nan")
+
+
+def outward_offsets(row: Row, jn) -> list[np.ndarray]:
+    """Per photo, (J * 2,) the signed distance (px) of each square's own corner (from its own side lines) from the
+    junction's corner (``row.corners``), outward from the square's centre; NaN where either is missing."""
     vals = []
     for f, c in zip(row.sides, row.corners):
         own = f.corners.reshape(-1, 2)
@@ -142,8 +149,7 @@ def _outward_offset(row: Row, jn) -> float:
         with np.errstate(invalid="ignore", divide="ignore"):
             u /= np.linalg.norm(u, axis=1, keepdims=True)
         vals.append(((own[slot] - junction) * u).sum(axis=1))
-    v = _flat(vals)
-    return float(np.nanmean(v)) if np.isfinite(v).any() else float("nan")
+    return vals
 
 
 def _label(method_label: str) -> str:

@@ -15,7 +15,7 @@ import pytest
 from PIL import Image, ImageOps
 
 from edgetruth.errors import InputError
-from edgetruth.image_io import read_gray
+from edgetruth.image_io import full_scale, read_gray, read_gray_scaled
 from edgetruth.resources import real_set
 
 RNG = np.random.default_rng(20260112)
@@ -265,3 +265,18 @@ def test_locate_cli_reads_a_colour_photo_by_its_channel_option(tmp_path):
         csv[key] = out.read_text()
     assert csv["luma"].count("\n") > 40
     assert csv["luma"] == csv["luma_ref"] and csv["g"] == csv["g_ref"] and csv["luma"] != csv["g"]
+
+
+def test_the_full_scale_is_the_stored_types_not_the_gray_rules(tmp_path):
+    """A colour 8-bit photo read as float luma still has full scale 255; 16-bit 65535; float arrays 1."""
+    rng = np.random.default_rng(0)
+    cases = [("c8.png", rng.integers(0, 256, (6, 7, 3)).astype(np.uint8), 255.0, np.float64),
+             ("g16.png", rng.integers(0, 65536, (6, 7)).astype(np.uint16), 65535.0, np.uint16),
+             ("c16.tif", rng.integers(0, 65536, (6, 7, 3)).astype(np.uint16), 65535.0, np.float64)]
+    for name, arr, scale, dtype in cases:
+        cv2.imwrite(str(tmp_path / name), arr)
+        img, got = read_gray_scaled(tmp_path / name)
+        assert got == scale and img.dtype == dtype and np.array_equal(img, read_gray(tmp_path / name))
+    np.save(tmp_path / "f.npy", rng.random((5, 5)))
+    assert read_gray_scaled(tmp_path / "f.npy")[1] == 1.0
+    assert (full_scale(np.uint8), full_scale(np.uint16), full_scale(np.float32)) == (255.0, 65535.0, 1.0)

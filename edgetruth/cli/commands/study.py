@@ -11,7 +11,7 @@ from edgetruth.errors import InputError
 #: options that belong to one kind of study only (dest -> the kind), refused with the other
 _SYNTHETIC_ONLY = {"preset": "--preset", "images_per_scenario": "--images-per-scenario", "workers": "-j/--workers",
                    "address": "--address"}
-_BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model", "pattern": "--pattern", "square": "--square"}
+_BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model", "pattern": "--pattern", "square": "--square", "tone": "--tone"}
 _TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant"}
 
 
@@ -49,6 +49,11 @@ def register(sub) -> None:
     p.add_argument("--square", default=None, metavar="SIZE",
                    help="board, with --pattern: the side of one square, in the unit side lengths are reported in "
                         "(default 1: lengths in squares)")
+    p.add_argument("--tone", default=None, metavar="stored|srgb|power:G|auto[:METHOD]",
+                   help="board: how the photos' stored values are decoded before locating: 'stored' (default) as "
+                        "stored; 'srgb' the sRGB curve; 'power:G' full*(v/full)**G (e.g. power:2.2); 'auto' (a "
+                        "chessboard) the power at which a method's own square corners meet the junctions, measured "
+                        "on the photos (default method erf4p_fixed11; auto:canny_devernay for another)")
     p.add_argument("--images", default=None, metavar="LIST",
                    help="twin: which of the set's photos (1-based, comma-separated, at least 3; default all), e.g. "
                         "1,2,3")
@@ -107,6 +112,7 @@ def run(args) -> int:
         if args.backend != "local":
             raise InputError("--backend: not an option of `study board` (it runs in-process); drop it")
         report = run_board_study(args.inputs, out, model=args.model, pattern=args.pattern, square=args.square,
+                                 tone=args.tone,
                                  methods=method_list(args.methods),
                                  channel=args.channel, thresholds=args.thresholds, progress=not args.no_progress)
         console.say(f"report: {report}")

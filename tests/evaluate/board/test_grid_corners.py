@@ -10,7 +10,7 @@ from edgetruth.cli import main
 from edgetruth.evaluate.board.grid_corners import line_corners
 from edgetruth.evaluate.calibration import detect_corners
 from tests.evaluate.board.board_images import apply_h
-from tests.evaluate.board.test_chessboard import K, ROTATIONS, SHAPE, render
+from tests.evaluate.board.chessboard_images import K, ROTATIONS, SHAPE, render
 
 ROTATIONS_6 = ROTATIONS + [(0.1, 0.2, 0.4), (-0.2, -0.1, -0.3)]
 
