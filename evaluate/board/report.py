@@ -146,6 +146,21 @@ def tone_line(tone: dict | None) -> str:
                f"(Cochran's Q p {p_text(fit['cochran_q_p'])}; Reading)") + ".")
 
 
+def _tone_table(fit: dict) -> list[str]:
+    """The measured tone per photo (``--tone auto``), brightest last: levels, white noise, power and its SE."""
+    photos = sorted(fit["per_photo"], key=lambda k: fit["white_level"][k])
+    body = [[k, num(fit["dark_level"][k], 1), num(fit["white_level"][k], 1), num(fit["white_sd"][k], 2),
+             num(fit["per_photo"][k], 3), num(fit["per_photo_se"][k], 3)] for k in photos]
+    rho, p = fit["spearman_rho_white_sd"], fit["spearman_p_white_sd"]
+    return ["## Tone per photo (`--tone auto`)", "",
+            f"Each photo's power: the zero of {fit['method']}'s mean outward offset of its own corners, from the local "
+            "slope at the set's power; levels: the median stored value at the dark and the light squares' centres; "
+            "white SD: the noise of the light squares' centre patches about their means (docs/board.md, Tone).  "
+            + (f"White SD against the white level: Spearman ρ = {rho:+.2f}, p {p_text(p)} (shot noise alone makes it "
+               "rise; a curve flattening towards white makes it fall)." if np.isfinite(rho) else ""), "",
+            table(["photo", "dark", "white", "white SD", "power", "SE"], body), ""]
+
+
 def p_text(p: float) -> str:
     """'= 0.012' or '< 1e-300' (a p below what a double holds)."""
     return "< 1e-300" if p < 1e-300 else f"= {p:.2g}"
@@ -342,6 +357,7 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
         write_json(out / "locator.json", _json_safe(locator))
     if tone:
         write_json(out / "tone.json", _json_safe(tone))
+    tone_table = _tone_table(tone["fit"]) if tone and tone.get("fit") else []
     for row, s in zip(rows, summaries):
         write_json(out / "calibration" / f"{row.label}.json", calibration_json(row, s, photo_names))
     errors_px = {r.label: np.concatenate([e.ravel() for e in r.lengths["error_px"]]) for r in rows if r.lengths}
@@ -391,7 +407,7 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
               "Every row against the baseline on the units all rows have; Holm-adjusted within each family; "
               "rank-biserial > 0: the row's values tend to be larger (worse) than the baseline's.", "",
               *_paired_tables(comparisons, labels),
-              "## Reading", "", *reading(summaries, comparisons, reference, tone), "",
+              *tone_table, "## Reading", "", *reading(summaries, comparisons, reference, tone), "",
               *([*LF.reading_lines(locator), ""] if locator else []),
               "## Figures", ""]
     for f, cap in zip(figs, ("straightness per method", "calibration and leave-one-out RMS",

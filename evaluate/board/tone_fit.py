@@ -16,7 +16,8 @@ corners meet the junctions on average is the power law that makes the photos' ed
 - whether one power describes every photo: Cochran's Q of the per-photo roots about the estimate (χ² with P - 1
   degrees of freedom), and Spearman's ρ between the per-photo roots and each photo's white level (the median
   stored value at the light squares' centres), since a tone curve that is not a power law (a highlight shoulder,
-  clipping) shows as a power that changes with the exposure.
+  clipping) shows as a power that changes with the exposure; and, as a second sign of a shoulder, Spearman's ρ
+  between the white level and the white flats' noise SD (``square_levels``).
 
 The squares are found once on the stored values (OpenCV's corner grid; the tone moves them by far less than the
 candidate margin); the Canny candidates and the method's points are recomputed at every G.  What the power
@@ -60,9 +61,8 @@ class PowerFit:
     #: each photo's own root (its offset's zero from the local slope at ``power``) and its standard error
     per_photo: list[float]
     per_photo_se: list[float]
-    #: each photo's dark and white level (median stored value at the dark and light squares' centres)
-    dark_levels: list[float]
-    white_levels: list[float]
+    #: each photo's flat levels and noise (``square_levels``)
+    levels: list
     #: Cochran's Q of the per-photo roots about ``power`` and its p (χ², P - 1 dof)
     q_stat: float
     q_p: float
@@ -78,6 +78,20 @@ class PowerFit:
         return Tone("power", power=self.power)
 
     @property
+    def white_levels(self) -> list[float]:
+        return [lv.white for lv in self.levels]
+
+    @property
+    def dark_levels(self) -> list[float]:
+        return [lv.dark for lv in self.levels]
+
+    @property
+    def rho_white_sd(self) -> tuple[float, float]:
+        """Spearman's ρ (and p) between the white level and the white flats' noise SD: a shoulder compresses the
+        noise where it compresses the edges, while shot noise alone makes the SD rise with the level."""
+        return _spearman(self.white_levels, [lv.white_sd for lv in self.levels])
+
+    @property
     def one_power_fits(self) -> bool:
         """Whether the per-photo roots agree with one power (Cochran's Q, p >= ``HETEROGENEITY_ALPHA``)."""
         return bool(self.q_p >= HETEROGENEITY_ALPHA)
@@ -86,8 +100,11 @@ class PowerFit:
         return {"power": self.power, "ci95": list(self.ci), "method": self.method,
                 "per_photo": dict(zip(self.photos, self.per_photo)),
                 "per_photo_se": dict(zip(self.photos, self.per_photo_se)),
-                "dark_level": dict(zip(self.photos, self.dark_levels)),
-                "white_level": dict(zip(self.photos, self.white_levels)),
+                "dark_level": dict(zip(self.photos, (lv.dark for lv in self.levels))),
+                "white_level": dict(zip(self.photos, (lv.white for lv in self.levels))),
+                "dark_sd": dict(zip(self.photos, (lv.dark_sd for lv in self.levels))),
+                "white_sd": dict(zip(self.photos, (lv.white_sd for lv in self.levels))),
+                "spearman_rho_white_sd": self.rho_white_sd[0], "spearman_p_white_sd": self.rho_white_sd[1],
                 "cochran_q": self.q_stat, "cochran_q_p": self.q_p, "one_power_fits": self.one_power_fits,
                 "spearman_rho_power_white": self.rho_white, "spearman_p_power_white": self.rho_white_p,
                 "offset_stored_px": self.offset_stored_px, "offset_fit_px": self.offset_fit_px,
@@ -109,7 +126,7 @@ def estimate_power(inp, images: list[np.ndarray], full_scales: list[float], labe
     chessboard ``inp.model``, from ``method`` (with ``options``; ``label`` names it).  An ``InputError`` when the
     board is not a chessboard, too few photos show it, or no power in ``POWER_RANGE`` makes the offset 0."""
     from scipy.optimize import brentq
-    from scipy.stats import chi2, spearmanr
+    from scipy.stats import chi2
 
     require_chessboard(inp.model)
     found, _, model = find_board(inp, images, progress=False)
@@ -164,32 +181,64 @@ def estimate_power(inp, images: list[np.ndarray], full_scales: list[float], labe
     idx = rng.integers(0, ok.sum(), size=(BOOTSTRAP, int(ok.sum())))
     boot = g - f0[ok][idx].mean(axis=1) / slope[ok][idx].mean(axis=1)
     q = float(np.sum(((roots[ok] - g) / root_se[ok]) ** 2))
-    dark, white = zip(*(square_levels(images[i], qd) for i, qd in zip(keep, quads)))
-    w = np.asarray(white)[ok]
-    rho, rho_p = spearmanr(roots[ok], w) if ok.sum() >= 3 and np.ptp(w) > 0 else (np.nan, np.nan)  # else undefined
+    levels = [square_levels(images[i], qd) for i, qd in zip(keep, quads)]
+    white = np.array([lv.white for lv in levels])
+    rho, rho_p = _spearman(roots[ok], white[ok])
     return PowerFit(g, (float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5))), label,
-                    [inp.names[i] for i in keep], [float(r) for r in roots], [float(s) for s in root_se],
-                    [float(d) for d in dark], [float(w) for w in white], q,
-                    float(chi2.sf(q, max(int(ok.sum()) - 1, 1))),
-                    float(rho), float(rho_p), f1, pooled(g), len(cache))
+                    [inp.names[i] for i in keep], [float(r) for r in roots], [float(s) for s in root_se], levels, q,
+                    float(chi2.sf(q, max(int(ok.sum()) - 1, 1))), rho, rho_p, f1, pooled(g), len(cache))
 
 
-def square_levels(image: np.ndarray, quads: np.ndarray) -> tuple[float, float]:
-    """(dark, white): the median stored value of ``LEVEL_HALF_PX`` patches at the dark squares' centres (``quads``
-    (S, 4, 2), NaN rows skipped) and at the light squares' centres (each dark centre mirrored through its sides'
-    midpoints: on a chessboard a light square lies across every side of a dark one)."""
+def _spearman(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """Spearman's ρ and p; NaN where undefined (fewer than 3 pairs, or one side constant)."""
+    from scipy.stats import spearmanr
+
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    if a.size < 3 or np.ptp(a) == 0 or np.ptp(b) == 0:
+        return float("nan"), float("nan")
+    r = spearmanr(a, b)
+    return float(r.statistic), float(r.pvalue)
+
+
+@dataclass
+class SquareLevels:
+    """One photo's flat levels (stored values): the median and the noise SD of patches at the squares' centres."""
+
+    dark: float
+    white: float
+    dark_sd: float
+    white_sd: float
+
+
+def square_levels(image: np.ndarray, quads: np.ndarray) -> SquareLevels:
+    """The levels of the dark squares (``quads`` (S, 4, 2), NaN rows skipped) and of the light squares between them,
+    from (2 ``LEVEL_HALF_PX`` + 1)² patches at their centres: the level is the median of the patches' medians, the
+    SD the patches' pooled SD about their own means (so shading across the board does not count).  A light square's
+    centre is a dark centre mirrored through a side's midpoint (on a chessboard a light square lies across every
+    side of a dark one); only those reached from two dark squares or more are used, which are the light squares
+    among the dark ones, not those of the outer ring that a board's edge may cut."""
+    from scipy.spatial import cKDTree
+
     q = np.asarray(quads, float)
     q = q[np.all(np.isfinite(q), axis=(1, 2))]
     centre = q.mean(axis=1)
-    mid = 0.5 * (q + np.roll(q, -1, axis=1))
-    light = (2 * mid - centre[:, None]).reshape(-1, 2)
+    light = (2 * 0.5 * (q + np.roll(q, -1, axis=1)) - centre[:, None]).reshape(-1, 2)
+    side = float(np.median(np.linalg.norm(q - np.roll(q, -1, axis=1), axis=2))) if len(q) else 1.0
+    groups = cKDTree(light).query_ball_point(light, 0.3 * side) if len(light) else []
+    light = np.array([light[i] for i, g in enumerate(groups) if len(g) >= 2 and min(g) == i]).reshape(-1, 2)
 
-    def level(points: np.ndarray) -> float:
+    def level(points: np.ndarray) -> tuple[float, float]:
         h, w = image.shape
         r = LEVEL_HALF_PX
         xy = np.round(points).astype(int)
         inside = (xy[:, 0] >= r) & (xy[:, 0] < w - r) & (xy[:, 1] >= r) & (xy[:, 1] < h - r)
-        patches = [np.median(image[y - r:y + r + 1, x - r:x + r + 1]) for x, y in xy[inside]]
-        return float(np.median(patches)) if patches else float("nan")
+        patches = np.array([image[y - r:y + r + 1, x - r:x + r + 1].astype(np.float64).ravel()
+                            for x, y in xy[inside]]).reshape(-1, (2 * r + 1) ** 2)
+        if not len(patches):
+            return float("nan"), float("nan")
+        resid = patches - patches.mean(axis=1, keepdims=True)
+        sd = np.sqrt((resid ** 2).sum() / (resid.size - len(patches)))
+        return float(np.median(np.median(patches, axis=1))), float(sd)
 
-    return level(centre), level(light)
+    (dark, dark_sd), (white, white_sd) = level(centre), level(light)
+    return SquareLevels(dark, white, dark_sd, white_sd)

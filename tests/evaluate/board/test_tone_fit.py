@@ -14,7 +14,8 @@ from edgetruth.evaluate.board import chessboard as cb
 from edgetruth.evaluate.board import tone_fit
 from edgetruth.evaluate.board.inputs import BoardInputs
 from edgetruth.evaluate.board.model import BoardModel
-from tests.evaluate.board.chessboard_images import stored_views
+from tests.evaluate.board.board_images import apply_h
+from tests.evaluate.board.chessboard_images import ROTATIONS, all_dark_squares, render, stored_views
 
 FULL = 65535.0
 
@@ -62,6 +63,19 @@ def test_square_levels_read_the_dark_and_the_light_squares():
     assert fit.white_levels[0] == pytest.approx(FULL * 210 / 255, rel=1e-3)
 
 
+def test_square_levels_read_the_flats_noise_and_see_a_clip_flatten_it():
+    """Gaussian noise of SD 3 on levels 40 / 210: both levels and both SDs come back (the SD pooled about each
+    patch's own mean, with its degrees of freedom); the same image clipped at 200 reads a white SD near 0."""
+    img, h = render((9, 6), ROTATIONS[1])
+    quads = apply_h(h, all_dark_squares((9, 6)))
+    noisy = img + np.random.default_rng(3).normal(0.0, 3.0, img.shape)
+    lv = tone_fit.square_levels(noisy, quads)
+    assert lv.dark == pytest.approx(40, abs=0.3) and lv.white == pytest.approx(210, abs=0.3)
+    assert lv.dark_sd == pytest.approx(3, rel=0.05) and lv.white_sd == pytest.approx(3, rel=0.05)
+    clipped = tone_fit.square_levels(np.minimum(noisy, 200.0), quads)
+    assert clipped.white == 200 and clipped.white_sd < 0.3 and clipped.dark_sd == pytest.approx(lv.dark_sd)
+
+
 def test_no_power_is_an_input_error_naming_what_to_give(monkeypatch):
     """An offset that no power in the range undoes (here +1 px everywhere, as ink spread would) is not a tone."""
     monkeypatch.setattr(tone_fit, "outward_offsets", lambda row, jn: [np.ones(8) for _ in row.sides])
@@ -93,8 +107,9 @@ def opencv_auto(tmp_path_factory):
 def test_opencvs_photos_power_rises_with_their_white_level(opencv_auto):
     """A finding, measured (docs/board.md, Tone): decoded with one power (1.31, CI 1.10-1.57) the dark squares no
     longer image small on average, but no one power fits the photos (Cochran's Q 3470): per photo 0.86-2.24, in the
-    order of their white level (Spearman ρ 0.98): the brighter photos, white 246-250, have edges crossing the
-    camera's highlight shoulder.  The junction corners, and so the calibration, do not move (0.150 px)."""
+    order of their white level (Spearman ρ 0.98): the brighter photos' whites, 246-250, are clipped flat (their
+    centres' noise SD 0.00-0.34 against 1.8-2.2 DN).  The junction corners, and so the calibration, do not move
+    (0.150 px)."""
     rc, out = opencv_auto
     assert rc == 0
     fit = json.loads((out / "tone.json").read_text())["fit"]
@@ -113,6 +128,10 @@ def test_opencvs_photos_power_rises_with_their_white_level(opencv_auto):
     text = (out / "report.md").read_text()
     assert "- Tone (`--tone auto:erf4p_fixed11`): power 1.3" in text
     assert "One power does not describe every photo (Cochran's Q" in text
+    assert "## Tone per photo (`--tone auto`)" in text
+    # the bright photos' white squares are clipped flat: their centres' noise is gone
+    white, sd = fit["white_level"], fit["white_sd"]
+    assert max(sd[k] for k in sd if white[k] >= 246) < 0.5 < 1.5 < min(sd[k] for k in sd if white[k] < 240)
 
 
 def test_a_given_tone_is_recorded_and_another_is_refused_in_the_same_directory(tmp_path, capsys):
