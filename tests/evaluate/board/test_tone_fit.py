@@ -56,6 +56,23 @@ def test_a_highlight_shoulder_shows_as_a_power_rising_with_the_exposure():
     assert fit.white_levels[-1] == pytest.approx(FULL * (1 - np.exp(-3 * 210 / 255)) / (1 - np.exp(-3)), rel=2e-3)
 
 
+def test_a_clipped_white_shows_as_on_opencvs_photos():
+    """Linear views with noise (SD 2 of 255) at exposures 0.8-1.4, clipped at 230 of 255: the two views whose white
+    (210 x exposure) passes the clip get a power well above 1 and lose their white noise; the two below it keep
+    power ~1.  What OpenCV's bright photos show (docs/board.md, Tone).  Measured: 0.971, 0.972, 1.58, 2.77; white SD
+    532, 491, 0, 0 (of 65535)."""
+    rng = np.random.default_rng(5)
+    clip = 230 / 255 * FULL
+    views = [np.clip(np.round(v + rng.normal(0.0, 2 * 257, v.shape)), 0, clip)
+             for v in stored_views(lambda x: x, exposures=(0.8, 1.0, 1.2, 1.4))]
+    fit = estimate(views)
+    assert np.allclose(fit.per_photo[:2], 1.0, atol=0.06)
+    assert 1.3 < fit.per_photo[2] < fit.per_photo[3]
+    assert not fit.one_power_fits
+    sd = [lv.white_sd for lv in fit.levels]
+    assert min(sd[:2]) > 400 and max(sd[2:]) == 0 and fit.white_levels[2:] == [clip, clip]
+
+
 def test_square_levels_read_the_dark_and_the_light_squares():
     img = stored_views(lambda v: v)[0]
     fit = estimate([img] * 3)
