@@ -261,8 +261,9 @@ def _ranking(sums, key: str, nd: int = 3) -> str:
     return ", ".join(f"{s['label']} {s[key]:.{nd}f}" for s in rows)
 
 
-def reading(sums, comparisons, reference, tone: dict | None = None) -> list[str]:
-    """A short reading of the measured tables: rankings as measured, nothing tuned."""
+def reading(sums, comparisons, reference, tone: dict | None = None, photos: list[dict] | None = None) -> list[str]:
+    """A short reading of the measured tables: rankings as measured, nothing tuned.  ``photos``: the per-photo
+    table, whose saturated whites (a chessboard's) get a line."""
     from scipy import stats as st
 
     methods = [s for s in sums if s["row"] not in REFERENCE_ROWS]
@@ -305,6 +306,13 @@ def reading(sums, comparisons, reference, tone: dict | None = None) -> list[str]
         else:
             lines += ["", f"Each dark square's own side lines put its corners within {lo:+.3f} to {hi:+.3f} px of "
                           "the junctions (Table 3)."]
+    sat = [p["photo"] for p in photos or [] if p.get("white_saturated") == "yes"]
+    if sat:
+        lines += ["", f"{len(sat)} of {len(photos)} photos have a saturated white (their light squares' centres are "
+                      f"flat, white SD below half the dark squares'): {', '.join(sat)}.  A clipped white makes the dark "
+                      "squares image small to their own side lines, more the more of the white is clipped (clipped "
+                      "renders and OpenCV's photos, docs/board.md, Tone); the corners at the junctions do not see "
+                      "it, and `--tone auto` measures it per photo."]
     if tone is not None and tone.get("fit"):
         fit = tone["fit"]
         lines += ["", f"The photos were decoded with the power {fit['power']:.3f} measured at the junctions, so "
@@ -344,7 +352,9 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
     photo_headers = {"photo": "photo", "squares_found": "squares found", "squares_total": "of",
                      "missing": "missing (model order, from 0)",
                      "quad_residual_px": "quad corners about homography (px)",
-                     "candidates_near_sides": "candidates near sides", "used": "used"}
+                     "candidates_near_sides": "candidates near sides", "used": "used",
+                     "dark_level": "dark", "white_level": "white", "dark_sd": "dark SD", "white_sd": "white SD",
+                     "white_saturated": "white saturated"}
     tests = [{"family": c["family"], "baseline": c["baseline"], "n_units": c["n_units"],
               "friedman_p": c["friedman"]["p_value"], "kendall_w": c["friedman"]["kendall_w"], **t,
               "mean_difference_ci_lo": t["mean_difference_ci"][0], "mean_difference_ci_hi": t["mean_difference_ci"][1]}
@@ -407,7 +417,7 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
               "Every row against the baseline on the units all rows have; Holm-adjusted within each family; "
               "rank-biserial > 0: the row's values tend to be larger (worse) than the baseline's.", "",
               *_paired_tables(comparisons, labels),
-              *tone_table, "## Reading", "", *reading(summaries, comparisons, reference, tone), "",
+              *tone_table, "## Reading", "", *reading(summaries, comparisons, reference, tone, photos_table), "",
               *([*LF.reading_lines(locator), ""] if locator else []),
               "## Figures", ""]
     for f, cap in zip(figs, ("straightness per method", "calibration and leave-one-out RMS",

@@ -9,6 +9,7 @@ import numpy as np
 from edgetruth import console
 from edgetruth.evaluate.board import chessboard as cb
 from edgetruth.evaluate.board.correspond import Correspondence, match_squares
+from edgetruth.evaluate.board.levels import SquareLevels, saturated, square_levels
 from edgetruth.evaluate.board.model import BoardModel
 from edgetruth.evaluate.board.quads import find_quads
 from edgetruth.evaluate.board.sides import square_map
@@ -63,6 +64,10 @@ def locate_squares(inp: BoardInputs, images, progress: bool):
                 "missing": "all" if c is None else " ".join(map(str, c.missing)),
                 "quad_residual_px": c.residual_px if c is not None else float("nan"),
                 "candidates_near_sides": "", "used": "no"}
+        if model.pattern is not None:  # a chessboard: its flat levels, and whether its white is saturated
+            lv = square_levels(img, c.corners) if c is not None else SquareLevels(*(float("nan"),) * 4)
+            line.update({"dark_level": lv.dark, "white_level": lv.white, "dark_sd": lv.dark_sd,
+                         "white_sd": lv.white_sd, "white_saturated": "yes" if saturated(lv) else "no"})
         table.append(line)
         if found < MIN_FOUND_SHARE * n_sq:
             console.warn(f"{name}: found {found} of the model's {n_sq} squares; photo left out")

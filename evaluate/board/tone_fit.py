@@ -32,6 +32,7 @@ import numpy as np
 
 from edgetruth.errors import InputError
 from edgetruth.evaluate.board import chessboard as cb
+from edgetruth.evaluate.board.levels import square_levels
 from edgetruth.evaluate.board.measure import method_row
 from edgetruth.evaluate.board.sides import square_map
 from edgetruth.evaluate.board.squares import MIN_FOUND_SHARE, board_candidates, find_board
@@ -46,8 +47,6 @@ BOOTSTRAP, SEED = 2000, 0
 XTOL = 1e-3
 #: below this p, Cochran's Q says the photos' powers differ: no one power describes them
 HETEROGENEITY_ALPHA = 0.01
-#: half width (px) of the patch whose median is a square's level
-LEVEL_HALF_PX = 2
 
 
 @dataclass
@@ -198,47 +197,3 @@ def _spearman(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
         return float("nan"), float("nan")
     r = spearmanr(a, b)
     return float(r.statistic), float(r.pvalue)
-
-
-@dataclass
-class SquareLevels:
-    """One photo's flat levels (stored values): the median and the noise SD of patches at the squares' centres."""
-
-    dark: float
-    white: float
-    dark_sd: float
-    white_sd: float
-
-
-def square_levels(image: np.ndarray, quads: np.ndarray) -> SquareLevels:
-    """The levels of the dark squares (``quads`` (S, 4, 2), NaN rows skipped) and of the light squares between them,
-    from (2 ``LEVEL_HALF_PX`` + 1)² patches at their centres: the level is the median of the patches' medians, the
-    SD the patches' pooled SD about their own means (so shading across the board does not count).  A light square's
-    centre is a dark centre mirrored through a side's midpoint (on a chessboard a light square lies across every
-    side of a dark one); only those reached from two dark squares or more are used, which are the light squares
-    among the dark ones, not those of the outer ring that a board's edge may cut."""
-    from scipy.spatial import cKDTree
-
-    q = np.asarray(quads, float)
-    q = q[np.all(np.isfinite(q), axis=(1, 2))]
-    centre = q.mean(axis=1)
-    light = (2 * 0.5 * (q + np.roll(q, -1, axis=1)) - centre[:, None]).reshape(-1, 2)
-    side = float(np.median(np.linalg.norm(q - np.roll(q, -1, axis=1), axis=2))) if len(q) else 1.0
-    groups = cKDTree(light).query_ball_point(light, 0.3 * side) if len(light) else []
-    light = np.array([light[i] for i, g in enumerate(groups) if len(g) >= 2 and min(g) == i]).reshape(-1, 2)
-
-    def level(points: np.ndarray) -> tuple[float, float]:
-        h, w = image.shape
-        r = LEVEL_HALF_PX
-        xy = np.round(points).astype(int)
-        inside = (xy[:, 0] >= r) & (xy[:, 0] < w - r) & (xy[:, 1] >= r) & (xy[:, 1] < h - r)
-        patches = np.array([image[y - r:y + r + 1, x - r:x + r + 1].astype(np.float64).ravel()
-                            for x, y in xy[inside]]).reshape(-1, (2 * r + 1) ** 2)
-        if not len(patches):
-            return float("nan"), float("nan")
-        resid = patches - patches.mean(axis=1, keepdims=True)
-        sd = np.sqrt((resid ** 2).sum() / (resid.size - len(patches)))
-        return float(np.median(np.median(patches, axis=1))), float(sd)
-
-    (dark, dark_sd), (white, white_sd) = level(centre), level(light)
-    return SquareLevels(dark, white, dark_sd, white_sd)

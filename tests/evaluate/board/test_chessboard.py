@@ -291,6 +291,20 @@ def test_opencvs_photos_reference_row_matches_opencvs_own_calibration(opencv_run
     assert len(photos) == 13 and all(p["squares_found"] == "20" and p["used"] == "yes" for p in photos)
 
 
+def test_opencvs_bright_photos_have_saturated_whites(opencv_run):
+    """A finding, measured (docs/board.md, Tone): six photos' white squares are flat at 246-250 (centre noise SD
+    0.00-0.34 DN against the dark squares' 0.7-1.0), the other seven keep their noise (1.8-2.2 DN, whites 195-239);
+    the report lists the six."""
+    _, out = opencv_run
+    with open(out / "per_photo.csv", newline="") as fh:
+        photos = {p["photo"]: p for p in csv.DictReader(fh)}
+    sat = sorted(k for k, p in photos.items() if p["white_saturated"] == "yes")
+    assert sat == ["left03.jpg", "left04.jpg", "left05.jpg", "left07.jpg", "left08.jpg", "left12.jpg"]
+    assert all(float(photos[k]["white_level"]) >= 245 for k in sat)
+    assert all(float(p["white_level"]) < 240 and float(p["white_sd"]) > 1.5 for k, p in photos.items() if k not in sat)
+    assert "6 of 13 photos have a saturated white" in (out / "report.md").read_text()
+
+
 def test_opencvs_photos_dark_squares_image_small_and_the_junctions_undo_it(opencv_run):
     """A finding, measured (docs/board.md): on OpenCV's photos every edge method's own side lines make each dark
     square smaller than the junctions do (own corners 0.18 px inward for Devernay; the two squares' own corners

@@ -14,8 +14,7 @@ from edgetruth.evaluate.board import chessboard as cb
 from edgetruth.evaluate.board import tone_fit
 from edgetruth.evaluate.board.inputs import BoardInputs
 from edgetruth.evaluate.board.model import BoardModel
-from tests.evaluate.board.board_images import apply_h
-from tests.evaluate.board.chessboard_images import ROTATIONS, all_dark_squares, render, stored_views
+from tests.evaluate.board.chessboard_images import stored_views
 
 FULL = 65535.0
 
@@ -71,26 +70,6 @@ def test_a_clipped_white_shows_as_on_opencvs_photos():
     assert not fit.one_power_fits
     sd = [lv.white_sd for lv in fit.levels]
     assert min(sd[:2]) > 400 and max(sd[2:]) == 0 and fit.white_levels[2:] == [clip, clip]
-
-
-def test_square_levels_read_the_dark_and_the_light_squares():
-    img = stored_views(lambda v: v)[0]
-    fit = estimate([img] * 3)
-    assert fit.dark_levels[0] == pytest.approx(FULL * 40 / 255, rel=1e-3)
-    assert fit.white_levels[0] == pytest.approx(FULL * 210 / 255, rel=1e-3)
-
-
-def test_square_levels_read_the_flats_noise_and_see_a_clip_flatten_it():
-    """Gaussian noise of SD 3 on levels 40 / 210: both levels and both SDs come back (the SD pooled about each
-    patch's own mean, with its degrees of freedom); the same image clipped at 200 reads a white SD near 0."""
-    img, h = render((9, 6), ROTATIONS[1])
-    quads = apply_h(h, all_dark_squares((9, 6)))
-    noisy = img + np.random.default_rng(3).normal(0.0, 3.0, img.shape)
-    lv = tone_fit.square_levels(noisy, quads)
-    assert lv.dark == pytest.approx(40, abs=0.3) and lv.white == pytest.approx(210, abs=0.3)
-    assert lv.dark_sd == pytest.approx(3, rel=0.05) and lv.white_sd == pytest.approx(3, rel=0.05)
-    clipped = tone_fit.square_levels(np.minimum(noisy, 200.0), quads)
-    assert clipped.white == 200 and clipped.white_sd < 0.3 and clipped.dark_sd == pytest.approx(lv.dark_sd)
 
 
 def test_no_power_is_an_input_error_naming_what_to_give(monkeypatch):
