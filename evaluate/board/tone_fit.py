@@ -177,8 +177,11 @@ def estimate_power(inp, images: list[np.ndarray], full_scales: list[float], labe
         root_se = se0 / np.abs(slope)
     ok = np.isfinite(roots) & np.isfinite(root_se) & (root_se > 0)
     rng = np.random.default_rng(SEED)
-    idx = rng.integers(0, ok.sum(), size=(BOOTSTRAP, int(ok.sum())))
-    boot = g - f0[ok][idx].mean(axis=1) / slope[ok][idx].mean(axis=1)
+    if ok.sum() >= 2:
+        idx = rng.integers(0, ok.sum(), size=(BOOTSTRAP, int(ok.sum())))
+        boot = g - f0[ok][idx].mean(axis=1) / slope[ok][idx].mean(axis=1)
+    else:  # no spread to resample
+        boot = np.full(1, np.nan)
     q = float(np.sum(((roots[ok] - g) / root_se[ok]) ** 2))
     levels = [square_levels(images[i], qd) for i, qd in zip(keep, quads)]
     white = np.array([lv.white for lv in levels])
