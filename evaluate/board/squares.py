@@ -28,10 +28,11 @@ def board_squares(image: np.ndarray, model: BoardModel) -> tuple[Correspondence 
     return (None, None) if view is None else (view.squares, view.reference)
 
 
-def board_candidates(image: np.ndarray, corners: np.ndarray, chessboard: bool):
+def board_candidates(image: np.ndarray, corners: np.ndarray, chessboard: bool, extra_segments=None):
     """The Canny candidates worth refining (``locate.candidates``): those within ``sides.CANDIDATE_MARGIN_PX`` of a
     found square's side (``corners`` (S, 4, 2), NaN rows for squares not found) and, on a chessboard, of those
-    sides continued past their corners (``chessboard.grid_segments``: its grid lines run on into the outer ring)."""
+    sides continued past their corners (``chessboard.grid_segments``: its grid lines run on into the outer ring),
+    and of ``extra_segments`` (M, 2, 2) when given."""
     from edgetruth import locate
     from edgetruth.evaluate.board.sides import CANDIDATE_MARGIN_PX, near_segments, near_sides
 
@@ -39,6 +40,8 @@ def board_candidates(image: np.ndarray, corners: np.ndarray, chessboard: bool):
     near = near_sides(corners, cand.x, cand.y, CANDIDATE_MARGIN_PX)
     if chessboard:
         near |= near_segments(cb.grid_segments(corners), cand.x, cand.y, CANDIDATE_MARGIN_PX)
+    if extra_segments is not None and len(extra_segments):
+        near |= near_segments(extra_segments, cand.x, cand.y, CANDIDATE_MARGIN_PX)
     return cand.subset(near)
 
 

@@ -40,8 +40,8 @@ def register(sub) -> None:
                         "where the two grid lines through it meet, each fitted to an edge method's points on both "
                         "its halves (free of dark squares imaging smaller or larger than light ones; docs/board.md, "
                         "Chessboards), with erf4p_fixed11 or the METHOD given (options as in --methods, e.g. "
-                        "lines:canny_devernay); a grid corner whose one square between the inner corners is light has "
-                        "no such lines and is left out")
+                        "lines:canny_devernay); a grid corner whose one square between the inner corners is light is "
+                        "measured on the grid segments either side of it, the outer ones in the board's outer ring")
     p.add_argument("-o", "--output", required=True, help="JSON file to write (written atomically)")
     add_image_options(p)
     add_progress_option(p)
