@@ -211,8 +211,7 @@ def junction_corners(j: Junctions, sides, x, y, nx, ny, converged) -> np.ndarray
     A dark square's own side lines lie off the inner corner by whatever makes dark squares print or image larger
     or smaller than light ones (ink spread, blur on a tone curve); the two halves of a grid line lie off by
     opposite amounts, so a line through both is free of it."""
-    from edgetruth.evaluate.board.sides import (BAND_PASS2_PX, CORNER_EXCLUSION_PX, MAX_NORMAL_ANGLE_DEG,
-                                                MIN_POINTS, intersect, tls_lines)
+    from edgetruth.evaluate.board.sides import BAND_PASS2_PX, MIN_POINTS, along_segments, intersect, tls_lines
 
     x, y, nx, ny = (np.asarray(v, float) for v in (x, y, nx, ny))
     n_sq = len(sides.n_points)
@@ -247,13 +246,9 @@ def junction_corners(j: Junctions, sides, x, y, nx, ny, converged) -> np.ndarray
     at_end = np.tile([True, False], len(border))  # side k - 1 ends at the corner, side k starts there
     pivot = np.where(at_end[:, None], end, start)
     out_dir = np.where(at_end[:, None], u, -u)
-    okp = np.asarray(converged, bool)
-    t = (x[None] - pivot[:, :1]) * out_dir[:, :1] + (y[None] - pivot[:, 1:]) * out_dir[:, 1:]
     with np.errstate(invalid="ignore"):
         dist = np.abs(n_e[:, :1] * x[None] + n_e[:, 1:] * y[None] - d_e[:, None])
-        cos_n = np.abs(nx[None] * n_e[:, :1] + ny[None] * n_e[:, 1:])
-        near = ((dist <= BAND_PASS2_PX) & (t >= CORNER_EXCLUSION_PX) & (t <= length[:, None] - CORNER_EXCLUSION_PX)
-                & (cos_n >= np.cos(np.radians(MAX_NORMAL_ANGLE_DEG))) & okp[None])
+        near = (dist <= BAND_PASS2_PX) & along_segments(pivot, out_dir, length, n_e, x, y, nx, ny, converged)
     li, pi = np.nonzero(near)
     far_count = np.bincount(li, minlength=len(ext))
     pair_pt.append(pi)

@@ -78,20 +78,16 @@ def open_corners(halves: np.ndarray, x, y, nx, ny, converged) -> np.ndarray:
     end of the half, their normal within ``MAX_NORMAL_ANGLE_DEG`` of the chord's.  NaN where a half has fewer than
     ``MIN_POINTS`` points.  The two halves of a line have the dark square on opposite sides, so whatever makes dark
     squares image larger or smaller moves them by opposite amounts, and the line is free of it."""
-    from edgetruth.evaluate.board.sides import (BAND_PASS1_PX, BAND_PASS2_PX, CORNER_EXCLUSION_PX,
-                                                MAX_NORMAL_ANGLE_DEG, MIN_POINTS, intersect, tls_lines)
+    from edgetruth.evaluate.board.sides import (BAND_PASS1_PX, BAND_PASS2_PX, MIN_POINTS, along_segments, intersect,
+                                                tls_lines)
 
     h = np.asarray(halves, float).reshape(-1, 2, 2)  # (4M, 2, 2): every half, two per line, two lines per corner
     x, y, nx, ny = (np.asarray(v, float) for v in (x, y, nx, ny))
-    ok = np.asarray(converged, bool)
     p, q = h[:, 0], h[:, 1]
     length = np.linalg.norm(q - p, axis=1)
     u = (q - p) / length[:, None]
     chord_n = np.stack([-u[:, 1], u[:, 0]], axis=1)
-    t = (x[None] - p[:, :1]) * u[:, :1] + (y[None] - p[:, 1:]) * u[:, 1:]
-    cos_n = np.abs(nx[None] * chord_n[:, :1] + ny[None] * chord_n[:, 1:])
-    along = ((t >= CORNER_EXCLUSION_PX) & (t <= length[:, None] - CORNER_EXCLUSION_PX)
-             & (cos_n >= np.cos(np.radians(MAX_NORMAL_ANGLE_DEG))) & ok[None])
+    along = along_segments(p, u, length, chord_n, x, y, nx, ny, converged)
     n_lines = len(h) // 2
     line_n = np.repeat(chord_n[0::2], 2, axis=0)  # pass 1: the chord through the corner
     line_d = (line_n * p).sum(axis=1)

@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from edgetruth.conventions import inside_image
+
 #: half width (px) of the patch whose median is a square's level
 LEVEL_HALF_PX = 2
 #: a white is flagged saturated where its noise SD is below this share of the dark squares' (and the dark's is > 0)
@@ -38,16 +40,15 @@ def square_levels(image: np.ndarray, quads: np.ndarray) -> SquareLevels:
     q = np.asarray(quads, float)
     q = q[np.all(np.isfinite(q), axis=(1, 2))]
     centre = q.mean(axis=1)
-    light = (2 * 0.5 * (q + np.roll(q, -1, axis=1)) - centre[:, None]).reshape(-1, 2)
+    light = (q + np.roll(q, -1, axis=1) - centre[:, None]).reshape(-1, 2)  # centre mirrored through each side's mid
     side = float(np.median(np.linalg.norm(q - np.roll(q, -1, axis=1), axis=2))) if len(q) else 1.0
     groups = cKDTree(light).query_ball_point(light, 0.3 * side) if len(light) else []
     light = np.array([light[i] for i, g in enumerate(groups) if len(g) >= 2 and min(g) == i]).reshape(-1, 2)
 
     def level(points: np.ndarray) -> tuple[float, float]:
-        h, w = image.shape
         r = LEVEL_HALF_PX
-        xy = np.round(points).astype(int)
-        inside = (xy[:, 0] >= r) & (xy[:, 0] < w - r) & (xy[:, 1] >= r) & (xy[:, 1] < h - r)
+        xy = np.round(points).astype(int)  # the pixel whose centre is nearest (centres at integers)
+        inside = inside_image(xy[:, 0], xy[:, 1], image.shape, r)
         patches = np.array([image[y - r:y + r + 1, x - r:x + r + 1].astype(np.float64).ravel()
                             for x, y in xy[inside]]).reshape(-1, (2 * r + 1) ** 2)
         if not len(patches):

@@ -98,6 +98,19 @@ def near_segments(segments: np.ndarray, x, y, margin_px: float) -> np.ndarray:
     return mask[np.round(y).astype(int), np.round(x).astype(int)] > 0
 
 
+def along_segments(start: np.ndarray, direction: np.ndarray, length: np.ndarray, normal: np.ndarray, x, y, nx, ny,
+                   ok) -> np.ndarray:
+    """(H, N) for each of H segments (``start`` (H, 2), unit ``direction`` (H, 2), ``length`` (H,) px) and each of N
+    points: the point converged (``ok``), its foot on the segment lies ``CORNER_EXCLUSION_PX`` past the start to
+    ``CORNER_EXCLUSION_PX`` short of the end, and its normal (nx, ny) is within ``MAX_NORMAL_ANGLE_DEG`` of
+    ``normal`` (H, 2).  The distance to a line is the caller's: its band and its line differ."""
+    t = (x[None] - start[:, :1]) * direction[:, :1] + (y[None] - start[:, 1:]) * direction[:, 1:]
+    with np.errstate(invalid="ignore"):
+        cos_n = np.abs(nx[None] * normal[:, :1] + ny[None] * normal[:, 1:])
+        return ((t >= CORNER_EXCLUSION_PX) & (t <= length[:, None] - CORNER_EXCLUSION_PX)
+                & (cos_n >= np.cos(np.radians(MAX_NORMAL_ANGLE_DEG))) & np.asarray(ok, bool)[None])
+
+
 def assign(quads: np.ndarray, smap: np.ndarray, x, y, nx, ny, ok, band_px: float) -> np.ndarray:
     """Side label ``4 * square + side`` of each point, -1 where none (module docstring).  ``quads`` (S, 4, 2):
     the current corners; ``smap``: ``square_map`` of the photo."""

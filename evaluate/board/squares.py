@@ -4,6 +4,8 @@ photos, the squares and the Canny candidates beside their sides that every metho
 (``locate_squares``)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from edgetruth import console
@@ -13,6 +15,9 @@ from edgetruth.evaluate.board.levels import SquareLevels, saturated, square_leve
 from edgetruth.evaluate.board.model import BoardModel
 from edgetruth.evaluate.board.quads import find_quads
 from edgetruth.evaluate.board.sides import square_map
+
+if TYPE_CHECKING:
+    from edgetruth.evaluate.board.inputs import BoardInputs
 
 #: A photo on which fewer than this share of the model's squares are found is left out (with a warning).
 MIN_FOUND_SHARE = 0.5
