@@ -14,7 +14,8 @@ as is an optional reduction of the 8-bit output to a few levels (``output_levels
 levels; ``output_levels_rgb``: an RGB palette of Nr x Ng x Nb levels, the gray read back as luma),
 with or without Floyd-Steinberg error diffusion (``output_dither``), and a video camera's
 processing of the encoded values (``output_gain``, ``output_offset_dn``; ``sharpen_amount``: an unsharp mask along x, y
-or both; ``output_noise_dn``: noise added after them).  All off by default; only
+or both; ``output_noise_dn``: noise added after them), a power-law curve instead of sRGB's (``output_gamma``) and a
+clip below 255 (``output_clip_dn``).  All off by default; only
 ``output_noise_dn`` draws random numbers (from the image's generator, after the exposure's).
 All randomness comes from a seeded ``numpy.random.Generator`` passed in by the caller
 (never the global RNG).
@@ -59,6 +60,8 @@ SHARPEN_AXES = ("x", "y", "xy")
 QUANTISE_KEYS = ("output_levels", "output_levels_rgb", "output_rgb_gains", "output_dither")
 #: the video-processing keys (left out of a spec's identity while all are off)
 VIDEO_KEYS = ("output_gain", "output_offset_dn", "sharpen_amount", "sharpen_sigma_px", "sharpen_axis", "output_noise_dn")
+#: the output-curve keys (each left out of a spec's identity at its default: the sRGB curve, the clip at 255)
+CURVE_KEYS = ("output_gamma", "output_clip_dn")
 PLANCK_J_S = 6.62607015e-34
 SPEED_OF_LIGHT_M_S = 299792458.0
 #: streams of the camera's fixed-pattern generators, [fpn_seed, stream] (the per-image streams are 1, 2)
@@ -107,6 +110,8 @@ class SensorModel:
     sharpen_sigma_px: float = 1.0
     sharpen_axis: str = "x"
     output_noise_dn: float = 0.0
+    output_gamma: float = 0.0
+    output_clip_dn: float = 255.0
 
     def __post_init__(self) -> None:
         require(0 < self.qe <= 1, f"sensor: qe must be in (0, 1], got {self.qe}")
@@ -146,6 +151,11 @@ class SensorModel:
                 "srgb8 or jpeg")
         require(self.output_gain > 0 and self.output_noise_dn >= 0,
                 "sensor: output_gain must be > 0 and output_noise_dn >= 0")
+        require(self.output_gamma == 0 or 0.2 <= self.output_gamma <= 5.0,
+                f"sensor: output_gamma must be 0 (the sRGB curve) or 0.2..5, got {self.output_gamma}")
+        require(1.0 <= self.output_clip_dn <= 255.0, f"sensor: output_clip_dn must be in 1..255, got {self.output_clip_dn}")
+        require(self.output != "raw" or (self.output_gamma == 0 and self.output_clip_dn == 255.0),
+                "sensor: output_gamma and output_clip_dn shape the 8-bit output; use output = srgb8 or jpeg")
         require(len(tuple(self.output_rgb_gains)) == 3 and all(g > 0 for g in self.output_rgb_gains),
                 "sensor: output_rgb_gains must be three positive numbers")
         require(tuple(self.output_rgb_gains) == (1.0, 1.0, 1.0) or any(self.output_levels_rgb),
@@ -163,6 +173,9 @@ class SensorModel:
                 d.pop(k)
         if not self.video_processed:
             for k in VIDEO_KEYS:
+                d.pop(k)
+        for k, default in zip(CURVE_KEYS, (0.0, 255.0)):
+            if d[k] == default:
                 d.pop(k)
         return d
 
@@ -290,6 +303,9 @@ class SensorModel:
         if not self.video_processed:
             for k in VIDEO_KEYS:
                 d.pop(k)
+        for k, default in zip(CURVE_KEYS, (0.0, 255.0)):
+            if d[k] == default:
+                d.pop(k)
         d["model"] = "EMVA 1288 linear: Var(y) = K^2 (sigma_d^2 + mu_e) + 1/12"
         return d
 
@@ -359,6 +375,12 @@ SENSOR_KEYS = [
         "values (in 8-bit steps) after output_gain and sharpening, before the 8-bit rounding and clip: an analog "
         "video chain's noise after the camera's gamma (independent per pixel); drawn from the image's sensor "
         "generator after the exposure's numbers; 0 = off", 0.0, 255.0),
+    Key("output_gamma", "float", _D.output_gamma, "", "the 8-bit outputs' transfer curve: 0 = the sRGB curve; "
+        "G > 0 = a pure power, e = v^(1/G) (1: linear; decoded by the board study's --tone power:G)", 0.0, 5.0,
+        check=lambda v: None if v == 0 or 0.2 <= v <= 5.0 else "use 0 (sRGB) or 0.2..5"),
+    Key("output_clip_dn", "float", _D.output_clip_dn, "DN (8-bit)", "the 8-bit outputs' largest value: the encoded "
+        "values are clipped to [0, output_clip_dn / 255] after the video processing and its noise, so what "
+        "reaches it is flat (a camera whose white saturates below 255); 255 = off", 1.0, 255.0),
 ]
 assert [k.name for k in SENSOR_KEYS] == [f.name for f in fields(SensorModel)]
 

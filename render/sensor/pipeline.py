@@ -6,7 +6,8 @@
   black level passes through unchanged.
 - ``output = "raw"``: those DN in a 16-bit PNG.  ``"srgb8"``: v = (DN − black) / (full scale −
   black), clipped to [0, 1], through the sRGB transfer curve (IEC 61966-2-1), × 255, rounded,
-  in an 8-bit PNG.  ``"jpeg"``: the srgb8 image through OpenCV's JPEG encoder (libjpeg, gray, at
+  in an 8-bit PNG.  ``output_gamma`` = G > 0 replaces the sRGB curve by e = v^(1/G) (G = 1: the
+  stored values are linear in light; ``edgetruth.evaluate.board.tone``'s power:G decodes it).  ``"jpeg"``: the srgb8 image through OpenCV's JPEG encoder (libjpeg, gray, at
   ``jpeg_quality``) and decoded again; the decoded pixels go into the 8-bit PNG.
 - **A video camera's processing** (8-bit outputs; each step off by default, in this order, on the
   encoded values e in [0, 1] before their 8-bit rounding): ``output_gain`` g and ``output_offset_dn``
@@ -16,7 +17,8 @@
   ``output_noise_dn`` s: e ← e + N(0, (s/255)²) per pixel, the analog chain's noise after the
   camera's gamma and sharpening (white: independent from pixel to pixel; drawn from the image's
   sensor generator after the exposure's numbers, so the exposure's noise is the same with it on or
-  off); then e is clipped to [0, 1], × 255, rounded.
+  off); then e is clipped to [0, 1] -- or to [0, ``output_clip_dn``/255], a white that saturates
+  below 255, flat where it clips -- × 255, rounded.
 - **Fewer levels** (last, on the 8-bit image; off by default): ``output_levels`` = N maps each
   pixel to the nearest of N gray levels round(255 k / (N − 1)); ``output_levels_rgb`` = [Nr, Ng, Nb]
   writes the gray image through an RGB palette of that many levels per channel (each channel
@@ -39,6 +41,14 @@ def srgb_encode(v):
     """The sRGB transfer curve (linear [0, 1] -> encoded [0, 1])."""
     v = np.clip(np.asarray(v, dtype=np.float64), 0.0, 1.0)
     return np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1.0 / 2.4) - 0.055)
+
+
+def encode(v, sensor):
+    """Linear [0, 1] -> encoded [0, 1]: the sRGB curve, or v^(1/G) with the sensor's ``output_gamma`` G > 0."""
+    gamma = getattr(sensor, "output_gamma", 0.0)
+    if not gamma:
+        return srgb_encode(v)
+    return np.power(np.clip(np.asarray(v, dtype=np.float64), 0.0, 1.0), 1.0 / gamma)
 
 
 def srgb_decode(e):
@@ -156,6 +166,11 @@ def video_processing(encoded: np.ndarray, sensor, rng: np.random.Generator | Non
     return np.clip(e, 0.0, 1.0)
 
 
+def clip_level(sensor) -> float:
+    """The encoded values' upper clip (1, or ``output_clip_dn`` / 255)."""
+    return getattr(sensor, "output_clip_dn", 255.0) / 255.0
+
+
 def develop(raw_dn: np.ndarray, sensor, rng: np.random.Generator | None = None) -> np.ndarray:
     """The image file's pixels from the raw DN (``sensor``: ``edgetruth.render.sensor.linear_model.SensorModel``; ``rng``:
     the image's generator, used only by ``output_noise_dn``)."""
@@ -163,9 +178,11 @@ def develop(raw_dn: np.ndarray, sensor, rng: np.random.Generator | None = None) 
     if sensor.output == "raw":
         return np.asarray(gray, dtype=np.uint16)
     v = (gray.astype(np.float64) - sensor.dark_offset_dn) / (sensor.max_dn - sensor.dark_offset_dn)
-    e = srgb_encode(v)
+    e = encode(v, sensor)
     if getattr(sensor, "video_processed", False):
         e = video_processing(e, sensor, rng)
+    if clip_level(sensor) < 1.0:
+        e = np.minimum(e, clip_level(sensor))
     u8 = np.rint(255.0 * e).astype(np.uint8)
     out = u8 if sensor.output == "srgb8" else jpeg_round_trip(u8, sensor.jpeg_quality)
     return quantise(out, sensor) if getattr(sensor, "quantised", False) else out
@@ -186,8 +203,22 @@ def describe(sensor) -> dict:
         "demosaic": None if sensor.cfa == "none" else
         f"OpenCV bilinear (COLOR_Bayer{sensor.cfa}2BGR), gray = 0.299 R + 0.587 G + 0.114 B (COLOR_BGR2GRAY)",
         "channel_qe": None if sensor.cfa == "none" else {"R": sensor.qe_r, "G": sensor.qe_g, "B": sensor.qe_b},
-    } | ({"quantisation": quantisation_truth(sensor)} if getattr(sensor, "quantised", False) else {}) | (
+    } | curve_truth(sensor) | ({"quantisation": quantisation_truth(sensor)} if getattr(sensor, "quantised", False)
+                               else {}) | (
         {"video": video_truth(sensor)} if getattr(sensor, "video_processed", False) else {})
+
+
+def curve_truth(sensor) -> dict:
+    """What the JSON adds when the 8-bit curve is not sRGB's or the white clips below 255 (nothing otherwise)."""
+    out = {}
+    gamma = getattr(sensor, "output_gamma", 0.0)
+    if gamma and sensor.output != "raw":
+        out["transfer_curve"] = {"gamma": gamma, "meaning": "e = v^(1/gamma) replaces the sRGB curve; the "
+                                                            "encoding line's srgb() reads as this curve"}
+    if clip_level(sensor) < 1.0 and sensor.output != "raw":
+        out["clip_dn"] = {"value": sensor.output_clip_dn, "meaning": "encoded values clipped to clip_dn / 255 after "
+                                                                     "the video processing and its noise"}
+    return out
 
 
 def video_truth(sensor) -> dict:

@@ -126,12 +126,47 @@ def test_off_changes_nothing():
     pipeline.develop(raw, s, r1)
     assert r1.random() == r2.random()  # nothing drawn
     for k in ("output_levels", "output_levels_rgb", "output_rgb_gains", "output_dither", "output_gain",
-              "output_offset_dn", "sharpen_amount", "sharpen_sigma_px", "sharpen_axis", "output_noise_dn"):
+              "output_offset_dn", "sharpen_amount", "sharpen_sigma_px", "sharpen_axis", "output_noise_dn",
+              "output_gamma", "output_clip_dn"):
         assert k not in s.identity() and k not in s.to_dict()
-    assert "quantisation" not in pipeline.describe(s) and "video" not in pipeline.describe(s)
+    assert not {"quantisation", "video", "transfer_curve", "clip_dn"} & set(pipeline.describe(s))
     on = replace(s, output_levels_rgb=(8, 8, 4), output_dither="floyd_steinberg", sharpen_amount=1.0)
     assert on.identity()["output_levels_rgb"] == (8, 8, 4) and on.identity()["sharpen_amount"] == 1.0
     assert pipeline.describe(on)["quantisation"]["rgb_levels"][2] == [0, 85, 170, 255]
+
+
+def test_output_gamma_is_a_pure_power_of_the_linear_signal():
+    """output_gamma G: e = v^(1/G) instead of the sRGB curve (G = 1: stored values linear in light), and the board
+    study's --tone power:G decodes it back to within the 8-bit rounding."""
+    from edgetruth.evaluate.board.tone import decode, parse_tone
+
+    s = SensorModel(output="srgb8")
+    raw = np.tile(np.linspace(s.dark_offset_dn, s.max_dn, 512).astype(np.uint16), (2, 1))
+    v = (raw - s.dark_offset_dn) / (s.max_dn - s.dark_offset_dn)
+    for g in (1.0, 1.8, 2.2):
+        out = pipeline.develop(raw, replace(s, output_gamma=g))
+        assert np.array_equal(out, np.rint(255 * v ** (1 / g)).astype(np.uint8))
+        back = decode(out.astype(float), parse_tone(f"power:{g}"), 255.0) / 255.0
+        # within half an 8-bit step of the curve, read on the encoded axis
+        assert np.all(np.abs(back ** (1 / g) - v ** (1 / g)) <= 0.5 / 255 + 1e-12)
+    assert pipeline.describe(replace(s, output_gamma=1.0))["transfer_curve"]["gamma"] == 1.0
+    assert replace(s, output_gamma=1.0).identity()["output_gamma"] == 1.0
+
+
+def test_output_clip_flattens_the_white_below_255():
+    """output_clip_dn c: every value that would exceed c is c, after the output noise (so the clipped flat has no
+    noise), and nothing below c moves."""
+    raw = np.full((200, 300), 256 + 3000, np.uint16)
+    s = SensorModel(output="srgb8", output_noise_dn=3.0)
+    free = pipeline.develop(raw, s, np.random.default_rng(2)).astype(float)
+    clipped = pipeline.develop(raw, replace(s, output_clip_dn=220.0), np.random.default_rng(2)).astype(float)
+    assert free.std() > 2.5 and free.min() >= 210 and free.mean() > 225
+    assert np.all(clipped == np.minimum(free, 220.0)) and np.mean(clipped == 220.0) > 0.9
+    ramp = np.tile(np.linspace(256, 4095, 400).astype(np.uint16), (3, 1))
+    a = pipeline.develop(ramp, SensorModel(output="srgb8"))
+    b = pipeline.develop(ramp, SensorModel(output="srgb8", output_clip_dn=200.0))
+    assert np.array_equal(b, np.minimum(a, 200)) and b.max() == 200
+    assert pipeline.describe(SensorModel(output="srgb8", output_clip_dn=200.0))["clip_dn"]["value"] == 200.0
 
 
 def test_capture_draws_output_noise_after_the_exposure():
@@ -159,6 +194,9 @@ def test_capture_draws_output_noise_after_the_exposure():
     ({"sharpen_amount": 1.0, "output": "raw"}, "encoded output"),
     ({"output_rgb_gains": [1.1, 1.0, 0.9]}, "applies to output_levels_rgb"),
     ({"sharpen_axis": "z"}, "sharpen_axis"),
+    ({"output_gamma": 0.1}, "output_gamma"),
+    ({"output_gamma": 1.0, "output": "raw"}, "8-bit output"),
+    ({"output_clip_dn": 300}, "output_clip_dn"),
 ])
 def test_bad_keys_are_one_line_errors(table, fix):
     with pytest.raises(InputError, match=fix):
