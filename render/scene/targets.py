@@ -123,6 +123,30 @@ class SquareBoard:
         return cls(quads_model_m=tuple(quads), source=f"pattern {rows} x {cols}, side {side_m:g} m, pitch {pitch_m:g} m",
                    **kw)
 
+    @classmethod
+    def chessboard(cls, cols: int, rows: int, side_m: float, ring: tuple = (1.0, 1.0), **kw) -> "SquareBoard":
+        """The dark squares of a chessboard of ``cols`` x ``rows`` *inner* corners (OpenCV's patternSize), inner
+        corner (i, j) (row i, column j) at (j, i) * side_m.  First the dark squares between inner corners, in the
+        board study's chessboard model order (``edgetruth.evaluate.board.chessboard.chessboard_model``, parity 0:
+        square (r, c) dark where r + c is even; row-major; corners (c, r), (c+1, r), (c+1, r+1), (c, r+1)), so a
+        render's first squares are the study's model; then the dark squares of the outer ring, row-major, each cut
+        to ``ring`` = [x, y] of a square's side beyond the outermost inner corners (1: whole squares; printed
+        boards are often cut there)."""
+        quads = []
+        cells = [(r, c) for r in range(rows - 1) for c in range(cols - 1)]
+        ring_cells = [(r, c) for r in range(-1, rows) for c in range(-1, cols)
+                      if r in (-1, rows - 1) or c in (-1, cols - 1)]
+        for r, c in cells + ring_cells:
+            if (r + c) % 2:
+                continue
+            x0 = c * side_m if c >= 0 else -ring[0] * side_m
+            x1 = (c + 1) * side_m if c < cols - 1 else (cols - 1 + ring[0]) * side_m
+            y0 = r * side_m if r >= 0 else -ring[1] * side_m
+            y1 = (r + 1) * side_m if r < rows - 1 else (rows - 1 + ring[1]) * side_m
+            quads.append(((x0, y0), (x1, y0), (x1, y1), (x0, y1)))
+        return cls(quads_model_m=tuple(quads), source=f"chessboard {cols}x{rows} inner corners, side {side_m:g} m, "
+                   f"outer ring {ring[0]:g} x {ring[1]:g} of a side", **kw)
+
     @property
     def quads_model(self) -> np.ndarray:
         """(n, 4, 2) corners in the model frame, metres."""
@@ -189,9 +213,14 @@ SQUARES_KEYS = [
         "board); empty: the pattern rows x cols"),
     Key("model_unit_m", "float", None, "m", "length of the model file's unit (0.0254: inches); required "
         "with model", 1e-9, 1e3),
+    Key("chessboard", "str", "", "COLSxROWS", "a chessboard of COLS x ROWS inner corners (OpenCV's patternSize, e.g. "
+        "9x6) with squares of side_m: its dark squares, first those between the inner corners in the board study's "
+        "model order, then the outer ring's (cut to ring); empty: no chessboard"),
+    Key("ring", "vec2", [1.0, 1.0], "side", "chessboard: how much of a square the outer ring shows beyond the "
+        "outermost inner corners, [along x, along y] (1: whole squares)", 0.05, 1.0),
     Key("cols", "int", 8, "squares", "pattern: squares per row", 1, 1000),
     Key("rows", "int", 8, "squares", "pattern: squares per column", 1, 1000),
-    Key("side_m", "float", 0.02, "m", "pattern: side of one square", 1e-5, 10.0),
+    Key("side_m", "float", 0.02, "m", "pattern or chessboard: side of one square", 1e-5, 10.0),
     Key("pitch_m", "float", 0.035, "m", "pattern: distance between neighbouring squares' corners (>= side_m)",
         1e-5, 10.0),
     Key("margin_m", "float", _SQ.margin_m, "m", "white plate around the squares' bounding box", 0.0, 10.0),
@@ -264,7 +293,26 @@ def square_board_from_dict(d: dict, base_dir: Path | None, where: str) -> Square
     v = parse_table(d, SQUARES_KEYS, where)
     common = {"margin_m": v["margin_m"], "plate_size_m": v["plate_size_m"],
               "square_reflectance": v["square_reflectance"], "board_reflectance": v["board_reflectance"]}
-    if v["model"]:
+    if v["chessboard"] and v["model"]:
+        raise InputError(f"{where}: model and chessboard both given; give a model file or a chessboard, not both")
+    if "ring" in d and not v["chessboard"]:
+        raise InputError(f"{where}: ring applies to a chessboard; remove it or add chessboard = \"COLSxROWS\"")
+    if v["chessboard"]:
+        clash = [k for k in ("cols", "rows", "pitch_m", "model_unit_m") if k in d]
+        if clash:
+            raise InputError(f"{where}: chessboard = {v['chessboard']!r} and {', '.join(clash)}: a chessboard takes "
+                             "side_m (and ring) only; remove them")
+        try:
+            cols, rows = (int(s) for s in v["chessboard"].lower().split("x"))
+            if cols < 2 or rows < 2:
+                raise ValueError
+        except ValueError:
+            raise InputError(f"{where}: chessboard = {v['chessboard']!r}: give COLSxROWS inner corners, two "
+                             "integers >= 2 (e.g. \"9x6\")") from None
+        if (cols + 1) * (rows + 1) > 2 * MAX_SQUARES:
+            raise InputError(f"{where}: chessboard = {v['chessboard']!r}: more than {MAX_SQUARES} dark squares")
+        board = SquareBoard.chessboard(cols, rows, v["side_m"], tuple(v["ring"]), **common)
+    elif v["model"]:
         clash = [k for k in _PATTERN_KEYS if k in d]
         if clash:
             raise InputError(f"{where}: model = {v['model']!r} and {', '.join(clash)}: give a model file or a "

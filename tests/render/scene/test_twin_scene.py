@@ -339,6 +339,51 @@ def test_pattern_board_with_drawn_poses(tmp_path):
         np.testing.assert_allclose(np.reshape(gt["corners_distorted_px"], (-1, 2)), ref.reshape(-1, 2), atol=1e-9)
 
 
+def test_chessboard_squares_start_with_the_board_studys_model(tmp_path):
+    """A chessboard target's first squares are the board study's chessboard model (same corners, same order, in
+    side_m); the rest are the outer ring's dark squares, cut to ``ring`` beyond the outermost inner corners."""
+    from edgetruth.evaluate.board.chessboard import chessboard_model
+
+    spec = load_spec(_spec(tmp_path, squares='chessboard = "9x6", side_m = 0.03, ring = [0.5, 0.8]'))
+    b = spec.squares
+    model = chessboard_model((9, 6), 0.03, "m")
+    assert b.n_squares == 35  # 70 squares of a 10 x 7 board, half dark
+    np.testing.assert_allclose(b.quads_model[:len(model)], model.corners, atol=1e-15)
+    ring = b.quads_model[len(model):].reshape(-1, 2)
+    assert ring[:, 0].min() == pytest.approx(-0.015) and ring[:, 0].max() == pytest.approx(8.5 * 0.03)
+    assert ring[:, 1].min() == pytest.approx(-0.024) and ring[:, 1].max() == pytest.approx(5.8 * 0.03)
+    area = np.abs(np.cross(b.quads_model[:, 1] - b.quads_model[:, 0], b.quads_model[:, 3] - b.quads_model[:, 0]))
+    # 20 whole squares; the ring's dark ones: 4 + 4 in the top and bottom rows (0.8 high), 2 + 3 in the left and
+    # right columns (0.5 wide), 2 corners (0.5 x 0.8)
+    assert area.sum() == pytest.approx(0.03 ** 2 * (20 + 8 * 0.8 + 5 * 0.5 + 2 * 0.5 * 0.8))
+
+
+@pytest.mark.slow
+def test_rendered_chessboard_is_found_in_model_order(fast_variant, tmp_path):
+    """The board study finds a rendered chessboard's model squares where the render's truth puts its first
+    squares (cornerSubPix corners at 4 spp: within 0.5 px, median 0.2 px; a square is 27 px)."""
+    from edgetruth.evaluate.board.chessboard import chessboard_model
+    from edgetruth.evaluate.board.squares import board_squares
+    from edgetruth.image_io import read_gray
+    from edgetruth.render.dataset.driver import render_spec
+    from edgetruth.render.dataset.reader import open_dataset
+
+    pose = "R = [[0.98, 0.0, 0.198997], [0.0, 1.0, 0.0], [-0.198997, 0.0, 0.98]]\nt = [-0.12, -0.075, 0.9]"
+    p = _spec(tmp_path, 'chessboard = "9x6", side_m = 0.03, ring = [0.5, 0.8]',
+              f"irradiance_w_m2 = 0.3\n[[group.poses]]\n{pose}")
+    p.write_text(p.read_text().replace("camera_scale = 8", "camera_scale = 2"))  # 640 x 512: the corner finder's
+    spec = load_spec(p)
+    render_spec(spec, tmp_path / "out", variant=fast_variant, progress=False)
+    s = next(iter(open_dataset(tmp_path / "out").square_boards()))
+    img = read_gray(s.dataset.path / s.dataset.manifest["images"][s.name]["files"]["png"]["path"])
+    model = chessboard_model((9, 6), 0.03, "m")
+    found = board_squares(img, model)[0]
+    truth = np.asarray(s.truth["squares"]["corners_distorted_px"])
+    assert truth.shape == (35, 4, 2)
+    err = np.linalg.norm(found.corners - truth[:len(model)], axis=2)
+    assert np.isfinite(err).all() and err.max() < 0.5 and np.median(err) < 0.2
+
+
 def test_polygon_outline_lies_on_the_projection():
     cam = load_camera()
     pose = ExplicitPose.from_rt(cv2.Rodrigues(np.array([0.2, -0.3, 0.1]))[0], [0.05, -0.03, 0.7])
@@ -377,6 +422,12 @@ POSE = "R = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\nt = [0.0, 0.0, 0.8]"
     ('model = "bad.txt", model_unit_m = 1.0', "count = 1", "line 2: expected 8 numbers"),
     ('model = "twisted.txt", model_unit_m = 1.0', "count = 1", "not a convex quad"),
     ("model_unit_m = 0.0254", "count = 1", "model_unit_m applies to a model file"),
+    ('chessboard = "9x6", model = "zhang1998", model_unit_m = 0.0254', "count = 1", "model and chessboard both"),
+    ('chessboard = "9x6", rows = 3', "count = 1", "a chessboard takes side_m"),
+    ('chessboard = "9by6"', "count = 1", "give COLSxROWS inner corners"),
+    ('chessboard = "1x6"', "count = 1", "give COLSxROWS inner corners"),
+    ("ring = [0.5, 0.5]", "count = 1", "ring applies to a chessboard"),
+    ('chessboard = "9x6", ring = [0, 1]', "count = 1", "ring"),
     ("side_m = 0.03, pitch_m = 0.02", "count = 1", "pitch_m = 0.02 < side_m"),
     ("rows = 2, cols = 2, plate_size_m = [0.01, 0.2]", "count = 1", "plate_size_m"),
     ("plate_size_m = [0.2]", "count = 1", "give [x, y]"),
