@@ -45,7 +45,10 @@ from edgetruth.evaluate.board.twin_report import PAE_DEFAULT, ranks, spearman, w
 
 KIND = "study twin"
 #: shipped photo sets with a twin scene: set name -> shipped spec name
-TWINS = {"zhang1998": "zhang1998_twin"}
+TWINS = {"zhang1998": "zhang1998_twin", "opencv_left": "opencv_left_twin"}
+#: sets whose twin settings were derived outside ``photo_model.derive_twin`` (a chessboard in JPEG, stored close to
+#: linear): where they come from, for the report's settings table
+DERIVED_ELSEWHERE = {"opencv_left": "tools/twins/opencv_left_measure.py and opencv_left_scene.py (docs/board.md)"}
 EXACT_OUTLINE = "exact_outline"
 OUTLINE_STEP_PX = 0.5
 CORNER_EXCLUSION_PX = 3.0
@@ -89,7 +92,8 @@ def truth_inputs(samples, model, real: BoardInputs) -> BoardInputs:
     corners, paths = [], []
     for s in samples:
         sq = s.truth["squares"]
-        c = np.asarray(sq["corners_distorted_px"], float)
+        # a chessboard twin renders its outer ring's squares after the model's (render.scene.targets)
+        c = np.asarray(sq["corners_distorted_px"], float)[:len(model)]
         if c.shape != model.corners.shape:
             raise InputError(f"{s.name}: the render's squares ({c.shape[0]}) are not the model's ({len(model)})")
         corners.append(c)
@@ -101,12 +105,15 @@ def truth_inputs(samples, model, real: BoardInputs) -> BoardInputs:
     return BoardInputs(paths, model, corners, ref, f"{real.set_name} twin")
 
 
-def outline_points(truth: dict, step_px: float = OUTLINE_STEP_PX) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(x, y, label) of points on every square's exact distorted outline (the JSON's polylines, resampled at
-    ``step_px``), ``CORNER_EXCLUSION_PX`` from the corners; label ``4 * square + side``."""
+def outline_points(truth: dict, step_px: float = OUTLINE_STEP_PX,
+                   n_squares: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x, y, label) of points on the exact distorted outline of every square (of the first ``n_squares``: the
+    model's) (the JSON's polylines, resampled at ``step_px``), ``CORNER_EXCLUSION_PX`` from the corners; label
+    ``4 * square + side``."""
     sq = truth["squares"]
     xs, ys, labs = [], [], []
-    for s, (poly, par) in enumerate(zip(sq["polylines_distorted_px"], sq["polylines_parameter"])):
+    polys = list(zip(sq["polylines_distorted_px"], sq["polylines_parameter"]))[:n_squares]
+    for s, (poly, par) in enumerate(polys):
         poly, par = np.asarray(poly, float), np.asarray(par, float)
         side = np.minimum((4 * par).astype(int), 3)
         for k in range(4):
@@ -129,7 +136,7 @@ def exact_outline_row(truths: list[dict], model):
 
     corners, fits = [], []
     for t in truths:
-        x, y, lab = outline_points(t)
+        x, y, lab = outline_points(t, n_squares=len(model))
         f = fit_lines(lab, x, y, len(model))
         fits.append(f)
         corners.append(f.corners)
@@ -159,6 +166,38 @@ def point_errors(row, truths: list[dict]) -> dict:
                 "truth_sd_px": float("nan"), "truth_points": 0}
     return {"truth_rms_px": float(np.sqrt(np.mean(e * e))), "truth_median_abs_px": float(np.median(np.abs(e))),
             "truth_mean_px": float(np.mean(e)), "truth_sd_px": float(np.std(e)), "truth_points": int(e.size)}
+
+
+#: the method whose per-photo corners and bias the twin report tabulates (when the study runs it)
+PER_PHOTO_METHOD = "erf4p_fixed11"
+
+
+def per_photo_corners(real_run, twin_run, truths: list[dict], method: str) -> list[dict] | None:
+    """On a chessboard, per photo for ``method``: the median outward offset (px) of each square's own corner from the
+    junction's corner on the photo and on the twin (``summary.outward_offsets``: > 0 out of the dark square), the
+    twin's mean signed error of the points against the exact outline, and whether the photo's white is saturated
+    (``levels``).  None for a board of separate squares (no junctions) or when ``method`` did not run."""
+    from edgetruth.evaluate.board import chessboard as cb
+    from edgetruth.evaluate.board.summary import outward_offsets
+
+    model = twin_run.inp.model
+    if model.pattern is None or not (len(real_run.names) == len(twin_run.names) == len(truths)):
+        return None  # separate squares, or a photo or render whose board was not found
+    rows = {r.label: r for r in real_run.rows}, {r.label: r for r in twin_run.rows}
+    if method not in rows[0] or method not in rows[1]:
+        return None
+    jn = cb.junctions(model)
+    real_off, twin_off = (outward_offsets(r[method], jn) for r in rows)
+    sat = {p["photo"]: p.get("white_saturated") == "yes" for p in real_run.photo_table}
+    out = []
+    for i, name in enumerate(real_run.names):
+        row = rows[1][method]
+        e = point_errors(replace(row, points=[row.points[i]]), [truths[i]])
+        out.append({"photo": name, "method": method, "white_saturated": sat.get(name, False),
+                    "own_corner_outward_real_px": float(np.nanmedian(real_off[i])),
+                    "own_corner_outward_twin_px": float(np.nanmedian(twin_off[i])),
+                    "twin_truth_mean_px": e["truth_mean_px"]})
+    return out
 
 
 # --- the study ------------------------------------------------------------------------------------
@@ -216,7 +255,8 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     truths = [s.truth for s in samples]
 
     real = replace(real_all, photos=[real_all.photos[i] for i in keep],
-                   reference_corners=[real_all.reference_corners[i] for i in keep])
+                   reference_corners=None if real_all.reference_corners is None else
+                   [real_all.reference_corners[i] for i in keep])
     twin = truth_inputs(samples, real.model, real)
 
     # 2. the same board study on both
@@ -233,9 +273,9 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     from edgetruth.evaluate.board.summary import row_summary
 
     errors = {r.label: point_errors(r, truths) for r in twin_run.rows if r.is_method}
+    corners = per_photo_corners(real_run, twin_run, truths, PER_PHOTO_METHOD)
     floor_row = calibrate_row(exact_outline_row(truths, twin.model), twin.model, twin_run.size)
-    floor = row_summary(floor_row, twin.model, twin_run.reference, [np.asarray(t["squares"]["corners_distorted_px"])
-                                                                     for t in truths])
+    floor = row_summary(floor_row, twin.model, twin_run.reference, twin.reference_corners)
 
     # 4. the photo model of both, and the settings the photos give
     t_p = time.perf_counter()
@@ -246,11 +286,13 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     jobs = [spec.jobs[i] for i in keep]
     defocus = [float(j.camera.defocus_radius_px(j.pose.distance_m)) for j in jobs]
     try:
+        if set_name in DERIVED_ELSEWHERE:
+            raise KeyError(f"derived by {DERIVED_ELSEWHERE[set_name]}")
         base_black, base_white = BASE_LEVELS[set_name]
         derived = derive_twin(pm_real, spec.camera, defocus, base_white=base_white, base_black=base_black)
         derived["closed_loop"] = closed_loop_noise(pm_real, pm_twin, [j.sensor for j in jobs])
-    except (KeyError, ValueError) as exc:  # pragma: no cover - a photo whose board was not found
-        derived = {"error": str(exc)}
+    except (KeyError, ValueError) as exc:  # a set derived elsewhere, or a photo whose board was not found
+        derived = {"error": exc.args[0] if exc.args else str(exc)}
     photo_s = time.perf_counter() - t_p
 
     # 5. files
@@ -263,7 +305,7 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     return write_twin_report(out, set_name=set_name, spec=spec, jobs=jobs, keep=keep, methods=methods, diag=diag,
                              real_run=real_run, twin_run=twin_run, errors=errors, floor=floor, pm_real=pm_real,
                              pm_twin=pm_twin, derived=derived, timings=timings, options=options,
-                             thresholds=thresholds)
+                             thresholds=thresholds, corners=corners)
 
 
 def closed_loop_noise(pm_real: list[dict], pm_twin: list[dict], sensors) -> list[dict]:

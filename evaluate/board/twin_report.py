@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from edgetruth.evaluate import method_order as mo
-from edgetruth.evaluate.board.measure import REFERENCE_ROW
+from edgetruth.evaluate.board.measure import OPENCV_ROW, REFERENCE_ROW
 from edgetruth.evaluate.report_format import num, table
 from edgetruth.fileio import atomic_write_text, write_json
 
@@ -183,7 +183,7 @@ def settings_table(derived: dict, jobs) -> str:
 
 
 def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_run, twin_run, errors, floor, pm_real,
-                      pm_twin, derived, timings, options, thresholds):
+                      pm_twin, derived, timings, options, thresholds, corners=None):
     from edgetruth import __version__
     from edgetruth.evaluate.run_dir import utc_stamp
     from edgetruth.resources import source_commit
@@ -194,6 +194,8 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
     rk = rankings(methods, real_s, twin_s, errors)
     atomic_write_text(out / "twin_vs_real.csv", _csv(rows))
     write_json(out / "photo_model.json", _strip({"real": pm_real, "twin": pm_twin, "derived": derived}))
+    if corners:
+        write_json(out / "corners_per_photo.json", corners)
 
     def n3(v):
         return num(v, 3)
@@ -209,8 +211,11 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
                      n3(r["loo_rms_real_px"]), n3(r["loo_rms_twin_px"]), n3(r.get("truth_rms_px")),
                      n3(r.get("truth_median_abs_px")), f"{num(r.get('truth_mean_px'), 3)}",
                      n3(r.get("truth_sd_px"))])
-    ref_r, ref_t = real_s.get(REFERENCE_ROW, {}), twin_s.get(REFERENCE_ROW, {})
-    body.append(["Zhang's corners (real) / exact corners (twin)", "—", "—", "—", n3(ref_r.get("calib_rms_px")),
+    ref_key = REFERENCE_ROW if REFERENCE_ROW in real_s else OPENCV_ROW
+    ref_r, ref_t = real_s.get(ref_key, {}), twin_s.get(ref_key, {})
+    ref_label = ("Zhang's corners (real) / exact corners (twin)" if ref_key == REFERENCE_ROW else
+                 "OpenCV's corners (cornerSubPix), real / twin")
+    body.append([ref_label, "—", "—", "—", n3(ref_r.get("calib_rms_px")),
                  n3(ref_t.get("calib_rms_px")), "—", n3(ref_r.get("loo_rms_px")), n3(ref_t.get("loo_rms_px")),
                  "0", "0", "0", "0"])
     body.append([f"{_floor_label()} (twin)", "—", n3(floor.get("straightness_px")), "—", "—",
@@ -259,6 +264,7 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
              "Median over the ranked methods, and Canny–Devernay and PAE2013's default variant alone (px).", "",
              table(["photo", "twin image", "median real", "median twin", "Devernay real", "Devernay twin",
                     "PAE default real", "PAE default twin"], per_photo), "",
+             *corner_lines(corners),
              "## Table 3 — the photo model: what the camera did, real and twin", "",
              "`edgetruth.evaluate.board.photo_model` on every photo and every twin image alike: ERF σ of the "
              "squares' horizontal sides (blur along y) and vertical sides (blur along x), median over sides; MTF50 "
@@ -276,12 +282,40 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
              "- How each setting was measured and what each fix changed (the ρ before and after each): "
              "docs/board.md, \"Digital twin\".", "",
              "## Files", "",
-             "`twin_vs_real.csv` (Table 1), `photo_model.json` (Table 3 and 4 in full), `real/` and `twin/` (each "
+             "`twin_vs_real.csv` (Table 1), `photo_model.json` (Table 3 and 4 in full), "
+             + ("`corners_per_photo.json` (Table 2b), " if corners else "") + "`real/` and `twin/` (each "
              "a board study's own files: report.md, summary.csv, per_side.csv, calibration/, figures/), "
              "`renders/` (the twin's dataset: PNG, EXR and truth JSON per image).", ""]
     report = out / "report.md"
     atomic_write_text(report, "\n".join(lines))
     return report
+
+
+def corner_lines(corners: list[dict] | None) -> list[str]:
+    """Table 2b (a chessboard): per photo, the squares' own corners against the junctions, real and twin, and the
+    twin's bias against its truth; with the Spearman ρ of the offsets over the photos and the bias by saturation."""
+    if not corners:
+        return []
+    real = [c["own_corner_outward_real_px"] for c in corners]
+    twin = [c["own_corner_outward_twin_px"] for c in corners]
+    rho = spearman(real, twin)
+    sat = [c["twin_truth_mean_px"] for c in corners if c["white_saturated"]]
+    clear = [c["twin_truth_mean_px"] for c in corners if not c["white_saturated"]]
+    body = [[c["photo"], "yes" if c["white_saturated"] else "no", num(c["own_corner_outward_real_px"], 3),
+             num(c["own_corner_outward_twin_px"], 3), num(c["twin_truth_mean_px"], 3)] for c in corners]
+    lines = ["## Table 2b — per photo: the squares' own corners, real and twin", "",
+             f"{mo.label(corners[0]['method'])}: median over the junctions of each dark square's own corner (its own side "
+             "lines) from the junction's corner (the grid lines), outward of the square (< 0: the dark squares image "
+             "small); the twin's mean signed error of the points against the exact outline (< 0: inside the dark "
+             "squares); white saturated: the photo's light squares flatter than its dark ones (`levels`).", "",
+             table(["photo", "white saturated", "own corner outward, real (px)", "twin (px)",
+                    "twin: points vs truth, mean (px)"], body), ""]
+    lines.append(f"Over the {rho['n']} photos the own-corner offsets of real and twin rank alike with Spearman "
+                 f"ρ = {rho['rho']:.2f} (p = {rho['p']:.2g}).  On the twin the points' mean error against the truth is "
+                 + (f"{min(clear):+.3f} to {max(clear):+.3f} px on the {len(clear)} photos with unsaturated whites"
+                    if clear else "—") + " and "
+                 + (f"{min(sat):+.3f} to {max(sat):+.3f} px on the {len(sat)} with saturated ones." if sat else "—."))
+    return lines + [""]
 
 
 def closed_loop_lines(derived: dict) -> list[str]:
@@ -331,11 +365,14 @@ def reading(rows, rk, methods, diag, floor, real_s, twin_s) -> list[str]:
                f"(p = {sd['p']:.2g}); calibration RMS like the RMS with ρ = {rk[5]['rho']:.2f} "
                f"(p = {rk[5]['p']:.2g}).")
     bias = [r["truth_mean_px"] for r in rows if r["in_ranking"] and np.isfinite(r.get("truth_mean_px") or np.nan)]
-    if bias:
+    if bias and max(bias) < 0:
         out.append(f"- Every method's points lie inside the squares on the twin: mean signed error "
                    f"{min(bias):+.3f} to {max(bias):+.3f} px (the edge moves towards the dark side through the "
                    "output's tone curve and clipping); the bias is common to all and is what the RMS against the truth "
                    "mostly measures.")
+    elif bias:
+        out.append(f"- The methods' mean signed error against the twin's truth runs from {min(bias):+.3f} to "
+                   f"{max(bias):+.3f} px (> 0: out on the white board).")
     best = min((r for r in rows if r["in_ranking"] and np.isfinite(r.get("truth_rms_px") or np.nan)),
                key=lambda r: r["truth_rms_px"], default=None)
     if best is not None:
@@ -345,5 +382,6 @@ def reading(rows, rk, methods, diag, floor, real_s, twin_s) -> list[str]:
     if cal and np.isfinite(floor.get("calib_rms_px", np.nan)):
         out.append(f"- The study's procedure alone (exact outline → lines → corners) calibrates to "
                    f"{floor['calib_rms_px']:.3f} px on the twin; the methods' corners to {min(cal):.3f}–{max(cal):.3f} "
-                   f"px; the exact corners to {twin_s.get(REFERENCE_ROW, {}).get('calib_rms_px', np.nan):.3f} px.")
+                   + (f"px; the exact corners to {twin_s[REFERENCE_ROW]['calib_rms_px']:.3f} px." if REFERENCE_ROW in twin_s
+                else "px."))
     return out

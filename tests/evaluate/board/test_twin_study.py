@@ -56,8 +56,9 @@ def test_spearman_and_ranks():
 
 
 def test_checks():
-    with pytest.raises(InputError, match="sets with a twin: zhang1998"):
-        twin.check_set("opencv_left")
+    with pytest.raises(InputError, match="sets with a twin: zhang1998, opencv_left"):
+        twin.check_set("mystery")
+    assert twin.check_set("opencv_left") == "opencv_left_twin"
     assert twin.check_images(None, 5) == [0, 1, 2, 3, 4]
     assert twin.check_images([3, 1, 2], 5) == [0, 1, 2]
     for bad, match in (([1, 2], "at least 3"), ([1, 2, 9], "from 1 to 5"), ([1, 1, 2], "twice")):
@@ -80,10 +81,10 @@ def _bad(tmp_path, capsys, argv, match):
 
 @pytest.mark.parametrize("argv, match", [
     (["nosuchset"], "nosuchset: no twin for this set"),
-    (["opencv_left"], "no twin for this set"),
     ([], "give one shipped set"),
     (["zhang1998", "zhang1998"], "give one shipped set"),
     (["zhang1998", "--images", "1,2"], "at least 3"),
+    (["opencv_left", "--images", "1,2,14"], "from 1 to 13"),
     (["zhang1998", "--images", "1,x"], "comma-separated photo numbers"),
     (["zhang1998", "--spp", "10"], "--spp"),
     (["zhang1998", "--model", "Model.txt"], "--model"),
@@ -125,3 +126,24 @@ def test_reduced_twin_run(tmp_path, fast_variant):
     # the same settings again: resumes (nothing to render) and re-makes the report; others are refused
     assert main(argv) == 0
     assert main([*argv[:-1], "--spp", "16", "--no-progress"]) == 2
+
+
+@pytest.mark.slow
+def test_opencv_left_twin_reproduces_the_clipped_photos_shrink(tmp_path, fast_variant):
+    """OpenCV's chessboard twin (3 photos: left01 unsaturated, left03 and left05 saturated; 4 spp): the twin's points
+    lie on the exact outline where the white is not clipped (|mean| < 0.02 px) and inside the dark squares where it
+    is (< -0.05 px), and its squares' own corners shrink where the photos' do (Table 2b)."""
+    import json
+
+    out = tmp_path / "twin"
+    argv = ["study", "twin", "opencv_left", "-o", str(out), "--images", "1,3,5", "--spp", "4",
+            "--methods", "canny_devernay,erf4p_fixed11", "--no-progress"]
+    assert main(argv) == 0
+    report = (out / "report.md").read_text()
+    assert "Table 2b" in report and "OpenCV's corners (cornerSubPix), real / twin" in report
+    rows = {c["photo"]: c for c in json.loads((out / "corners_per_photo.json").read_text())}
+    assert [rows[p]["white_saturated"] for p in ("left01.jpg", "left03.jpg", "left05.jpg")] == [False, True, True]
+    assert abs(rows["left01.jpg"]["twin_truth_mean_px"]) < 0.02
+    for p in ("left03.jpg", "left05.jpg"):
+        assert rows[p]["twin_truth_mean_px"] < -0.05
+        assert rows[p]["own_corner_outward_twin_px"] < -0.1 and rows[p]["own_corner_outward_real_px"] < -0.1
