@@ -1,10 +1,11 @@
 """The digital twin of a shipped photo set: render it, run the same board study on twin and photos, compare.
 
-``edgetruth study twin zhang1998 -o DIR``:
+``edgetruth study twin zhang1998 -o DIR`` (or ``opencv_left``: OpenCV's chessboard photos):
 
 1. **Render** the set's twin scene (``scenes/zhang1998_twin.toml``: Zhang's camera, board and poses;
-   optics, noise and output measured on his photos, ``photo_model``) into ``DIR/renders`` with the
-   render driver (resumable: a run that stops picks up where it was).
+   optics, noise and output measured on his photos, ``photo_model``; ``scenes/opencv_left_twin.toml``:
+   written by ``tools/twins/``) into ``DIR/renders`` with the render driver (resumable: a run that stops
+   picks up where it was).  A chessboard twin renders the model's squares first, then the outer ring's.
 2. **The same board study** (``study.compute_board_study``) on the twin's PNGs, read like photos
    (``edgetruth.image_io.read_gray``), and on the real photos: the same methods and options, the same
    squares, sides, lines, calibration and leave-one-out code.  Each study's own files go to
@@ -285,14 +286,15 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
         console.track(twin_images, desc="photo model (twin)", unit="photo", enabled=progress), twin.photos)]
     jobs = [spec.jobs[i] for i in keep]
     defocus = [float(j.camera.defocus_radius_px(j.pose.distance_m)) for j in jobs]
-    try:
-        if set_name in DERIVED_ELSEWHERE:
-            raise KeyError(f"derived by {DERIVED_ELSEWHERE[set_name]}")
-        base_black, base_white = BASE_LEVELS[set_name]
-        derived = derive_twin(pm_real, spec.camera, defocus, base_white=base_white, base_black=base_black)
-        derived["closed_loop"] = closed_loop_noise(pm_real, pm_twin, [j.sensor for j in jobs])
-    except (KeyError, ValueError) as exc:  # a set derived elsewhere, or a photo whose board was not found
-        derived = {"error": exc.args[0] if exc.args else str(exc)}
+    if set_name in DERIVED_ELSEWHERE:
+        derived = {"derived_by": DERIVED_ELSEWHERE[set_name]}
+    else:
+        try:
+            base_black, base_white = BASE_LEVELS[set_name]
+            derived = derive_twin(pm_real, spec.camera, defocus, base_white=base_white, base_black=base_black)
+            derived["closed_loop"] = closed_loop_noise(pm_real, pm_twin, [j.sensor for j in jobs])
+        except (KeyError, ValueError) as exc:  # pragma: no cover - a photo whose board was not found
+            derived = {"error": str(exc)}
     photo_s = time.perf_counter() - t_p
 
     # 5. files

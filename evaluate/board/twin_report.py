@@ -154,6 +154,9 @@ def photo_model_table(pm_real: list[dict], pm_twin: list[dict]) -> str:
 
 
 def settings_table(derived: dict, jobs) -> str:
+    if "derived_by" in derived:
+        return (f"This set's settings were measured and derived by {derived['derived_by']}; the scene's header "
+                "says how each was found.")
     if "per_photo" not in derived:
         return f"(not derived: {derived.get('error', 'unknown')})"
     body = []
@@ -274,8 +277,10 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
              "horizontal neighbours; distinct values in the image.", "",
              photo_model_table(pm_real, pm_twin), "",
              "## Table 4 — the twin's settings: derived from the photos / used by the scene", "",
-             "`photo_model.derive_twin` on the real photos (its docstring: how each is derived) next to the values "
-             f"the scene `{spec.name}` renders with.  Noise from {', '.join(derived.get('noise_from', []))}.", "",
+             *([] if "derived_by" in derived else [
+                 "`photo_model.derive_twin` on the real photos (its docstring: how each is derived) next to the "
+                 f"values the scene `{spec.name}` renders with.  Noise from "
+                 f"{', '.join(derived.get('noise_from', []))}.", ""]),
              settings_table(derived, jobs), "",
              *closed_loop_lines(derived), "",
              "## Reading", "", *reading(rows, rk, methods, diag, floor, real_s, twin_s),

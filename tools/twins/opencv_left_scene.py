@@ -23,10 +23,11 @@ PITCH_UM = 6.0              # assumed: a 640 x 480 sensor of 3.84 x 2.88 mm
 F_NUMBER = 4.0              # assumed
 WAVELENGTH_NM = 550.0
 GAIN = 1.6                  # output_gain: the 8-bit 255 is 1/1.6 of the ADC's range, so whites above 255 exist
-PRE_JPEG_WHITE_SD = 4.5     # guessed 8-bit noise SD at a white of 220 before the JPEG (the photos' 2.1 is after it)
+PRE_JPEG_WHITE_SD = 4.5     # 8-bit noise SD at a white of 220 before the JPEG (the photos' 2.1 is after it): closed
+                            # loop, 3 and 6 gave white SDs after the JPEG below and above the photos' (docs/board.md)
 WHITE_REF = 220.0
 BOARD_REFLECTANCE = 0.8
-DARK_NOISE_E = 15.0
+DARK_NOISE_E = 15.0         # with 2 e-, the JPEG left the dark squares half the photos' SD
 
 
 def airy_sigma_px() -> float:
@@ -127,8 +128,8 @@ poses = [{{ R = [{R}], t = [{t}] }}]
 #   white before the clip their dark level x {ratio:.2f};
 # - noise: shot-noise limited (dark SD 0.5-1.0 at 19-35, white SD 1.8-2.2 at 195-239: as the square root of the
 #   level): a sensor of K = {k:.4f} DN/e-, {DARK_NOISE_E:g} e- read noise.  The photos' noise is measured after
-#   their JPEG; the twin's before it is a guess ({PRE_JPEG_WHITE_SD:g} DN at a white of {WHITE_REF:g}), checked
-#   against the photos by the twin study's photo model.
+#   their JPEG, the twin's set before it ({PRE_JPEG_WHITE_SD:g} DN at a white of {WHITE_REF:g}) by a closed loop
+#   through the JPEG (the twin study's Table 3 compares both).
 # Not reproduced: the room behind the board (black here), the board's rounded white margin, uneven light.
 [spec]
 name = "opencv_left_twin"
