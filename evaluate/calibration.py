@@ -100,6 +100,8 @@ class Calibration:
     corner_error_px: dict = field(default_factory=dict)  # detected vs true corners (check only)
     truth: dict | None = None  # true intrinsics from the ground truth (check only)
     method: str = ZHANG_METHOD  # how it was determined, in words
+    #: photos only: is the residual noise or a smooth field per view (``residual_field.residual_structure``)
+    residual_structure: dict = field(default_factory=dict)
 
     @property
     def fx(self) -> float:
@@ -133,7 +135,8 @@ class Calibration:
                 "dist_coeffs_opencv": self.dist.tolist(), "image_size": list(self.image_size),
                 "reprojection_rms_px": self.rms_px, "n_views": self.n_views,
                 "per_view_rms_px": self.per_view_rms_px, "used": self.used, "rejected": self.rejected,
-                "corner_detection_error_px": self.corner_error_px, "truth": self.truth, "errors": self.errors()}
+                "corner_detection_error_px": self.corner_error_px, "truth": self.truth, "errors": self.errors()} | (
+                    {"residual_structure": self.residual_structure} if self.residual_structure else {})
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "calibration") -> "Calibration":
@@ -152,7 +155,8 @@ class Calibration:
                    rms_px=float(d.get("reprojection_rms_px", float("nan"))), n_views=int(d.get("n_views", 0)),
                    per_view_rms_px=list(d.get("per_view_rms_px", [])), used=list(d.get("used", [])),
                    rejected=list(d.get("rejected", [])), corner_error_px=dict(d.get("corner_detection_error_px", {})),
-                   truth=d.get("truth"), method=str(d.get("method", ZHANG_METHOD)))
+                   truth=d.get("truth"), method=str(d.get("method", ZHANG_METHOD)),
+                   residual_structure=dict(d.get("residual_structure", {})))
 
 
 def load_calibration(ref: str | Path, progress: bool = False) -> Calibration:
@@ -172,8 +176,9 @@ def _match_order(detected: np.ndarray, true_px: np.ndarray) -> np.ndarray:
     return detected if fwd <= rev else detected[::-1]
 
 
-def _solve(obj_list, img_list, size_wh: tuple[int, int], flags: int):
-    """cv2.calibrateCamera (iterated to 1e-12) -> (rms_px, K, dist (5,), per-view RMS px)."""
+def _solve(obj_list, img_list, size_wh: tuple[int, int], flags: int, residuals: list | None = None):
+    """cv2.calibrateCamera (iterated to 1e-12) -> (rms_px, K, dist (5,), per-view RMS px); ``residuals``, when
+    given, receives each view's (n, 2) measured minus projected corners (px)."""
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
     rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj_list, img_list, tuple(size_wh), None, None, flags=flags,
                                                      criteria=crit)
@@ -181,6 +186,8 @@ def _solve(obj_list, img_list, size_wh: tuple[int, int], flags: int):
     for o, i, r, t in zip(obj_list, img_list, rvecs, tvecs):
         p, _ = cv2.projectPoints(o, r, t, K, dist)
         per_view.append(float(np.sqrt(np.mean(np.sum((p.reshape(-1, 2) - i.reshape(-1, 2)) ** 2, 1)))))
+        if residuals is not None:
+            residuals.append(i.reshape(-1, 2).astype(np.float64) - p.reshape(-1, 2))
     dist = np.pad(np.asarray(dist, float).ravel(), (0, 5))[:5]
     return float(rms), np.asarray(K, float), dist, per_view
 
@@ -381,13 +388,17 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
         missing = ", ".join(r.photo for r in results if not r.found)
         raise InputError(f"the {nx}x{ny} board was found in only {len(used)} of {len(results)} photos (need >= 3; "
                          f"not found: {missing or 'none'}); check --pattern counts the inner corners (COLSxROWS)")
+    from edgetruth.evaluate.residual_field import residual_structure
+
     flags, words = DIST_MODELS[model]
-    rms, K, dist, per_view = _solve(obj_list, img_list, size, flags)
+    residuals: list = []
+    rms, K, dist, per_view = _solve(obj_list, img_list, size, flags, residuals)
     for r, v in zip([r for r in results if r.found], per_view):
         r.rms_px = v
     window = "0.4 of the smallest imaged square side" if window_px is None else f"half-window {int(window_px)} px"
     corners_used = corner_label or f"cornerSubPix corners ({window})"
     cal = Calibration(K=K, dist=dist, image_size=size, rms_px=rms, n_views=len(used), per_view_rms_px=per_view,
                       used=used, rejected=[r.photo for r in results if not r.found],
-                      method=f"Zhang (cv2.calibrateCamera, {words}), {corners_used}")
+                      method=f"Zhang (cv2.calibrateCamera, {words}), {corners_used}",
+                      residual_structure=residual_structure([o[:, :2] for o in obj_list], residuals, square_m))
     return cal, results
