@@ -153,7 +153,8 @@ class SensorModel:
                 "sensor: output_gain must be > 0 and output_noise_dn >= 0")
         require(self.output_gamma == 0 or 0.2 <= self.output_gamma <= 5.0,
                 f"sensor: output_gamma must be 0 (the sRGB curve) or 0.2..5, got {self.output_gamma}")
-        require(1.0 <= self.output_clip_dn <= 255.0, f"sensor: output_clip_dn must be in 1..255, got {self.output_clip_dn}")
+        require(1.0 <= self.output_clip_dn <= 255.0,
+                f"sensor: output_clip_dn must be in 1..255, got {self.output_clip_dn}")
         require(self.output != "raw" or (self.output_gamma == 0 and self.output_clip_dn == 255.0),
                 "sensor: output_gamma and output_clip_dn shape the 8-bit output; use output = srgb8 or jpeg")
         require(len(tuple(self.output_rgb_gains)) == 3 and all(g > 0 for g in self.output_rgb_gains),
