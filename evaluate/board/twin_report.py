@@ -309,14 +309,15 @@ def corner_lines(corners: list[dict] | None) -> list[str]:
     body = [[c["photo"], "yes" if c["white_saturated"] else "no", num(c["own_corner_outward_real_px"], 3),
              num(c["own_corner_outward_twin_px"], 3), num(c["twin_truth_mean_px"], 3)] for c in corners]
     lines = ["## Table 2b — per photo: the squares' own corners, real and twin", "",
-             f"{mo.label(corners[0]['method'])}: median over the junctions of each dark square's own corner (its own side "
-             "lines) from the junction's corner (the grid lines), outward of the square (< 0: the dark squares image "
+             f"{mo.label(corners[0]['method'])}: median over the junctions of each dark square's own corner (its own "
+             "side lines) from the junction's corner (the grid lines), outward of the square (< 0: the dark squares image "
              "small); the twin's mean signed error of the points against the exact outline (< 0: inside the dark "
              "squares); white saturated: the photo's light squares flatter than its dark ones (`levels`).", "",
              table(["photo", "white saturated", "own corner outward, real (px)", "twin (px)",
                     "twin: points vs truth, mean (px)"], body), ""]
     lines.append(f"Over the {rho['n']} photos the own-corner offsets of real and twin rank alike with Spearman "
-                 f"ρ = {rho['rho']:.2f} (p = {rho['p']:.2g}).  On the twin the points' mean error against the truth is "
+                 f"ρ = {rho['rho']:.2f} (p = {rho['p']:.2g}).  On the twin the points' mean error against the truth "
+                 "is "
                  + (f"{min(clear):+.3f} to {max(clear):+.3f} px on the {len(clear)} photos with unsaturated whites"
                     if clear else "—") + " and "
                  + (f"{min(sat):+.3f} to {max(sat):+.3f} px on the {len(sat)} with saturated ones." if sat else "—."))
@@ -387,6 +388,6 @@ def reading(rows, rk, methods, diag, floor, real_s, twin_s) -> list[str]:
     if cal and np.isfinite(floor.get("calib_rms_px", np.nan)):
         out.append(f"- The study's procedure alone (exact outline → lines → corners) calibrates to "
                    f"{floor['calib_rms_px']:.3f} px on the twin; the methods' corners to {min(cal):.3f}–{max(cal):.3f} "
-                   + (f"px; the exact corners to {twin_s[REFERENCE_ROW]['calib_rms_px']:.3f} px." if REFERENCE_ROW in twin_s
-                else "px."))
+                   + (f"px; the exact corners to {twin_s[REFERENCE_ROW]['calib_rms_px']:.3f} px."
+                      if REFERENCE_ROW in twin_s else "px."))
     return out
