@@ -29,7 +29,8 @@ def register(sub) -> None:
                                    "`edgetruth study board opencv_left -o DIR` or "
                                    "`edgetruth study board PHOTOS... --pattern 9x6 --square 25 -o DIR`. "
                                    "twin: the digital twin of a shipped photo set, `edgetruth study twin zhang1998 "
-                                   "-o DIR`: renders the set's twin scene (scenes/zhang1998_twin.toml: the camera, "
+                                   "-o DIR` (or opencv_left): renders the set's twin scene (scenes/SET_twin.toml: "
+                                   "the camera, "
                                    "board and poses, with optics, noise and output measured on the photos) into "
                                    "DIR/renders (resumable), runs the same board study on the twin's images and "
                                    "on the photos, scores the twin's points against its exact outlines, measures "
@@ -40,7 +41,7 @@ def register(sub) -> None:
     p.add_argument("inputs", nargs="*", metavar="PHOTOS",
                    help="board: photo files, folders of photos, or a shipped set's name (zhang1998: its photos, "
                         "model, corners and published calibration; opencv_left: OpenCV's chessboard photos); twin: "
-                        "the shipped set's name (zhang1998)")
+                        "the shipped set's name (zhang1998 or opencv_left)")
     p.add_argument("--model", default=None, metavar="FILE",
                    help="board: the board model, one square per line, x y of its four corners in board units "
                         "(Zhang's Model.txt layout)")
