@@ -318,10 +318,18 @@ def corner_lines(corners: list[dict] | None) -> list[str]:
     lines.append(f"Over the {rho['n']} photos the own-corner offsets of real and twin rank alike with Spearman "
                  f"ρ = {rho['rho']:.2f} (p = {rho['p']:.2g}).  On the twin the points' mean error against the truth "
                  "is "
-                 + (f"{min(clear):+.3f} to {max(clear):+.3f} px on the {len(clear)} photos with unsaturated whites"
-                    if clear else "—") + " and "
-                 + (f"{min(sat):+.3f} to {max(sat):+.3f} px on the {len(sat)} with saturated ones." if sat else "—."))
+                 + (f"{_span(clear)} px on the {_photos(len(clear))} with unsaturated whites" if clear else "—")
+                 + " and " + (f"{_span(sat)} px on the {_photos(len(sat))} with saturated ones." if sat else "—."))
     return lines + [""]
+
+
+def _span(values) -> str:
+    lo, hi = f"{min(values):+.3f}", f"{max(values):+.3f}"
+    return lo if lo == hi else f"{lo} to {hi}"
+
+
+def _photos(n: int) -> str:
+    return f"{n} photo" + ("" if n == 1 else "s")
 
 
 def closed_loop_lines(derived: dict) -> list[str]:
