@@ -73,8 +73,9 @@ def residual_structure(board_xy: list[np.ndarray], residuals: list[np.ndarray], 
         return {}
     share = fitted / total
     chance = dof / n_points
-    return {"smooth_excess": (share - chance) / (1.0 - chance),"neighbour_correlation": float(dot / np.sqrt(norm_a * norm_b)) if norm_a * norm_b > 0 else float("nan"),
-            "smooth_share": share, "smooth_share_chance": chance,
+    corr = float(dot / np.sqrt(norm_a * norm_b)) if norm_a * norm_b > 0 else float("nan")
+    return {"neighbour_correlation": corr, "smooth_share": share, "smooth_share_chance": chance,
+            "smooth_excess": (share - chance) / (1.0 - chance),
             "p_value": float((1 + np.sum(null / total >= share)) / (1 + PERMUTATIONS)),
             "views": n_views, "points": n_points, "permutations": PERMUTATIONS}
 
