@@ -62,6 +62,14 @@ QUANTISE_KEYS = ("output_levels", "output_levels_rgb", "output_rgb_gains", "outp
 VIDEO_KEYS = ("output_gain", "output_offset_dn", "sharpen_amount", "sharpen_sigma_px", "sharpen_axis", "output_noise_dn")
 #: the output-curve keys (each left out of a spec's identity at its default: the sRGB curve, the clip at 255)
 CURVE_KEYS = ("output_gamma", "output_clip_dn")
+_CURVE_DEFAULTS = {"output_gamma": 0.0, "output_clip_dn": 255.0}
+
+
+def _drop_default_curve(d: dict) -> None:
+    """Leave the output-curve keys out of ``d`` (identity, JSON) where they hold their defaults."""
+    for k in CURVE_KEYS:
+        if d[k] == _CURVE_DEFAULTS[k]:
+            d.pop(k)
 PLANCK_J_S = 6.62607015e-34
 SPEED_OF_LIGHT_M_S = 299792458.0
 #: streams of the camera's fixed-pattern generators, [fpn_seed, stream] (the per-image streams are 1, 2)
@@ -110,8 +118,8 @@ class SensorModel:
     sharpen_sigma_px: float = 1.0
     sharpen_axis: str = "x"
     output_noise_dn: float = 0.0
-    output_gamma: float = 0.0
-    output_clip_dn: float = 255.0
+    output_gamma: float = _CURVE_DEFAULTS["output_gamma"]
+    output_clip_dn: float = _CURVE_DEFAULTS["output_clip_dn"]
 
     def __post_init__(self) -> None:
         require(0 < self.qe <= 1, f"sensor: qe must be in (0, 1], got {self.qe}")
@@ -175,9 +183,7 @@ class SensorModel:
         if not self.video_processed:
             for k in VIDEO_KEYS:
                 d.pop(k)
-        for k, default in zip(CURVE_KEYS, (0.0, 255.0)):
-            if d[k] == default:
-                d.pop(k)
+        _drop_default_curve(d)
         return d
 
     @property
@@ -304,9 +310,7 @@ class SensorModel:
         if not self.video_processed:
             for k in VIDEO_KEYS:
                 d.pop(k)
-        for k, default in zip(CURVE_KEYS, (0.0, 255.0)):
-            if d[k] == default:
-                d.pop(k)
+        _drop_default_curve(d)
         d["model"] = "EMVA 1288 linear: Var(y) = K^2 (sigma_d^2 + mu_e) + 1/12"
         return d
 
