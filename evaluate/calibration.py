@@ -36,6 +36,12 @@ DIST_MODELS = {
     "k1k2": (cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST, "radial k1, k2 only, p1 = p2 = k3 = 0"),
 }
 DEFAULT_DIST_MODEL = "k1k2k3p1p2"
+
+
+def free_dist(flags: int) -> tuple[bool, ...]:
+    """Which of (k1, k2, p1, p2, k3) cv2.calibrateCamera estimates under ``flags`` (of ``DIST_MODELS``)."""
+    tangent = not flags & cv2.CALIB_ZERO_TANGENT_DIST
+    return True, True, tangent, tangent, not flags & cv2.CALIB_FIX_K3
 ZHANG_METHOD = "Zhang (cv2.calibrateCamera, 5-term Brown-Conrady), cornerSubPix corners"
 
 
@@ -102,6 +108,8 @@ class Calibration:
     method: str = ZHANG_METHOD  # how it was determined, in words
     #: photos only: is the residual noise or a smooth field per view (``residual_field.residual_structure``)
     residual_structure: dict = field(default_factory=dict)
+    #: photos only: the calibration refitted with a bent board (``board_bend.bend_check``)
+    board_bend: dict = field(default_factory=dict)
 
     @property
     def fx(self) -> float:
@@ -136,7 +144,8 @@ class Calibration:
                 "reprojection_rms_px": self.rms_px, "n_views": self.n_views,
                 "per_view_rms_px": self.per_view_rms_px, "used": self.used, "rejected": self.rejected,
                 "corner_detection_error_px": self.corner_error_px, "truth": self.truth, "errors": self.errors()} | (
-                    {"residual_structure": self.residual_structure} if self.residual_structure else {})
+                    {"residual_structure": self.residual_structure} if self.residual_structure else {}) | (
+                    {"board_bend": self.board_bend} if self.board_bend else {})
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "calibration") -> "Calibration":
@@ -156,7 +165,7 @@ class Calibration:
                    per_view_rms_px=list(d.get("per_view_rms_px", [])), used=list(d.get("used", [])),
                    rejected=list(d.get("rejected", [])), corner_error_px=dict(d.get("corner_detection_error_px", {})),
                    truth=d.get("truth"), method=str(d.get("method", ZHANG_METHOD)),
-                   residual_structure=dict(d.get("residual_structure", {})))
+                   residual_structure=dict(d.get("residual_structure", {})), board_bend=dict(d.get("board_bend", {})))
 
 
 def load_calibration(ref: str | Path, progress: bool = False) -> Calibration:
@@ -176,9 +185,10 @@ def _match_order(detected: np.ndarray, true_px: np.ndarray) -> np.ndarray:
     return detected if fwd <= rev else detected[::-1]
 
 
-def _solve(obj_list, img_list, size_wh: tuple[int, int], flags: int, residuals: list | None = None):
+def _solve(obj_list, img_list, size_wh: tuple[int, int], flags: int, residuals: list | None = None,
+           poses: list | None = None):
     """cv2.calibrateCamera (iterated to 1e-12) -> (rms_px, K, dist (5,), per-view RMS px); ``residuals``, when
-    given, receives each view's (n, 2) measured minus projected corners (px)."""
+    given, receives each view's (n, 2) measured minus projected corners (px), ``poses`` its (rvec, tvec)."""
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
     rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj_list, img_list, tuple(size_wh), None, None, flags=flags,
                                                      criteria=crit)
@@ -188,6 +198,8 @@ def _solve(obj_list, img_list, size_wh: tuple[int, int], flags: int, residuals: 
         per_view.append(float(np.sqrt(np.mean(np.sum((p.reshape(-1, 2) - i.reshape(-1, 2)) ** 2, 1)))))
         if residuals is not None:
             residuals.append(i.reshape(-1, 2).astype(np.float64) - p.reshape(-1, 2))
+        if poses is not None:
+            poses.append((np.ravel(r).astype(float), np.ravel(t).astype(float)))
     dist = np.pad(np.asarray(dist, float).ravel(), (0, 5))[:5]
     return float(rms), np.asarray(K, float), dist, per_view
 
@@ -388,11 +400,13 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
         missing = ", ".join(r.photo for r in results if not r.found)
         raise InputError(f"the {nx}x{ny} board was found in only {len(used)} of {len(results)} photos (need >= 3; "
                          f"not found: {missing or 'none'}); check --pattern counts the inner corners (COLSxROWS)")
+    from edgetruth.evaluate.board_bend import bend_check
     from edgetruth.evaluate.residual_field import residual_structure
 
     flags, words = DIST_MODELS[model]
     residuals: list = []
-    rms, K, dist, per_view = _solve(obj_list, img_list, size, flags, residuals)
+    poses: list = []
+    rms, K, dist, per_view = _solve(obj_list, img_list, size, flags, residuals, poses)
     for r, v in zip([r for r in results if r.found], per_view):
         r.rms_px = v
     window = "0.4 of the smallest imaged square side" if window_px is None else f"half-window {int(window_px)} px"
@@ -400,5 +414,7 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     cal = Calibration(K=K, dist=dist, image_size=size, rms_px=rms, n_views=len(used), per_view_rms_px=per_view,
                       used=used, rejected=[r.photo for r in results if not r.found],
                       method=f"Zhang (cv2.calibrateCamera, {words}), {corners_used}",
-                      residual_structure=residual_structure([o[:, :2] for o in obj_list], residuals, square_m))
+                      residual_structure=residual_structure([o[:, :2] for o in obj_list], residuals, square_m),
+                      board_bend=bend_check([o[:, :2] for o in obj_list], img_list, K, dist, [r for r, _ in poses],
+                                            [t for _, t in poses], free_dist(flags)))
     return cal, results

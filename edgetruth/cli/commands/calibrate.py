@@ -141,7 +141,8 @@ def run(args: argparse.Namespace) -> int:
                 + (f" (not found: {', '.join(missing)})" if missing else "")
                 + f"; RMS {cal.rms_px:.4f} px, fx {cal.fx:.2f} fy {cal.fy:.2f} cx {cal.cx:.2f} cy {cal.cy:.2f} px"
                 + f" -> {out}")
-    from edgetruth.evaluate.residual_field import reading
+    from edgetruth.evaluate import board_bend, residual_field
 
-    console.say("calibrate: " + reading(cal.residual_structure))
+    console.say("calibrate: " + residual_field.reading(cal.residual_structure))
+    console.say("calibrate: " + board_bend.reading(cal.board_bend))
     return 0

@@ -1,0 +1,155 @@
+"""Does the board bend?  Zhang's calibration refitted with a bend per view, against the flat board.
+
+Zhang's method assumes a flat board.  A printed sheet that curls leaves each view a residual that no pose or
+lens term absorbs (``residual_field`` sees it as a smooth field per view).  This check names the cause: it
+refits the calibration (K, the distortion terms the flat fit estimated, and every pose) with the board's
+height in each view a polynomial of its board coordinates, z = s · Σ c_k m_k(x̂, ŷ), where x̂ = (x − x̄)/s,
+ŷ = (y − ȳ)/s over the view's corners (s their largest distance from the centre along an axis), and the
+monomials m_k are of degree 2 (x̂², x̂ŷ, ŷ²: a sheet curled into a cylinder, a dome or a saddle) or 2 and 3
+(``ORDERS``).  Constant and linear heights are a pose, so they are left out.  Started from the flat solution,
+Levenberg-Marquardt refits both models with one projection (OpenCV's pinhole and 5-term Brown-Conrady model,
+``render.optics.distortion``), so they differ in the bend alone.
+
+Reported per model: both RMS (px, over 2-D residuals as OpenCV's), the share of the flat residual energy the
+bend takes, the F test of the nested models (the bend's q = terms × views extra parameters), its effect size
+``bend_excess`` = (share − chance) / (1 − chance), where chance = q / (the flat fit's residual degrees of
+freedom) is the share noise alone gives, each view's depth (the fitted height's peak-to-valley over its
+corners, mm), its coefficients c_k · s (mm: each monomial's height at x̂ or ŷ = ±1) with standard errors
+(residual variance × (JᵀJ)⁻¹), and the bent calibration's intrinsics.  The F test and the errors assume
+independent residuals of one variance.  On analytic views both are calibrated (tests); on the rendered OpenCV
+twin (a flat board, line corners) the F test gives F = 1.11 and 0.98 (p = 0.30 and 0.54).  Where the bend
+leaves structure behind (the photos' cubic share exceeds the quadratic one), the errors are too small.
+
+Measured (docs/board.md): OpenCV's photos (54 line corners, 5-term model): a quadratic bend takes 31 % of the
+residual energy (RMS 0.154 → 0.128 px, F = 14.7, p ≈ 10⁻⁷⁷), 0.3-1.0 mm deep, the sheet curled the same way in
+all 13 photos (ŷ² coefficient +0.23 to +0.78 mm, 1.7-7 standard errors); the cubic one 45 % (0.114 px).  Their
+flat twin: 3 % and 7 % (chance), ≤ 0.12 mm.  Zhang's own corners: 2 % against 1 %, mostly noise.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: bend models: name -> the degrees of the monomials in the board's height
+ORDERS = {"quadratic": (2,), "cubic": (2, 3)}
+#: the share of what chance leaves (``bend_excess``) from which a significant bend is called one
+BEND_EXCESS = 0.1
+_POSE = 6
+
+
+def monomials(board_xy: np.ndarray, degrees=(2,)) -> tuple[np.ndarray, float]:
+    """(n, k) the height terms x̂^i ŷ^j (i + j in ``degrees``, x̂ first) of a view's board coordinates (n, 2),
+    and the scale s (board units) that makes them dimensionless: z = s · terms @ c."""
+    p = np.asarray(board_xy, float)
+    c = p.mean(0)
+    s = float(max(np.abs(p - c).max(), 1e-12))
+    x, y = ((p - c) / s).T
+    return np.stack([x ** (d - j) * y ** j for d in degrees for j in range(d + 1)], axis=1), s
+
+
+def project(points: np.ndarray, view: np.ndarray, poses: np.ndarray, K4, dist5) -> np.ndarray:
+    """(n, 2) pixel positions of board points (n, 3) seen in views ``view`` (n,) with ``poses`` (V, 6: rvec,
+    tvec), K4 = (fx, fy, cx, cy) and OpenCV's dist5 = (k1, k2, p1, p2, k3) (``cv2.projectPoints``)."""
+    from scipy.spatial.transform import Rotation
+
+    from edgetruth.render.optics.distortion import distort_normalized
+
+    R = Rotation.from_rotvec(poses[:, :3]).as_matrix()[view]
+    X = np.einsum("nij,nj->ni", R, points) + poses[view, 3:6]
+    xd, yd = distort_normalized(X[:, 0] / X[:, 2], X[:, 1] / X[:, 2], dist5)
+    fx, fy, cx, cy = K4
+    return np.stack([fx * xd + cx, fy * yd + cy], axis=1)
+
+
+def _fit(x0: np.ndarray, free: np.ndarray, residual) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Levenberg-Marquardt over the ``free`` entries of x0 -> (the solution, its residuals, their Jacobian over
+    the free entries)."""
+    from scipy.optimize import least_squares
+
+    def f(v):
+        p = x0.copy()
+        p[free] = v
+        return residual(p)
+
+    r = least_squares(f, x0[free], method="lm", x_scale="jac", xtol=1e-12, ftol=1e-12, max_nfev=2000)
+    p = x0.copy()
+    p[free] = r.x
+    return p, r.fun, r.jac
+
+
+def bend_check(board_xy: list[np.ndarray], image_xy: list[np.ndarray], K: np.ndarray, dist: np.ndarray,
+               rvecs: list, tvecs: list, free_dist=(True,) * 5, unit_m: float = 1.0) -> dict:
+    """The flat calibration's per-view board coordinates (n, 2; board units, ``unit_m`` metres each), measured
+    corners (n, 2; px), K, dist (5), poses and which of (k1, k2, p1, p2, k3) it estimated (the others stay at
+    ``dist``) -> {model name: the module docstring's numbers} (``{}`` with too few corners to fit)."""
+    xy = [np.asarray(b, float).reshape(-1, 2) for b in board_xy]
+    img = np.concatenate([np.asarray(i, float).reshape(-1, 2) for i in image_xy])
+    n_views = len(xy)
+    view = np.concatenate([np.full(len(b), v) for v, b in enumerate(xy)])
+    points = np.c_[np.concatenate(xy), np.zeros(len(view))]
+    K = np.asarray(K, float)
+    base = np.r_[K[0, 0], K[1, 1], K[0, 2], K[1, 2], np.pad(np.ravel(dist), (0, 5))[:5]]
+    poses = np.concatenate([np.ravel(rvecs).reshape(n_views, 3), np.ravel(tvecs).reshape(n_views, 3)], axis=1)
+    n_lens = 4 + int(np.sum(free_dist))
+    out = {}
+    for name, degrees in ORDERS.items():
+        design = [monomials(b, degrees) for b in xy]
+        terms = np.concatenate([m * s for m, s in design])  # z = terms @ c per corner, board units
+        k = terms.shape[1]
+        x0 = np.r_[base, np.c_[poses, np.zeros((n_views, k))].ravel()]
+        lens_free = np.r_[np.ones(4, bool), np.asarray(free_dist, bool)]
+        n_flat, n_bent = n_lens + _POSE * n_views, n_lens + (_POSE + k) * n_views
+        if 2 * len(view) <= n_bent + 1:
+            return {}
+
+        def residual(p, k=k, terms=terms):
+            per_view = p[9:].reshape(n_views, _POSE + k)
+            pts = points.copy()
+            pts[:, 2] = np.einsum("nk,nk->n", terms, per_view[view, _POSE:])
+            return (project(pts, view, per_view[:, :_POSE], p[:4], p[4:9]) - img).ravel()
+
+        flat_free = np.r_[lens_free, np.tile(np.r_[np.ones(_POSE, bool), np.zeros(k, bool)], n_views)]
+        flat, r0, _ = _fit(x0, flat_free, residual)
+        bent_free = np.r_[lens_free, np.ones((_POSE + k) * n_views, bool)]
+        bent, r1, jac = _fit(flat, bent_free, residual)
+        rss0, rss1 = float(r0 @ r0), float(r1 @ r1)
+        q, dof0, dof1 = n_bent - n_flat, 2 * len(view) - n_flat, 2 * len(view) - n_bent
+        share, chance = 1.0 - rss1 / rss0, q / dof0
+        F = ((rss0 - rss1) / q) / (rss1 / dof1) if rss1 > 0 else float("inf")
+        from scipy.stats import f as f_dist
+
+        coef = bent[9:].reshape(n_views, _POSE + k)[:, _POSE:]
+        depth = [float(np.ptp(m @ c) * s * unit_m * 1e3) for (m, s), c in zip(design, coef)]
+        # standard errors of the heights: the residual variance times the diagonal of (J^T J)^-1
+        where = np.flatnonzero(bent_free)
+        is_coef = (where >= 9) & ((where - 9) % (_POSE + k) >= _POSE)
+        var = rss1 / dof1 * np.diag(np.linalg.pinv(jac.T @ jac))[is_coef].reshape(n_views, k)
+        to_mm = np.array([s for _, s in design])[:, None] * unit_m * 1e3
+        out[name] = {
+            "terms_per_view": k, "rms_flat_px": float(np.sqrt(2 * rss0 / len(r0))),
+            "rms_bent_px": float(np.sqrt(2 * rss1 / len(r1))), "bend_share": share, "bend_share_chance": chance,
+            "bend_excess": (share - chance) / (1.0 - chance), "f_statistic": float(F),
+            "p_value": float(f_dist.sf(F, q, dof1)), "extra_parameters": q, "residual_dof": dof1,
+            "depth_mm": depth, "depth_mm_median": float(np.median(depth)), "scale_mm": (to_mm[:, 0]).tolist(),
+            "coefficients_mm": (coef * to_mm).tolist(), "coefficients_se_mm": (np.sqrt(var) * to_mm).tolist(),
+            "intrinsics_bent": {"fx_px": float(bent[0]), "fy_px": float(bent[1]), "cx_px": float(bent[2]),
+                                "cy_px": float(bent[3]), "dist_coeffs_opencv": bent[4:9].tolist()}}
+    return out
+
+
+def reading(b: dict, alpha: float = 0.01) -> str:
+    """One line on what the bend check says."""
+    if not b:
+        return "board bend: too few corners to fit a bend per view"
+    q, c = b["quadratic"], b.get("cubic")
+    head = (f"board bend: a quadratic bend per view ({q['depth_mm_median']:.2f} mm deep, median) takes "
+            f"{100 * q['bend_share']:.0f} % of the residual energy ({100 * q['bend_share_chance']:.0f} % by chance; "
+            f"RMS {q['rms_flat_px']:.3f} -> {q['rms_bent_px']:.3f} px, F = {q['f_statistic']:.1f}, "
+            f"p = {q['p_value']:.2g})")
+    if c:
+        head += f", a cubic one {100 * c['bend_share']:.0f} % ({c['rms_bent_px']:.3f} px)"
+    best = max((m for m in (q, c) if m), key=lambda m: m["bend_excess"])
+    if best["p_value"] < alpha and best["bend_excess"] >= BEND_EXCESS:
+        return head + ": the board bends"
+    if best["p_value"] < alpha:
+        return head + ": a slight bend, mostly noise"
+    return head + ": no bend found"
