@@ -13,7 +13,7 @@ from edgetruth.evaluate.calibration import DIST_MODELS, free_dist, object_points
 
 SQUARE_M = 0.025
 K_TRUE = np.array([[530.0, 0, 330], [0, 531.0, 245], [0, 0, 1]])
-DIST_TRUE = np.array([-0.28, 0.06, 0.001, -0.0005, 0.1])
+DIST_TRUE = np.array([-0.28, 0.06, 0.002, -0.0005, 0.1])
 
 
 def _poses(n_views: int, rng) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -99,6 +99,22 @@ def test_fixed_distortion_terms_stay_fixed():
     xy, img, K, dist, rv, tv, _, _ = _views(np.zeros((5, 3)), 0.05)
     b = bend_check(xy, img, K, np.r_[dist[:2], 0, 0, 0], rv, tv, free_dist(DIST_MODELS["k1k2"][0]))
     assert b["quadratic"]["intrinsics_bent"]["dist_coeffs_opencv"][2:] == [0.0, 0.0, 0.0]
+
+
+def test_a_lens_term_left_out_can_look_like_a_bend():
+    """A flat board seen through a lens with tangential distortion (p1 = 0.002) and calibrated with k1, k2 only:
+    a bend per view stands in for the missing term (the share far above chance), and the line says a lens term
+    may be the cause; calibrated with the full model, the same views show no bend."""
+    xy, img, _, _, _, _, _, _ = _views(np.zeros((13, 3)), 0.01)
+    flags = DIST_MODELS["k1k2"][0]
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
+    obj = [np.c_[x, np.zeros(len(x))].astype(np.float32) for x in xy]
+    _, K, dist, rv, tv = cv2.calibrateCamera(obj, img, (640, 480), None, None, flags=flags, criteria=crit)
+    partial = bend_check(xy, img, K, dist.ravel(), rv, tv, free_dist(flags))
+    assert partial["quadratic"]["bend_excess"] > 0.1 and partial["quadratic"]["p_value"] < 1e-6
+    assert "lens has terms" in reading(partial, full_lens=False)
+    _, K, dist, rv, tv = cv2.calibrateCamera(obj, img, (640, 480), None, None, criteria=crit)
+    assert "no bend found" in reading(bend_check(xy, img, K, dist.ravel(), rv, tv))
 
 
 def test_too_few_corners():

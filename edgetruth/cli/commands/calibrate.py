@@ -142,7 +142,8 @@ def run(args: argparse.Namespace) -> int:
                 + f"; RMS {cal.rms_px:.4f} px, fx {cal.fx:.2f} fy {cal.fy:.2f} cx {cal.cx:.2f} cy {cal.cy:.2f} px"
                 + f" -> {out}")
     from edgetruth.evaluate import board_bend, residual_field
+    from edgetruth.evaluate.calibration import DEFAULT_DIST_MODEL
 
     console.say("calibrate: " + residual_field.reading(cal.residual_structure))
-    console.say("calibrate: " + board_bend.reading(cal.board_bend))
+    console.say("calibrate: " + board_bend.reading(cal.board_bend, full_lens=args.model == DEFAULT_DIST_MODEL))
     return 0
