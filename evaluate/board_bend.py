@@ -7,8 +7,9 @@ height in each view a polynomial of its board coordinates, z = s · Σ c_k m_k(x
 ŷ = (y − ȳ)/s over the view's corners (s their largest distance from the centre along an axis), and the
 monomials m_k are of degree 2 (x̂², x̂ŷ, ŷ²: a sheet curled into a cylinder, a dome or a saddle) or 2 and 3
 (``ORDERS``).  Constant and linear heights are a pose, so they are left out.  Started from the flat solution,
-Levenberg-Marquardt refits both models with one projection (OpenCV's pinhole and 5-term Brown-Conrady model,
-``render.optics.distortion``), so they differ in the bend alone.
+Levenberg-Marquardt (``block_lm``: per-view blocks, linear in the views) refits both models with one projection
+(OpenCV's pinhole and 5-term Brown-Conrady model, ``render.optics.distortion``), so they differ in the bend
+alone.
 
 Reported per model: both RMS (px, over 2-D residuals as OpenCV's), the share of the flat residual energy the
 bend takes, the F test of the nested models (the bend's q = terms × views extra parameters), its effect size
@@ -33,6 +34,8 @@ flat twin: 3 % and 7 % (chance), ≤ 0.12 mm.  Zhang's own corners: 2 % against 
 from __future__ import annotations
 
 import numpy as np
+
+from edgetruth.evaluate import block_lm
 
 #: bend models: name -> the degrees of the monomials in the board's height
 ORDERS = {"quadratic": (2,), "cubic": (2, 3)}
@@ -65,27 +68,13 @@ def project(points: np.ndarray, view: np.ndarray, poses: np.ndarray, K4, dist5) 
     return np.stack([fx * xd + cx, fy * yd + cy], axis=1)
 
 
-def _fit(x0: np.ndarray, free: np.ndarray, residual) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Levenberg-Marquardt over the ``free`` entries of x0 -> (the solution, its residuals, their Jacobian over
-    the free entries)."""
-    from scipy.optimize import least_squares
-
-    def f(v):
-        p = x0.copy()
-        p[free] = v
-        return residual(p)
-
-    r = least_squares(f, x0[free], method="lm", x_scale="jac", xtol=1e-12, ftol=1e-12, max_nfev=2000)
-    p = x0.copy()
-    p[free] = r.x
-    return p, r.fun, r.jac
-
-
 def bend_check(board_xy: list[np.ndarray], image_xy: list[np.ndarray], K: np.ndarray, dist: np.ndarray,
-               rvecs: list, tvecs: list, free_dist=(True,) * 5, unit_m: float = 1.0) -> dict:
+               rvecs: list, tvecs: list, free_dist=(True,) * 5, unit_m: float = 1.0,
+               solver=block_lm.solve) -> dict:
     """The flat calibration's per-view board coordinates (n, 2; board units, ``unit_m`` metres each), measured
     corners (n, 2; px), K, dist (5), poses and which of (k1, k2, p1, p2, k3) it estimated (the others stay at
-    ``dist``) -> {model name: the module docstring's numbers} (``{}`` with too few corners to fit)."""
+    ``dist``) -> {model name: the module docstring's numbers} (``{}`` with too few corners to fit).  ``solver``:
+    ``block_lm.solve``, or its dense reference ``block_lm.solve_dense``."""
     xy = [np.asarray(b, float).reshape(-1, 2) for b in board_xy]
     img = np.concatenate([np.asarray(i, float).reshape(-1, 2) for i in image_xy])
     n_views = len(xy)
@@ -95,39 +84,36 @@ def bend_check(board_xy: list[np.ndarray], image_xy: list[np.ndarray], K: np.nda
     base = np.r_[K[0, 0], K[1, 1], K[0, 2], K[1, 2], np.pad(np.ravel(dist), (0, 5))[:5]]
     poses = np.concatenate([np.ravel(rvecs).reshape(n_views, 3), np.ravel(tvecs).reshape(n_views, 3)], axis=1)
     n_lens = 4 + int(np.sum(free_dist))
+    rows = np.repeat(view, 2)  # a residual row per axis of each corner
     out = {}
     for name, degrees in ORDERS.items():
         design = [monomials(b, degrees) for b in xy]
         terms = np.concatenate([m * s for m, s in design])  # z = terms @ c per corner, board units
         k = terms.shape[1]
-        x0 = np.r_[base, np.c_[poses, np.zeros((n_views, k))].ravel()]
         lens_free = np.r_[np.ones(4, bool), np.asarray(free_dist, bool)]
         n_flat, n_bent = n_lens + _POSE * n_views, n_lens + (_POSE + k) * n_views
         if 2 * len(view) <= n_bent + 1:
             return {}
 
-        def residual(p, k=k, terms=terms):
-            per_view = p[9:].reshape(n_views, _POSE + k)
+        def residual(lens, per_view, terms=terms):
             pts = points.copy()
             pts[:, 2] = np.einsum("nk,nk->n", terms, per_view[view, _POSE:])
-            return (project(pts, view, per_view[:, :_POSE], p[:4], p[4:9]) - img).ravel()
+            return (project(pts, view, per_view[:, :_POSE], lens[:4], lens[4:9]) - img).ravel()
 
-        flat_free = np.r_[lens_free, np.tile(np.r_[np.ones(_POSE, bool), np.zeros(k, bool)], n_views)]
-        flat, r0, _ = _fit(x0, flat_free, residual)
-        bent_free = np.r_[lens_free, np.ones((_POSE + k) * n_views, bool)]
-        bent, r1, jac = _fit(flat, bent_free, residual)
+        # the flat board refitted with this projection, then the bend freed from it
+        flat = solver(residual, base, np.c_[poses, np.zeros((n_views, k))], rows, lens_free,
+                              np.r_[np.ones(_POSE, bool), np.zeros(k, bool)])
+        bent = solver(residual, flat.shared, flat.blocks, rows, lens_free, np.ones(_POSE + k, bool))
+        r0, r1 = flat.residual, bent.residual
         rss0, rss1 = float(r0 @ r0), float(r1 @ r1)
         q, dof0, dof1 = n_bent - n_flat, 2 * len(view) - n_flat, 2 * len(view) - n_bent
         share, chance = 1.0 - rss1 / rss0, q / dof0
         F = ((rss0 - rss1) / q) / (rss1 / dof1) if rss1 > 0 else float("inf")
         from scipy.stats import f as f_dist
 
-        coef = bent[9:].reshape(n_views, _POSE + k)[:, _POSE:]
+        coef = bent.blocks[:, _POSE:]
         depth = [float(np.ptp(m @ c) * s * unit_m * 1e3) for (m, s), c in zip(design, coef)]
-        # standard errors of the heights: the residual variance times the diagonal of (J^T J)^-1
-        where = np.flatnonzero(bent_free)
-        is_coef = (where >= 9) & ((where - 9) % (_POSE + k) >= _POSE)
-        var = rss1 / dof1 * np.diag(np.linalg.pinv(jac.T @ jac))[is_coef].reshape(n_views, k)
+        var = rss1 / dof1 * bent.block_var[:, _POSE:]  # the residual variance times the diagonal of (J^T J)^-1
         to_mm = np.array([s for _, s in design])[:, None] * unit_m * 1e3
         out[name] = {
             "terms_per_view": k, "rms_flat_px": float(np.sqrt(2 * rss0 / len(r0))),
@@ -136,8 +122,9 @@ def bend_check(board_xy: list[np.ndarray], image_xy: list[np.ndarray], K: np.nda
             "p_value": float(f_dist.sf(F, q, dof1)), "extra_parameters": q, "residual_dof": dof1,
             "depth_mm": depth, "depth_mm_median": float(np.median(depth)), "scale_mm": (to_mm[:, 0]).tolist(),
             "coefficients_mm": (coef * to_mm).tolist(), "coefficients_se_mm": (np.sqrt(var) * to_mm).tolist(),
-            "intrinsics_bent": {"fx_px": float(bent[0]), "fy_px": float(bent[1]), "cx_px": float(bent[2]),
-                                "cy_px": float(bent[3]), "dist_coeffs_opencv": bent[4:9].tolist()}}
+            "intrinsics_bent": {"fx_px": float(bent.shared[0]), "fy_px": float(bent.shared[1]),
+                                "cx_px": float(bent.shared[2]), "cy_px": float(bent.shared[3]),
+                                "dist_coeffs_opencv": bent.shared[4:9].tolist()}}
     return out
 
 

@@ -8,49 +8,15 @@ import cv2
 import numpy as np
 import pytest
 
-from edgetruth.evaluate.board_bend import bend_check, monomials, project, reading
-from edgetruth.evaluate.calibration import DIST_MODELS, free_dist, object_points
-
-SQUARE_M = 0.025
-K_TRUE = np.array([[530.0, 0, 330], [0, 531.0, 245], [0, 0, 1]])
-DIST_TRUE = np.array([-0.28, 0.06, 0.002, -0.0005, 0.1])
-
-
-def _poses(n_views: int, rng) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Board poses 0.35-0.5 m away, tilted up to ~35 degrees, the board's centre near the optical axis."""
-    out = []
-    for _ in range(n_views):
-        r = rng.uniform(-0.6, 0.6, 3) * np.array([1, 1, 0.3])
-        R, _ = cv2.Rodrigues(r)
-        centre = np.array([4, 2.5, 0]) * SQUARE_M
-        t = np.array([rng.uniform(-0.03, 0.03), rng.uniform(-0.03, 0.03), rng.uniform(0.35, 0.5)]) - R @ centre
-        out.append((r, t))
-    return out
-
-
-def _views(curl_mm: np.ndarray, noise_px: float, seed: int = 3):
-    """13 views of a 9x6 board, view v's height z = curl_mm[v] * (x̂², x̂ŷ, ŷ²) (mm at the normalised edge),
-    projected by cv2.projectPoints with K_TRUE, DIST_TRUE, plus Gaussian noise; and the flat calibration of them."""
-    rng = np.random.default_rng(seed)
-    obj = object_points((9, 6), SQUARE_M).astype(np.float64)
-    terms, s = monomials(obj[:, :2])
-    images = []
-    for (r, t), c in zip(_poses(len(curl_mm), rng), curl_mm):
-        bent = obj.copy()
-        bent[:, 2] = terms @ (np.asarray(c) * 1e-3)
-        p, _ = cv2.projectPoints(bent, r, t, K_TRUE, DIST_TRUE)
-        images.append((p[:, 0] + rng.normal(0, noise_px, (len(obj), 2))).astype(np.float32))
-    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
-    rms, K, dist, rv, tv = cv2.calibrateCamera([obj.astype(np.float32)] * len(images), images, (640, 480), None,
-                                               None, criteria=crit)
-    return [obj[:, :2]] * len(images), images, K, dist.ravel(), rv, tv, terms, s
-
+from edgetruth.evaluate.board_bend import bend_check, project, reading
+from edgetruth.evaluate.calibration import DIST_MODELS, free_dist
+from tests.evaluate.bent_views import DIST_TRUE, K_TRUE, view_poses, curled_views
 
 def test_projection_is_opencvs():
     """``project`` reproduces cv2.projectPoints (5-term Brown-Conrady) to 1e-9 px on points off the board plane."""
     rng = np.random.default_rng(0)
     pts = np.c_[rng.uniform(-0.1, 0.1, (50, 2)), rng.uniform(-0.002, 0.002, 50)]
-    (r, t), = _poses(1, rng)
+    (r, t), = view_poses(1, rng)
     ref, _ = cv2.projectPoints(pts, r, t, K_TRUE, DIST_TRUE)
     mine = project(pts, np.zeros(50, int), np.r_[r, t][None], (530.0, 531.0, 330.0, 245.0), DIST_TRUE)
     assert np.abs(mine - ref[:, 0]).max() < 1e-9
@@ -63,7 +29,7 @@ def test_a_curled_board_is_found_at_its_depth():
     standard errors of the truth, and the bent fit's focal length is closer to the truth than the flat one's."""
     rng = np.random.default_rng(7)
     curl = np.c_[rng.uniform(-0.1, 0.1, 13), rng.uniform(-0.1, 0.1, 13), rng.uniform(0.2, 0.6, 13)]
-    xy, img, K, dist, rv, tv, terms, s = _views(curl, 0.01)
+    xy, img, K, dist, rv, tv, terms, s = curled_views(curl, 0.01)
     b = bend_check(xy, img, K, dist, rv, tv)
     q = b["quadratic"]
     true_depth = [np.ptp(terms @ c) for c in curl]  # mm: terms are dimensionless
@@ -82,7 +48,7 @@ def test_a_flat_board_is_not_called_bent():
     """A flat board under 0.1 px of noise per axis: the bend takes its chance share (within 0.03), p is not small
     (seeded), every fitted height is within 3.5 standard errors of 0 and at most 15 % beyond 2 (measured 3-5 %),
     and the line reads no bend."""
-    xy, img, K, dist, rv, tv, _, _ = _views(np.zeros((13, 3)), 0.1)
+    xy, img, K, dist, rv, tv, _, _ = curled_views(np.zeros((13, 3)), 0.1)
     b = bend_check(xy, img, K, dist, rv, tv)
     for m in b.values():
         assert abs(m["bend_share"] - m["bend_share_chance"]) < 0.03 and m["p_value"] > 0.01
@@ -96,7 +62,7 @@ def test_fixed_distortion_terms_stay_fixed():
     assert free_dist(DIST_MODELS["k1k2"][0]) == (True, True, False, False, False)
     assert free_dist(DIST_MODELS["k1k2p1p2"][0]) == (True, True, True, True, False)
     assert free_dist(0) == (True,) * 5
-    xy, img, K, dist, rv, tv, _, _ = _views(np.zeros((5, 3)), 0.05)
+    xy, img, K, dist, rv, tv, _, _ = curled_views(np.zeros((5, 3)), 0.05)
     b = bend_check(xy, img, K, np.r_[dist[:2], 0, 0, 0], rv, tv, free_dist(DIST_MODELS["k1k2"][0]))
     assert b["quadratic"]["intrinsics_bent"]["dist_coeffs_opencv"][2:] == [0.0, 0.0, 0.0]
 
@@ -105,7 +71,7 @@ def test_a_lens_term_left_out_can_look_like_a_bend():
     """A flat board seen through a lens with tangential distortion (p1 = 0.002) and calibrated with k1, k2 only:
     a bend per view stands in for the missing term (the share far above chance), and the line says a lens term
     may be the cause; calibrated with the full model, the same views show no bend."""
-    xy, img, _, _, _, _, _, _ = _views(np.zeros((13, 3)), 0.01)
+    xy, img, _, _, _, _, _, _ = curled_views(np.zeros((13, 3)), 0.01)
     flags = DIST_MODELS["k1k2"][0]
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
     obj = [np.c_[x, np.zeros(len(x))].astype(np.float32) for x in xy]
@@ -118,7 +84,7 @@ def test_a_lens_term_left_out_can_look_like_a_bend():
 
 
 def test_too_few_corners():
-    xy, img, K, dist, rv, tv, _, _ = _views(np.zeros((2, 3)), 0.05)
+    xy, img, K, dist, rv, tv, _, _ = curled_views(np.zeros((2, 3)), 0.05)
     few = bend_check([x[:6] for x in xy], [i[:6] for i in img], K, dist, rv, tv)
     assert few == {} and "too few corners" in reading(few)
 

@@ -9,12 +9,13 @@ def register(sub) -> None:
     p = sub.add_parser("bench", help="print performance figures (medians, ratios from one run)",
                        description="Start-up costs (edgetruth --version, import edgetruth.locate, edgetruth locate "
                                    "on 100 images in one call), refinement throughput per method on a 1280x1024 "
-                                   "mosaic, and rendering speed per Mitsuba variant (what `make bench` runs).  "
+                                   "mosaic, the bent-board check of `edgetruth calibrate` (block against dense "
+                                   "solver), and rendering speed per Mitsuba variant (what `make bench` runs).  "
                                    "With --against REV: the baseline commit REV checked out beside this working "
                                    "tree (a temporary git worktree) and both timed in one run, alternating: the "
                                    "main job `edgetruth run` per stage (cold caches, as a fresh clone) and the "
                                    "full study's rendering per image; medians and ratios baseline / working.")
-    p.add_argument("--only", choices=["startup", "locate", "render", "run"], default=None,
+    p.add_argument("--only", choices=["startup", "locate", "calibrate", "render", "run"], default=None,
                    help="run one part only (run: with --against only, the main job)")
     p.add_argument("--repeats", type=positive_int, default=None,
                    help="timed repeats per figure (medians; default 7, with --against 1)")
@@ -47,6 +48,10 @@ def run(args) -> int:
         from edgetruth.evaluate.refine_bench import run_bench
 
         print("\n".join(run_bench(repeats=repeats)), flush=True)
+    if args.only in (None, "calibrate"):
+        from edgetruth.evaluate.bend_bench import run_bench as bend_bench
+
+        print("\n".join(bend_bench(repeats=min(repeats, 3))), flush=True)
     if args.only in (None, "render"):
         from edgetruth.render.bench import run_bench as render_bench
 
