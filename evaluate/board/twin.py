@@ -277,6 +277,7 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     corners = per_photo_corners(real_run, twin_run, truths, PER_PHOTO_METHOD)
     floor_row = calibrate_row(exact_outline_row(truths, twin.model), twin.model, twin_run.size)
     floor = row_summary(floor_row, twin.model, twin_run.reference, twin.reference_corners)
+    flatness = flatness_rows(set_name, real_run, twin_run, floor_row, PER_PHOTO_METHOD)
 
     # 4. the photo model of both, and the settings the photos give
     t_p = time.perf_counter()
@@ -307,7 +308,7 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     return write_twin_report(out, set_name=set_name, spec=spec, jobs=jobs, keep=keep, methods=methods, diag=diag,
                              real_run=real_run, twin_run=twin_run, errors=errors, floor=floor, pm_real=pm_real,
                              pm_twin=pm_twin, derived=derived, timings=timings, options=options,
-                             thresholds=thresholds, corners=corners)
+                             thresholds=thresholds, corners=corners, flatness=flatness)
 
 
 def closed_loop_noise(pm_real: list[dict], pm_twin: list[dict], sensors) -> list[dict]:
@@ -331,6 +332,27 @@ def closed_loop_noise(pm_real: list[dict], pm_twin: list[dict], sensors) -> list
 #: The twin's own stored (black, white) with output_gain 1 and offset 0 (its print and exposure; measured on
 #: its renders, the same on all five poses to 0.5): what ``derive_twin`` maps to each photo's levels.
 BASE_LEVELS = {"zhang1998": (41.1, 215.2)}
+#: metres per board-model unit, for the flatness check's depths: Zhang's model is in inches; OpenCV's chessboard
+#: model counts squares, and its twin assumes 25 mm squares (docs/board.md)
+MODEL_UNIT_M = {"zhang1998": 0.0254, "opencv_left": 0.025}
+
+
+def flatness_rows(set_name: str, real_run, twin_run, floor_row, method: str) -> dict:
+    """Table 5: the bent-board check (``flatness.board_flatness``) on ``method``'s corners of the photos and of the
+    twin, and on the twin's exact outline; {label: result}, empty results left out."""
+    from edgetruth.evaluate.board.flatness import board_flatness
+
+    out = {}
+    for label, run, row in (("photos", real_run, None), ("twin", twin_run, None),
+                            ("twin, exact outline", twin_run, floor_row)):
+        if row is None:
+            row = next((r for r in run.rows if r.label == method), None)
+        if row is None or row.corners is None:
+            continue
+        res = board_flatness(row.corners, run.inp.model.corners, run.size, MODEL_UNIT_M.get(set_name, 1.0))
+        if res:
+            out[label] = {"method": method if label != "twin, exact outline" else EXACT_OUTLINE, **res}
+    return out
 
 
 def _check_twin_output(out: Path, settings: dict) -> Path:

@@ -27,8 +27,8 @@ def _linear(n_views=7, rows=30, n_shared=3, n_block=4, seed=0):
 
 
 def test_linear_problem_is_solved_exactly():
-    """On a linear problem the solution is least squares' (1e-8), and the variances are the diagonal of
-    (JᵀJ)⁻¹ of the whole design matrix (1e-8 relative), shared parameters' correlations with the blocks included."""
+    """On a linear problem the solution is least squares' (1e-8), and the variances are the diagonal of (JᵀJ)⁻¹
+    of the whole design matrix (1e-8 relative), shared parameters' correlations with the blocks included."""
     residual, view, dense, y = _linear()
     fit = block_lm.solve(residual, np.zeros(3), np.zeros((7, 4)), view, np.ones(3, bool), np.ones(4, bool))
     x = np.linalg.lstsq(dense, y, rcond=None)[0]
