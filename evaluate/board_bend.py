@@ -41,6 +41,8 @@ from edgetruth.evaluate import block_lm
 ORDERS = {"quadratic": (2,), "cubic": (2, 3)}
 #: the share of what chance leaves (``bend_excess``) from which a significant bend is called one
 BEND_EXCESS = 0.1
+#: fewest corners a view needs to take part: its 2 n residuals against 6 pose and 7 cubic terms, twice over
+MIN_CORNERS = 13
 _POSE = 6
 
 
@@ -73,10 +75,17 @@ def bend_check(board_xy: list[np.ndarray], image_xy: list[np.ndarray], K: np.nda
                solver=block_lm.solve) -> dict:
     """The flat calibration's per-view board coordinates (n, 2; board units, ``unit_m`` metres each), measured
     corners (n, 2; px), K, dist (5), poses and which of (k1, k2, p1, p2, k3) it estimated (the others stay at
-    ``dist``) -> {model name: the module docstring's numbers} (``{}`` with too few corners to fit).  ``solver``:
-    ``block_lm.solve``, or its dense reference ``block_lm.solve_dense``."""
+    ``dist``) -> {model name: the module docstring's numbers} (``{}`` with too few corners to fit).  Only views
+    with ``MIN_CORNERS`` corners take part (both fits, so they stay nested; ``views`` and ``points`` say how many):
+    a view of a few corners would fit its own bend exactly.  ``solver``: ``block_lm.solve``, or its dense
+    reference ``block_lm.solve_dense``."""
     xy = [np.asarray(b, float).reshape(-1, 2) for b in board_xy]
-    img = np.concatenate([np.asarray(i, float).reshape(-1, 2) for i in image_xy])
+    use = [v for v, b in enumerate(xy) if len(b) >= MIN_CORNERS]
+    if not use:
+        return {}
+    xy = [xy[v] for v in use]
+    img = np.concatenate([np.asarray(image_xy[v], float).reshape(-1, 2) for v in use])
+    rvecs, tvecs = [np.ravel(rvecs[v]) for v in use], [np.ravel(tvecs[v]) for v in use]
     n_views = len(xy)
     view = np.concatenate([np.full(len(b), v) for v, b in enumerate(xy)])
     points = np.c_[np.concatenate(xy), np.zeros(len(view))]
@@ -116,7 +125,7 @@ def bend_check(board_xy: list[np.ndarray], image_xy: list[np.ndarray], K: np.nda
         var = rss1 / dof1 * bent.block_var[:, _POSE:]  # the residual variance times the diagonal of (J^T J)^-1
         to_mm = np.array([s for _, s in design])[:, None] * unit_m * 1e3
         out[name] = {
-            "terms_per_view": k, "rms_flat_px": float(np.sqrt(2 * rss0 / len(r0))),
+            "terms_per_view": k, "views": n_views, "points": len(view), "rms_flat_px": float(np.sqrt(2 * rss0 / len(r0))),
             "rms_bent_px": float(np.sqrt(2 * rss1 / len(r1))), "bend_share": share, "bend_share_chance": chance,
             "bend_excess": (share - chance) / (1.0 - chance), "f_statistic": float(F),
             "p_value": float(f_dist.sf(F, q, dof1)), "extra_parameters": q, "residual_dof": dof1,

@@ -84,9 +84,13 @@ def test_a_lens_term_left_out_can_look_like_a_bend():
 
 
 def test_too_few_corners():
-    xy, img, K, dist, rv, tv, _, _ = curled_views(np.zeros((2, 3)), 0.05)
+    """Views of fewer than MIN_CORNERS corners sit out (they would fit their own bend exactly); none left: {}."""
+    xy, img, K, dist, rv, tv, _, _ = curled_views(np.zeros((4, 3)), 0.05)
     few = bend_check([x[:6] for x in xy], [i[:6] for i in img], K, dist, rv, tv)
     assert few == {} and "too few corners" in reading(few)
+    some = bend_check([xy[0][:6], *xy[1:]], [img[0][:6], *img[1:]], K, dist, rv, tv)
+    assert some["quadratic"]["views"] == 3 and some["quadratic"]["points"] == 3 * 54
+    assert len(some["cubic"]["depth_mm"]) == 3
 
 
 def test_zhangs_board_barely_bends():
