@@ -121,12 +121,15 @@ def bend_check(board_xy: list[np.ndarray], image_xy: list[np.ndarray], K: np.nda
         from scipy.stats import f as f_dist
 
         coef = bent.blocks[:, _POSE:]
+        sq = np.sum(r1.reshape(-1, 2) ** 2, axis=1)
+        per_view = np.sqrt(np.bincount(view, sq, n_views) / np.bincount(view, minlength=n_views))
         depth = [float(np.ptp(m @ c) * s * unit_m * 1e3) for (m, s), c in zip(design, coef)]
         var = rss1 / dof1 * bent.block_var[:, _POSE:]  # the residual variance times the diagonal of (J^T J)^-1
         to_mm = np.array([s for _, s in design])[:, None] * unit_m * 1e3
         out[name] = {
             "terms_per_view": k, "views": n_views, "points": len(view), "rms_flat_px": float(np.sqrt(2 * rss0 / len(r0))),
-            "rms_bent_px": float(np.sqrt(2 * rss1 / len(r1))), "bend_share": share, "bend_share_chance": chance,
+            "rms_bent_px": float(np.sqrt(2 * rss1 / len(r1))), "per_view_rms_bent_px": per_view.tolist(),
+            "bend_share": share, "bend_share_chance": chance,
             "bend_excess": (share - chance) / (1.0 - chance), "f_statistic": float(F),
             "p_value": float(f_dist.sf(F, q, dof1)), "extra_parameters": q, "residual_dof": dof1,
             "depth_mm": depth, "depth_mm_median": float(np.median(depth)), "scale_mm": (to_mm[:, 0]).tolist(),

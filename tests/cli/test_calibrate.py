@@ -116,6 +116,21 @@ def test_a_photo_without_the_board_is_listed_and_skipped(photos, tmp_path, capsy
     assert "board found in 4 of 5 photos (not found: " in said and "zhang.png" in said
 
 
+def test_a_bent_board_calibration_replaces_the_flat_one(photos, tmp_path, capsys):
+    """--board bent writes board_bend's quadratic fit as the calibration (K, distortion, RMS, each photo's RMS);
+    the default stays Zhang's flat board, and both JSONs give both fits."""
+    flat, _, _ = _calibrate(tmp_path, capsys, photos=(photos,), name="flat.json")
+    bent, said, _ = _calibrate(tmp_path, capsys, "--board", "bent", photos=(photos,), name="bent.json")
+    q = bent["board_bend"]["quadratic"]
+    assert flat["board"] == "flat" and bent["board"] == "bent" and "bent per photo" in bent["method"]
+    assert flat["board_bend"] == bent["board_bend"] and flat["reprojection_rms_px"] == pytest.approx(q["rms_flat_px"])
+    assert bent["fx_px"] == q["intrinsics_bent"]["fx_px"] and bent["dist_coeffs_opencv"] == \
+        q["intrinsics_bent"]["dist_coeffs_opencv"] and bent["fx_px"] != flat["fx_px"]
+    assert bent["reprojection_rms_px"] == q["rms_bent_px"] < flat["reprojection_rms_px"]
+    assert [p["rms_px"] for p in bent["photos"] if p["found"]] == q["per_view_rms_bent_px"] == bent["per_view_rms_px"]
+    assert f"RMS {q['rms_bent_px']:.4f} px" in said
+
+
 def test_files_globs_and_a_set_name_are_photos_each_once(photos, tmp_path, capsys):
     doc, _, _ = _calibrate(tmp_path, capsys, photos=(photos / "left01.jpg", f"{photos}/left0[1-3].jpg",
                                                      photos / "zhang.png"))
@@ -168,6 +183,7 @@ BAD = [
     ("corrupt-photo", ["{P}", "{TRUNC}", "--pattern", "9x6"], "cannot be decoded"),
     ("out-is-photo", ["{P}", "--pattern", "9x6", "-o", "{P}/left01.jpg"], "also the input"),
     ("out-is-dir", ["{P}", "--pattern", "9x6", "-o", "{P}"], "is a directory"),
+    ("board-unknown", ["{P}", "--pattern", "9x6", "--board", "wavy"], "--board"),
 ]
 
 

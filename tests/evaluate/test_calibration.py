@@ -44,3 +44,19 @@ def test_calibration_spec_recovers_fx_and_principal_point(tmp_path, fast_variant
     assert abs(e["fx_rel_pct"]) < 0.2 and abs(e["fy_rel_pct"]) < 0.2
     assert abs(e["cx_px"]) < 0.5 and abs(e["cy_px"]) < 0.5
     assert cal.rms_px < 0.1
+
+
+def test_a_bent_board_needs_every_photo_in_the_bend():
+    """``use_bent_board``: a photo with fewer than board_bend.MIN_CORNERS corners sat out of the bend fit, so its pose
+    has no bent counterpart: one line naming it and the fix."""
+    from edgetruth.errors import InputError
+    from edgetruth.evaluate.calibration import Calibration, PhotoResult, use_bent_board
+
+    cal = Calibration(K=np.eye(3), dist=np.zeros(5), image_size=(640, 480), rms_px=0.2, n_views=3,
+                      board_bend={"quadratic": {"views": 2}})
+    results = [PhotoResult("a.jpg", True, 54), PhotoResult("b.jpg", True, 8), PhotoResult("c.jpg", True, 54)]
+    with pytest.raises(InputError, match="b.jpg measured fewer than 13 corners.*--board flat"):
+        use_bent_board(cal, results)
+    with pytest.raises(InputError, match="--board bent"):
+        use_bent_board(Calibration(K=np.eye(3), dist=np.zeros(5), image_size=(640, 480), rms_px=0.2, n_views=3),
+                       results)
