@@ -26,7 +26,8 @@ def test_a_curled_board_is_found_at_its_depth():
     """Each view curled about one axis by 0.2-0.6 mm (ŷ² at the edge) under 0.01 px of noise per axis: the
     quadratic bend takes most of the flat fit's residual energy (measured 0.87-0.92 over seeds), p is tiny, each
     view's fitted depth is its true depth within 0.06 mm (measured <= 0.04), every height is within 3.5 of its
-    standard errors of the truth, and the bent fit's focal length is closer to the truth than the flat one's."""
+    standard errors of the truth, and the bent fit's focal length is closer to the truth than the flat one's
+    (measured 0.005 px against 0.92 px off)."""
     rng = np.random.default_rng(7)
     curl = np.c_[rng.uniform(-0.1, 0.1, 13), rng.uniform(-0.1, 0.1, 13), rng.uniform(0.2, 0.6, 13)]
     xy, img, K, dist, rv, tv, terms, s = curled_views(curl, 0.01)
