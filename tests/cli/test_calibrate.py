@@ -160,8 +160,10 @@ def test_channel_option_reads_colour_photos(photos, tmp_path, capsys):
 def test_the_json_keys_are_documented(photos, tmp_path, capsys):
     doc, _, _ = _calibrate(tmp_path, capsys, photos=(photos,))
     documented = set(re.findall(r"`([A-Za-z_][A-Za-z0-9_]*)`", (ROOT / "docs" / "formats.md").read_text()))
-    keys = set(doc) | set(doc["photos"][0])
-    assert not sorted(keys - documented)
+    keys = set(doc) | set(doc["photos"][0]) | set(doc["residual_structure"])
+    for fit in doc["board_bend"].values():
+        keys |= set(fit) | set(fit["intrinsics_bent"])
+    assert not sorted(keys - documented) and set(doc["board_bend"]) == {"quadratic", "cubic"}
 
 
 # --- bad input: one stderr line, exit 2, -o untouched ----------------------------------------------
