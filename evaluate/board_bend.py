@@ -46,6 +46,10 @@ MIN_CORNERS = 13
 _POSE = 6
 
 
+def _n_terms(degrees) -> int:
+    return sum(d + 1 for d in degrees)
+
+
 def monomials(board_xy: np.ndarray, degrees=(2,)) -> tuple[np.ndarray, float]:
     """(n, k) the height terms x̂^i ŷ^j (i + j in ``degrees``, x̂ first) of a view's board coordinates (n, 2),
     and the scale s (board units) that makes them dimensionless: z = s · terms @ c."""
@@ -88,56 +92,59 @@ def bend_check(board_xy: list[np.ndarray], image_xy: list[np.ndarray], K: np.nda
     rvecs, tvecs = [np.ravel(rvecs[v]) for v in use], [np.ravel(tvecs[v]) for v in use]
     n_views = len(xy)
     view = np.concatenate([np.full(len(b), v) for v, b in enumerate(xy)])
-    points = np.c_[np.concatenate(xy), np.zeros(len(view))]
+    if 2 * len(view) <= 9 + (_POSE + max(_n_terms(d) for d in ORDERS.values())) * n_views:
+        return {}
     K = np.asarray(K, float)
     base = np.r_[K[0, 0], K[1, 1], K[0, 2], K[1, 2], np.pad(np.ravel(dist), (0, 5))[:5]]
     poses = np.concatenate([np.ravel(rvecs).reshape(n_views, 3), np.ravel(tvecs).reshape(n_views, 3)], axis=1)
-    n_lens = 4 + int(np.sum(free_dist))
+    lens_free = np.r_[np.ones(4, bool), np.asarray(free_dist, bool)]
+    return {name: _fit_order(degrees, xy, view, img, base, poses, lens_free, unit_m, solver)
+            for name, degrees in ORDERS.items()}
+
+
+def _fit_order(degrees, xy, view, img, base, poses, lens_free, unit_m, solver) -> dict:
+    """The flat and the bent fit of one bend model (``ORDERS``), and what ``bend_check`` reports of them."""
+    from scipy.stats import f as f_dist
+
+    n_views, n_points = len(xy), len(view)
+    design = [monomials(b, degrees) for b in xy]
+    terms = np.concatenate([m * s for m, s in design])  # z = terms @ c per corner, board units
+    k = terms.shape[1]
+    points = np.c_[np.concatenate(xy), np.zeros(n_points)]
+
+    def residual(lens, per_view):
+        pts = points.copy()
+        pts[:, 2] = np.einsum("nk,nk->n", terms, per_view[view, _POSE:])
+        return (project(pts, view, per_view[:, :_POSE], lens[:4], lens[4:9]) - img).ravel()
+
     rows = np.repeat(view, 2)  # a residual row per axis of each corner
-    out = {}
-    for name, degrees in ORDERS.items():
-        design = [monomials(b, degrees) for b in xy]
-        terms = np.concatenate([m * s for m, s in design])  # z = terms @ c per corner, board units
-        k = terms.shape[1]
-        lens_free = np.r_[np.ones(4, bool), np.asarray(free_dist, bool)]
-        n_flat, n_bent = n_lens + _POSE * n_views, n_lens + (_POSE + k) * n_views
-        if 2 * len(view) <= n_bent + 1:
-            return {}
-
-        def residual(lens, per_view, terms=terms):
-            pts = points.copy()
-            pts[:, 2] = np.einsum("nk,nk->n", terms, per_view[view, _POSE:])
-            return (project(pts, view, per_view[:, :_POSE], lens[:4], lens[4:9]) - img).ravel()
-
-        # the flat board refitted with this projection, then the bend freed from it
-        flat = solver(residual, base, np.c_[poses, np.zeros((n_views, k))], rows, lens_free,
-                              np.r_[np.ones(_POSE, bool), np.zeros(k, bool)])
-        bent = solver(residual, flat.shared, flat.blocks, rows, lens_free, np.ones(_POSE + k, bool))
-        r0, r1 = flat.residual, bent.residual
-        rss0, rss1 = float(r0 @ r0), float(r1 @ r1)
-        q, dof0, dof1 = n_bent - n_flat, 2 * len(view) - n_flat, 2 * len(view) - n_bent
-        share, chance = 1.0 - rss1 / rss0, q / dof0
-        F = ((rss0 - rss1) / q) / (rss1 / dof1) if rss1 > 0 else float("inf")
-        from scipy.stats import f as f_dist
-
-        coef = bent.blocks[:, _POSE:]
-        sq = np.sum(r1.reshape(-1, 2) ** 2, axis=1)
-        per_view = np.sqrt(np.bincount(view, sq, n_views) / np.bincount(view, minlength=n_views))
-        depth = [float(np.ptp(m @ c) * s * unit_m * 1e3) for (m, s), c in zip(design, coef)]
-        var = rss1 / dof1 * bent.block_var[:, _POSE:]  # the residual variance times the diagonal of (J^T J)^-1
-        to_mm = np.array([s for _, s in design])[:, None] * unit_m * 1e3
-        out[name] = {
-            "terms_per_view": k, "views": n_views, "points": len(view), "rms_flat_px": float(np.sqrt(2 * rss0 / len(r0))),
-            "rms_bent_px": float(np.sqrt(2 * rss1 / len(r1))), "per_view_rms_bent_px": per_view.tolist(),
-            "bend_share": share, "bend_share_chance": chance,
+    # the flat board refitted with this projection, then the bend freed from it
+    flat = solver(residual, base, np.c_[poses, np.zeros((n_views, k))], rows, lens_free,
+                  np.r_[np.ones(_POSE, bool), np.zeros(k, bool)])
+    bent = solver(residual, flat.shared, flat.blocks, rows, lens_free, np.ones(_POSE + k, bool))
+    r0, r1 = flat.residual, bent.residual
+    rss0, rss1 = float(r0 @ r0), float(r1 @ r1)
+    n_flat = int(lens_free.sum()) + _POSE * n_views
+    q = k * n_views
+    dof0, dof1 = 2 * n_points - n_flat, 2 * n_points - n_flat - q
+    share, chance = 1.0 - rss1 / rss0, q / dof0
+    F = ((rss0 - rss1) / q) / (rss1 / dof1) if rss1 > 0 else float("inf")
+    coef = bent.blocks[:, _POSE:]
+    sq = np.sum(r1.reshape(-1, 2) ** 2, axis=1)
+    per_view = np.sqrt(np.bincount(view, sq, n_views) / np.bincount(view, minlength=n_views))
+    depth = [float(np.ptp(m @ c) * s * unit_m * 1e3) for (m, s), c in zip(design, coef)]
+    var = rss1 / dof1 * bent.block_var[:, _POSE:]  # the residual variance times the diagonal of (J^T J)^-1
+    to_mm = np.array([s for _, s in design])[:, None] * unit_m * 1e3
+    lens = bent.shared
+    return {"terms_per_view": k, "views": n_views, "points": n_points,
+            "rms_flat_px": float(np.sqrt(2 * rss0 / len(r0))), "rms_bent_px": float(np.sqrt(2 * rss1 / len(r1))),
+            "per_view_rms_bent_px": per_view.tolist(), "bend_share": share, "bend_share_chance": chance,
             "bend_excess": (share - chance) / (1.0 - chance), "f_statistic": float(F),
             "p_value": float(f_dist.sf(F, q, dof1)), "extra_parameters": q, "residual_dof": dof1,
-            "depth_mm": depth, "depth_mm_median": float(np.median(depth)), "scale_mm": (to_mm[:, 0]).tolist(),
+            "depth_mm": depth, "depth_mm_median": float(np.median(depth)), "scale_mm": to_mm[:, 0].tolist(),
             "coefficients_mm": (coef * to_mm).tolist(), "coefficients_se_mm": (np.sqrt(var) * to_mm).tolist(),
-            "intrinsics_bent": {"fx_px": float(bent.shared[0]), "fy_px": float(bent.shared[1]),
-                                "cx_px": float(bent.shared[2]), "cy_px": float(bent.shared[3]),
-                                "dist_coeffs_opencv": bent.shared[4:9].tolist()}}
-    return out
+            "intrinsics_bent": {"fx_px": float(lens[0]), "fy_px": float(lens[1]), "cx_px": float(lens[2]),
+                                "cy_px": float(lens[3]), "dist_coeffs_opencv": lens[4:9].tolist()}}
 
 
 def reading(b: dict, alpha: float = 0.01, full_lens: bool = True) -> str:
