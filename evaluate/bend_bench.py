@@ -9,7 +9,7 @@ import numpy as np
 
 from edgetruth.evaluate import block_lm
 from edgetruth.evaluate.board_bend import bend_check
-from edgetruth.evaluate.calibration import object_points
+from edgetruth.evaluate.calibration import object_points, solve_points
 
 #: (views, also time the dense reference): the dense solver's time grows with the square of the views
 SIZES = ((13, True), (40, True), (200, False))
@@ -28,9 +28,9 @@ def analytic_views(n_views: int, noise_px: float = 0.05, seed: int = 0):
         t = np.r_[rng.uniform(-0.03, 0.03, 2), rng.uniform(0.35, 0.5)] - cv2.Rodrigues(r)[0] @ [0.1, 0.0625, 0]
         p, _ = cv2.projectPoints(obj, r, t, K, dist)
         images.append((p[:, 0] + rng.normal(0, noise_px, (len(obj), 2))).astype(np.float32))
-    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
-    _, K1, d1, rv, tv = cv2.calibrateCamera([obj] * n_views, images, (640, 480), None, None, criteria=crit)
-    return [obj[:, :2]] * n_views, images, K1, d1.ravel(), rv, tv
+    poses: list = []
+    _, K1, d1, _ = solve_points([obj] * n_views, images, (640, 480), 0, poses=poses)
+    return [obj[:, :2]] * n_views, images, K1, d1, [r for r, _ in poses], [t for _, t in poses]
 
 
 def _median_time(fn, repeats: int) -> float:

@@ -185,8 +185,8 @@ def _match_order(detected: np.ndarray, true_px: np.ndarray) -> np.ndarray:
     return detected if fwd <= rev else detected[::-1]
 
 
-def _solve(obj_list, img_list, size_wh: tuple[int, int], flags: int, residuals: list | None = None,
-           poses: list | None = None):
+def solve_points(obj_list, img_list, size_wh: tuple[int, int], flags: int, residuals: list | None = None,
+                 poses: list | None = None):
     """cv2.calibrateCamera (iterated to 1e-12) -> (rms_px, K, dist (5,), per-view RMS px); ``residuals``, when
     given, receives each view's (n, 2) measured minus projected corners (px), ``poses`` its (rvec, tvec)."""
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
@@ -233,7 +233,7 @@ def calibrate(views: list[tuple[str, np.ndarray]], pattern_size: tuple[int, int]
         raise InputError(f"calibration: the board was found in only {len(used)} of {len(views)} images "
                          f"(need >= 3); check the pattern size {tuple(pattern_size)}")
     h, w = shape
-    rms, K, dist, per_view = _solve(obj_list, img_list, (w, h), flags)
+    rms, K, dist, per_view = solve_points(obj_list, img_list, (w, h), flags)
     cerr = {}
     if corner_err:
         e = np.concatenate(corner_err)
@@ -426,7 +426,7 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     flags, words = DIST_MODELS[model]
     residuals: list = []
     poses: list = []
-    rms, K, dist, per_view = _solve(obj_list, img_list, size, flags, residuals, poses)
+    rms, K, dist, per_view = solve_points(obj_list, img_list, size, flags, residuals, poses)
     for r, v in zip([r for r in results if r.found], per_view):
         r.rms_px = v
     window = "0.4 of the smallest imaged square side" if window_px is None else f"half-window {int(window_px)} px"

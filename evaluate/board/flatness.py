@@ -7,13 +7,11 @@ model before the check.  A chessboard's junctions are corners of two dark square
 """
 from __future__ import annotations
 
-import cv2
 import numpy as np
 
 from edgetruth.evaluate.board_bend import bend_check
-from edgetruth.evaluate.calibration import free_dist
+from edgetruth.evaluate.calibration import free_dist, solve_points
 
-_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
 MIN_VIEWS = 3
 
 
@@ -40,9 +38,10 @@ def board_flatness(corners: list[np.ndarray], model_corners: np.ndarray, image_s
             img.append(p[ok].astype(np.float32))
     if len(xy) < MIN_VIEWS:
         return {}
-    rms, K, dist, rv, tv = cv2.calibrateCamera([np.c_[x, np.zeros(len(x))].astype(np.float32) for x in xy], img,
-                                               tuple(image_size), None, None, criteria=_CRITERIA)
-    bend = bend_check(xy, img, K, dist.ravel(), rv, tv, free_dist(0), unit_m=unit_m)
+    poses: list = []
+    rms, K, dist, _ = solve_points([np.c_[x, np.zeros(len(x))].astype(np.float32) for x in xy], img, image_size, 0,
+                                   poses=poses)
+    bend = bend_check(xy, img, K, dist, [r for r, _ in poses], [t for _, t in poses], free_dist(0), unit_m=unit_m)
     if not bend:
         return {}
     return {"rms_px": float(rms), "views": len(xy), "corners": int(sum(len(x) for x in xy)), **bend}
