@@ -36,6 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from edgetruth.evaluate import block_lm
+from edgetruth.render.scene.bend import height_terms
 
 #: bend models: name -> the degrees of the monomials in the board's height
 ORDERS = {"quadratic": (2,), "cubic": (2, 3)}
@@ -56,8 +57,7 @@ def monomials(board_xy: np.ndarray, degrees=(2,)) -> tuple[np.ndarray, float]:
     p = np.asarray(board_xy, float)
     c = p.mean(0)
     s = float(max(np.abs(p - c).max(), 1e-12))
-    x, y = ((p - c) / s).T
-    return np.stack([x ** (d - j) * y ** j for d in degrees for j in range(d + 1)], axis=1), s
+    return height_terms((p - c) / s, degrees), s  # the renderer's terms: a rendered curl reads back as given
 
 
 def project(points: np.ndarray, view: np.ndarray, poses: np.ndarray, K4, dist5) -> np.ndarray:

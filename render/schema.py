@@ -26,7 +26,8 @@ class Key:
     name: str
     type: str  # "int", "float", "str", "bool", "name", "table", "tables" (a list of tables), "range2" (a [lo, hi]
     # pair), "ranges" ([[lo, hi], ...]), "vec3" ([x, y, z], each in [lo, hi]), "vec2" ([x, y], each in [lo, hi]),
-    # "points2" ([[x, y], ...], three or more, each coordinate in [lo, hi])
+    # "points2" ([[x, y], ...], three or more, each coordinate in [lo, hi]), "floats" ([a, b, ...], one or more
+    # numbers, each in [lo, hi])
     default: Any
     unit: str
     meaning: str
@@ -104,6 +105,10 @@ def check_value(k: Key, v, where: str):
                                                             all(_is_num(x) and _in(k, x) for x in p) for p in v)):
             bad(f"give three or more points [[x, y], ...], each a number in {rng}" + (f" {k.unit}" if k.unit else ""))
         v = tuple((float(p[0]), float(p[1])) for p in v)
+    elif k.type == "floats":
+        if not (isinstance(v, list) and v and all(_is_num(x) and _in(k, x) for x in v)):
+            bad(f"give [a, b, ...], each a number in {rng}" + (f" {k.unit}" if k.unit else ""))
+        v = tuple(float(x) for x in v)
     elif k.type == "table":
         if not isinstance(v, dict):
             bad("must be a table { key = value, ... }")

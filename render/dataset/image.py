@@ -33,17 +33,33 @@ _radiance_cache: dict = {}  # the last design-slot radiance this process rendere
 
 
 # --- scene objects ----------------------------------------------------------------
-def get_rig(kind: str, camera: Camera, settings: RenderSettings, extra=None, crop=None):
-    """The process-wide scene for (kind, camera, settings, ...): loaded once, re-posed per image."""
+def get_rig(kind: str, camera: Camera, settings: RenderSettings, extra=None, crop=None, bent: bool = False):
+    """The process-wide scene for (kind, camera, settings, ...): loaded once, re-posed per image (a
+    ``bent`` board's meshes re-shaped too)."""
     import mitsuba as mi
 
-    key = (mi.variant(), kind, camera, settings, extra, crop)
+    key = (mi.variant(), kind, camera, settings, extra, crop, bent)
     if key not in _rigs:
         if kind == "target":
             _rigs[key] = TargetRig(camera, settings, target_size_m=extra, crop=crop)
         else:  # checkerboard or squares: ``extra`` is the board
-            _rigs[key] = CheckerRig(camera, settings, board=extra, crop=crop)
+            _rigs[key] = CheckerRig(camera, settings, board=extra, crop=crop, bent=bent)
     return _rigs[key]
+
+
+def _board_state(job: Job, kind: str, camera: Camera, settings: RenderSettings, board, crop, pose, e_render):
+    """Pose (and curl) a board of squares or a checkerboard: its rig, the light's radiance, the bend
+    (or None) and the mesh's sag."""
+    bend = sag = None
+    if job.board_bend_mm is not None:
+        from edgetruth.render.scene.bend import BoardBend
+
+        bend = BoardBend.of(job.board_bend_mm, board.black_quads_local(0.0))
+    rig = get_rig(kind, camera, settings, board, crop, bent=bend is not None)
+    if bend is not None:
+        sag = rig.mesh_sag_m(bend)
+    le = rig.set_state(pose, e_render, job.light_position_m, bend=bend)
+    return rig, le, bend, sag
 
 
 def _half_view_m(camera: Camera, distance_m: float) -> np.ndarray:
@@ -136,17 +152,15 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
     elif job.kind == "squares":
         board = spec.squares
         pose = job_pose(job, camera, board.plate_corners_local())
-        rig = get_rig("squares", camera, settings, board, crop)
-        le = rig.set_state(pose, e_render, job.light_position_m)
-        gt = squares_ground_truth(camera, pose, board)
+        rig, le, bend, sag = _board_state(job, "squares", camera, settings, board, crop, pose, e_render)
+        gt = squares_ground_truth(camera, pose, board, bend, sag)
     else:
         board = spec.checkerboard
         if settings.checkerboard_spp:  # the board's own spp; the JSON's render.spp says what was used
             settings = replace(settings, spp=settings.checkerboard_spp, checkerboard_spp=0)
         pose = job_pose(job, camera, board.plate_corners_local())
-        rig = get_rig("checkerboard", camera, settings, board, crop)
-        le = rig.set_state(pose, e_render, job.light_position_m)
-        gt = checker_ground_truth(camera, pose, board)
+        rig, le, bend, sag = _board_state(job, "checkerboard", camera, settings, board, crop, pose, e_render)
+        gt = checker_ground_truth(camera, pose, board, bend, sag)
     key = (spec.identity_sha256, job.radiance_unit, job.slot, crop)
     t0 = time.perf_counter()
     if job.slot is not None and _radiance_cache.get("key") == key:

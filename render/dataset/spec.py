@@ -102,6 +102,14 @@ GROUP_KEYS = [
         "([spec] squares), else centred on the board (x right, y down, z into it); R must be a rotation "
         f"(R^T R = I within {ROTATION_TOLERANCE:g}, det +1; the nearest rotation is used); t in pose_unit_m"),
     Key("pose_unit_m", "float", 1.0, "m", "unit of the explicit poses' t (1: metres; 0.0254: inches)", 1e-9, 1e3),
+    Key("board_bend_mm", "floats", None, "mm", "kind = squares or checkerboard: the board curled, its height "
+        "(into the board) s * sum c_k m_k(x / s, y / s) over board coordinates centred on the printed squares, "
+        "s = half the larger side of their bounding box; 3 coefficients (x^2, xy, y^2: a cylinder, dome or "
+        "saddle) or 7 (and x^3, x^2 y, x y^2, y^3), each the monomial's height at the squares' edge "
+        "(edgetruth.render.scene.bend; the bend check of edgetruth calibrate fits the same terms); the "
+        "plate and squares are then fine meshes, the truth lies on the curled surface", -50.0, 50.0,
+        check=lambda v: None if len(v) in (3, 7) else "give 3 coefficients (x^2, xy, y^2) or 7 (and x^3, "
+        "x^2 y, x y^2, y^3)"),
     Key("light_position_m", "vec3", tuple(float(v) for v in LIGHT_OFFSET_M), "m", "where the square area light "
         "sits (camera frame), aimed at the board centre; z < 0 (behind the image plane: never in view)",
         -100.0, 100.0, check=lambda v: None if v[2] < 0 else "z must be < 0 (behind the camera's image plane), "
@@ -195,6 +203,8 @@ class Group:
     #: explicit poses (``ExplicitPose``, in the rendering's board frame: centred on the board), one per image
     poses: tuple | None = None
     light_position_m: tuple | None = None  # None: ``LIGHT_OFFSET_M``
+    #: the board's curl (coefficients, mm; ``render.scene.bend``), or None: flat
+    board_bend_mm: tuple | None = None
 
     @property
     def count(self) -> int:
@@ -237,6 +247,7 @@ class Job:
     #: an explicit pose (``ExplicitPose``, rendering board frame), or None: drawn from the pose seed
     pose: ExplicitPose | None = None
     light_position_m: tuple | None = None
+    board_bend_mm: tuple | None = None
 
 
 class Jobs:
@@ -272,7 +283,8 @@ class Jobs:
                    irradiance_w_m2=g.irradiance_w_m2, sensor=g.sensor, camera=g.camera, pose_seed=pose_seed,
                    render_seed=render_seed, slot=k if g.paired else None, levels=g.levels, base_levels=g.base_levels,
                    radiance_unit=g.radiance_unit, unit_irradiance_w_m2=g.unit_irradiance_w_m2,
-                   pose=None if g.poses is None else g.poses[k], light_position_m=g.light_position_m)
+                   pose=None if g.poses is None else g.poses[k], light_position_m=g.light_position_m,
+                   board_bend_mm=g.board_bend_mm)
 
     def __iter__(self):
         for i in range(len(self)):
@@ -329,6 +341,8 @@ class Spec:
                 d["poses"] = [p.to_dict() for p in g.poses]
             if g.light_position_m is not None:
                 d["light_position_m"] = list(g.light_position_m)
+            if g.board_bend_mm is not None:
+                d["board_bend_mm"] = list(g.board_bend_mm)
             if g.target is not None and not isinstance(g.target, str):  # a scene of its own
                 d["scene"] = g.target.resolved()
             groups.append(d)
@@ -568,6 +582,9 @@ def load_spec(name_or_path: str | Path) -> Spec:
         names.add(g["name"])
         if g["kind"] != "target" and "target" in raw:
             raise InputError(f"{where}: target = {raw['target']!r}: a {g['kind']} group has no target; remove it")
+        if g["kind"] == "target" and g.get("board_bend_mm") is not None:
+            raise InputError(f"{where}: board_bend_mm: a target scene's board is flat (its edge band and "
+                             "shadows are planar); bend a squares or checkerboard group, or remove it")
         if g.get("poses") is not None:
             given = sorted(k for k in POSE_KEYS if k in raw)
             if given:
@@ -602,7 +619,7 @@ def load_spec(name_or_path: str | Path) -> Spec:
         unit = unit_e = None
         if levels is not None:
             # cells that differ only in light power and sensor settings share one radiance render
-            key = (g["kind"], g["target"], json.dumps(camera.to_dict(), sort_keys=True))
+            key = (g["kind"], g["target"], json.dumps(camera.to_dict(), sort_keys=True), g.get("board_bend_mm"))
             if scene is not None:  # materials, shapes and lights change the radiance, not just its scale
                 key += (json.dumps(scene.resolved(), sort_keys=True),)
             if camera.moving:  # the exposure sets the motion blur: part of the radiance
@@ -620,7 +637,8 @@ def load_spec(name_or_path: str | Path) -> Spec:
                             roll_max_deg=g["roll_max_deg"], irradiance_w_m2=g["irradiance_w_m2"], sensor=sensor,
                             camera=camera, camera_overrides=cam_over, sensor_overrides=dict(g["sensor"]),
                             levels=levels, base_levels=cell["base"] if cell else None, radiance_unit=unit,
-                            unit_irradiance_w_m2=unit_e, poses=poses, light_position_m=light))
+                            unit_irradiance_w_m2=unit_e, poses=poses, light_position_m=light,
+                            board_bend_mm=g.get("board_bend_mm")))
         first += n
     _check_sample_counts(s, f"{src} [spec]")
     if s["edge_mode"] in ("analytic", "frame"):  # edgetruth.render.scene.edge_band.band_coverage's scope

@@ -96,15 +96,30 @@ def target_ground_truth(camera: Camera, pose: Pose, target, size_m: float, expos
     }
 
 
-def checker_ground_truth(camera: Camera, pose: Pose, board: Checkerboard) -> dict:
-    corners = pose.to_camera(board.inner_corners_local(-TARGET_STANDOFF_M))
-    return {
+def _bend_truth(bend, points_local: np.ndarray, sag_m: float | None) -> dict:
+    """The truth's ``board_bend``: the bend and the height of each of the board's ``points_local``."""
+    return {**bend.to_dict(), "heights_m": bend.height_m(points_local.reshape(-1, 3)).reshape(
+                points_local.shape[:-1]).tolist(),
+            "mesh_sag_m": sag_m, "mesh_meaning": "the rendered plate and squares are triangle meshes; "
+                                                 "no chord leaves the surface by more than mesh_sag_m"}
+
+
+def checker_ground_truth(camera: Camera, pose: Pose, board: Checkerboard, bend=None,
+                         sag_m: float | None = None) -> dict:
+    """The checkerboard's inner corners, on a board curled by ``bend`` (``render.scene.bend``; the
+    object points stay the flat model's: the heights are in ``board_bend``)."""
+    local = board.inner_corners_local(-TARGET_STANDOFF_M)
+    corners = pose.to_camera(local if bend is None else bend.lift(local))
+    out = {
         "checkerboard": {**board.to_dict(), "standoff_m": TARGET_STANDOFF_M},
         "corners": {"order": "row-major, x fastest (cv2.findChessboardCorners order for this orientation)",
                     "object_points_m": board.inner_corners_local(0.0).tolist(),
                     **_project_both(camera, corners)},
         "true_distance_m": float(pose.distance_m),
     }
+    if bend is not None:
+        out["board_bend"] = _bend_truth(bend, board.inner_corners_local(0.0), sag_m)
+    return out
 
 
 def model_pose(pose: Pose, board: SquareBoard) -> dict:
@@ -117,12 +132,15 @@ def model_pose(pose: Pose, board: SquareBoard) -> dict:
                        "model's unit, model_unit_m)"}
 
 
-def squares_ground_truth(camera: Camera, pose: Pose, board: SquareBoard) -> dict:
+def squares_ground_truth(camera: Camera, pose: Pose, board: SquareBoard, bend=None,
+                         sag_m: float | None = None) -> dict:
     """Every square's corners (model order), in the image and undistorted, and its exact distorted
-    outline as a dense polyline; the model points and the model frame's pose."""
+    outline as a dense polyline; the model points and the model frame's pose.  On a board curled by
+    ``bend`` (``render.scene.bend``) the corners and outlines lie on the curled surface; the model points
+    stay flat (the print's), each corner's height is in ``board_bend``."""
     quads = board.quads_local(-TARGET_STANDOFF_M)  # the printed squares (flush: 10 um in front of the plate)
     n = len(quads)
-    cam_pts = pose.to_camera(quads.reshape(-1, 3))
+    cam_pts = pose.to_camera((quads if bend is None else bend.lift(quads)).reshape(-1, 3))
     dist = camera.project(cam_pts, distorted=True).reshape(n, 4, 2)
     und = camera.project(cam_pts, distorted=False).reshape(n, 4, 2)
     from edgetruth.conventions import inside_image
@@ -130,12 +148,12 @@ def squares_ground_truth(camera: Camera, pose: Pose, board: SquareBoard) -> dict
     in_view = inside_image(dist[..., 0], dist[..., 1], camera.shape).all(axis=1) & (cam_pts[:, 2].reshape(n, 4) > 0).all(1)
     polylines, params, chord = [], [], 0.0
     for q in quads:
-        curve = OutlineCurve.polygon(camera, pose, q)
+        curve = OutlineCurve.polygon(camera, pose, q, bend=bend)
         t = curve.parameters()
         polylines.append(curve.points(t).tolist())
         params.append(t.tolist())
         chord = max(chord, curve.chord_error_px())
-    return {
+    out = {
         "squares": {**board.to_dict(), "standoff_m": TARGET_STANDOFF_M, "count": n,
                     "order": "model order (the model file's lines, or a pattern row-major from the top-left "
                              "square); each square's corners in the model's order (a pattern: top-left, top-right, "
@@ -154,6 +172,9 @@ def squares_ground_truth(camera: Camera, pose: Pose, board: SquareBoard) -> dict
                     "polyline_chord_error_px": chord},
         "true_distance_m": float(pose.translation_m[2]),
     }
+    if bend is not None:
+        out["board_bend"] = _bend_truth(bend, board.quads_local(0.0), sag_m)
+    return out
 
 
 def _board_corners(half_size_m=BOARD_HALF_SIZE_M) -> np.ndarray:

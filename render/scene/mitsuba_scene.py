@@ -477,8 +477,11 @@ class CheckerRig(_Rig):
     optionally, ``square_reflectance`` and ``board_reflectance``)."""
 
     def __init__(self, camera: Camera, settings: RenderSettings, board: Checkerboard = Checkerboard(), crop=None,
-                 window=None):
+                 window=None, bent: bool = False):
         self.board = board
+        #: plate and squares as fine meshes whose heights ``set_state`` sets (``render.scene.bend``); a flat
+        #: rig keeps Mitsuba's exact rectangle and one quad a square (its renders stay byte-identical)
+        self.bent = bent
         super().__init__(camera, settings, crop, window)
 
     def _mesh(self):
@@ -505,22 +508,54 @@ class CheckerRig(_Rig):
         self._verts_local = verts
         return mesh
 
+    def _bent_shapes(self, plate_bsdf: dict) -> dict:
+        from edgetruth.render.scene.bend import grid_mesh
+
+        mi = self.mi
+        self._plate_verts, self._plate_faces = grid_mesh(self.board.plate_corners_local()[None])
+        plate, _ = _make_mesh(mi, "plate", self._plate_verts, self._plate_faces, plate_bsdf)
+        self._verts_local, self._faces = grid_mesh(self.board.black_quads_local(-TARGET_STANDOFF_M))
+        checker, self._vertex_type = _make_mesh(mi, "checker", self._verts_local, self._faces, {
+            "type": "diffuse", "reflectance": float(getattr(self.board, "square_reflectance",
+                                                            CHECKER_BLACK_REFLECTANCE))})
+        return {"light": self._light_dict(), "plate": plate, "checker": checker}
+
     def _shapes(self) -> dict:
         half_x, half_y = self.board.half_size_m
         self._plate_local = _rect_local(half_x, half_y, 0.0)
+        plate_bsdf = {"type": "diffuse", "reflectance": float(getattr(self.board, "board_reflectance",
+                                                                      BOARD_REFLECTANCE))}
+        if self.bent:
+            return self._bent_shapes(plate_bsdf)
         mesh = self._mesh()
         return {
             "light": self._light_dict(),
-            "plate": {"type": "rectangle", "to_world": self._T(self._plate_local),
-                      "bsdf": {"type": "diffuse", "reflectance": float(
-                          getattr(self.board, "board_reflectance", BOARD_REFLECTANCE))}},
+            "plate": {"type": "rectangle", "to_world": self._T(self._plate_local), "bsdf": plate_bsdf},
             "checker": mesh,
         }
 
-    def set_state(self, pose: Pose, irradiance_w_m2: float, light_position_m=None) -> float:
-        self._set_transform("plate.to_world", pose.matrix @ self._plate_local)
-        self.params["checker.vertex_positions"] = self._vertex_type(
-            pose.to_camera(self._verts_local).astype(np.float32).ravel())
+    def mesh_sag_m(self, bend) -> float:
+        """The bent rig's largest chord sag under ``bend`` (m; ``render.scene.bend.check_sag``)."""
+        from edgetruth.render.scene.bend import check_sag
+
+        return max(check_sag(bend, self._plate_verts, self._plate_faces, "the plate"),
+                   check_sag(bend, self._verts_local, self._faces, "the squares"))
+
+    def set_state(self, pose: Pose, irradiance_w_m2: float, light_position_m=None, bend=None) -> float:
+        """Pose the board (and, on a bent rig, curl it by ``bend``, a ``render.scene.bend.BoardBend``;
+        None: flat) and set the light; the light's radiance."""
+        if self.bent:
+            def place(v):
+                return pose.to_camera(v if bend is None else bend.lift(v)).astype(np.float32).ravel()
+
+            self.params["plate.vertex_positions"] = self._vertex_type(place(self._plate_verts))
+            self.params["checker.vertex_positions"] = self._vertex_type(place(self._verts_local))
+        else:
+            if bend is not None:
+                raise ValueError("a flat CheckerRig cannot bend: make it with bent=True")
+            self._set_transform("plate.to_world", pose.matrix @ self._plate_local)
+            self.params["checker.vertex_positions"] = self._vertex_type(
+                pose.to_camera(self._verts_local).astype(np.float32).ravel())
         le = self._set_light(pose, irradiance_w_m2, light_position_m)
         self.params.update()
         return le

@@ -67,13 +67,16 @@ class OutlineCurve:
     vertices: tuple | None = None
     #: ``shape = "ellipse"``: (cx, cy, a, b, theta_rad) in the board frame (semi-axes a, b)
     conic: tuple | None = None
+    #: a curled board (``render.scene.bend.BoardBend``): every point lifted by its height; None: flat
+    bend: object = None
 
     @classmethod
-    def polygon(cls, camera: Camera, pose: Pose, vertices_local) -> "OutlineCurve":
-        """The outline of the polygon with ``vertices_local`` ((n, 3) board frame, z included)."""
+    def polygon(cls, camera: Camera, pose: Pose, vertices_local, bend=None) -> "OutlineCurve":
+        """The outline of the polygon with ``vertices_local`` ((n, 3) board frame, z included), on a board
+        curled by ``bend`` (its sides then follow the surface: curves in space)."""
         v = np.asarray(vertices_local, dtype=np.float64).reshape(-1, 3)
         return cls(camera, pose, "polygon", 0.0, standoff_m=float(-v[0, 2]),
-                   vertices=tuple(tuple(float(c) for c in row) for row in v))
+                   vertices=tuple(tuple(float(c) for c in row) for row in v), bend=bend)
 
     @classmethod
     def ellipse(cls, camera: Camera, pose: Pose, conic, standoff_m: float = TARGET_STANDOFF_M) -> "OutlineCurve":
@@ -97,6 +100,10 @@ class OutlineCurve:
 
     def local(self, t) -> np.ndarray:
         """Board-frame points at curve parameters t (N,) -> (N, 3)."""
+        p = self._flat_local(t)
+        return p if self.bend is None else self.bend.lift(p)
+
+    def _flat_local(self, t) -> np.ndarray:
         t = np.mod(np.asarray(t, float), 1.0)
         h = self.size_m / 2.0
         z = np.full_like(t, -self.standoff_m)

@@ -27,6 +27,7 @@ from edgetruth.render.scene.pose import ExplicitPose, Pose
 from edgetruth.render.dataset.spec import load_spec
 from edgetruth.render.scene.targets import TARGET_STANDOFF_M, SquareBoard
 from edgetruth.resources import real_set
+from tests.support.side_offsets import side_offsets
 
 ROOT = Path(__file__).resolve().parents[3]
 INCH = 0.0254
@@ -203,33 +204,6 @@ def test_twin_truth_is_his_projection():
 
 
 # --- a rendered board of squares ------------------------------------------------------------------
-def _side_offsets(img: np.ndarray, camera, pose, quads: np.ndarray) -> np.ndarray:
-    """Per square side: the ERF edge position, fitted on the pixels within 3.5 px of the side's middle
-    60 % as a function of their signed distance to the exact distorted outline, minus 0 (the outline)."""
-    from scipy.optimize import least_squares
-    from scipy.special import ndtr
-
-    out = []
-    for q in quads:
-        curve = OutlineCurve.polygon(camera, pose, q)
-        for k in range(4):
-            side = curve.points((k + np.linspace(0.2, 0.8, 120)) / 4)
-            lo = np.floor(side.min(0) - 4).astype(int)
-            hi = np.ceil(side.max(0) + 4).astype(int)
-            ys, xs = (a.ravel() for a in np.mgrid[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1])
-            dist = np.hypot(xs[:, None] - side[None, :, 0], ys[:, None] - side[None, :, 1])
-            j = dist.argmin(1)
-            keep = (j > 1) & (j < len(side) - 2) & (dist.min(1) <= 3.5)
-            xs, ys = xs[keep], ys[keep]
-            d = curve.signed_distance(xs.astype(float), ys.astype(float))
-            v = img[ys, xs].astype(np.float64)
-            p0 = [np.percentile(v, 2), np.ptp(v), 0.0, 0.6]
-            res = least_squares(lambda p: p[0] + p[1] * ndtr((d - p[2]) / p[3]) - v, p0,
-                                x_scale=[p0[1], p0[1], 0.1, 0.1])
-            out.append(res.x[2])
-    return np.asarray(out)
-
-
 def test_rendered_board_edges_lie_on_the_exact_outline(fast_variant):
     """The twin's image 0 (its PSF, distortion and K; radiance at 64 spp): an ERF fitted across each of
     the 256 square sides against the signed distance to the exact distorted outline centres within
@@ -245,7 +219,7 @@ def test_rendered_board_edges_lie_on_the_exact_outline(fast_variant):
     rig = get_rig("squares", job.camera, RenderSettings(spp=64, sampler="multijitter"), spec.squares)
     rig.set_state(job.pose, job.irradiance_w_m2, job.light_position_m)
     img = rig.render(7)
-    mu = _side_offsets(img, job.camera, job.pose, spec.squares.quads_local(-TARGET_STANDOFF_M))
+    mu = side_offsets(img, job.camera, job.pose, spec.squares.quads_local(-TARGET_STANDOFF_M))
     print(f"side offsets: mean {mu.mean():+.4f} px, SD {mu.std():.4f}, max |.| {np.abs(mu).max():.4f} (n = {len(mu)})")
     assert len(mu) == 256 and abs(mu.mean()) < 0.002 and np.abs(mu).max() < 0.025
 
