@@ -210,8 +210,11 @@ def settings_of(set_name: str, methods, options, images, spp, spec_sha: str, cha
 
 
 def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | None = None, thresholds=None,
-                   channel: str = "luma", variant: str | None = None, progress: bool = True) -> Path:
-    """Render the twin of ``set_name`` and compare it with the photos (module docstring); returns report.md."""
+                   channel: str = "luma", variant: str | None = None, progress: bool = True,
+                   twin: str | None = None) -> Path:
+    """Render the twin of ``set_name`` and compare it with the photos (module docstring); returns report.md.
+    ``twin``: the twin scene (a shipped spec name or a TOML path; default the set's own, ``TWINS``), e.g.
+    ``opencv_left_twin_bent``, whose boards curl as the photos' do."""
     from edgetruth.evaluate.board.photo_model import derive_twin, measure_photo
     from edgetruth.evaluate.board.study import compute_board_study, write_board_run
     from edgetruth.evaluate.run_dir import prepare_run_dir
@@ -221,6 +224,7 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
 
     t0 = time.perf_counter()
     spec_name = check_set(set_name)
+    spec_name = spec_name if twin is None else twin
     real_all = resolve_inputs([set_name])
     keep = check_images(images, len(real_all.photos))
     spec = twin_spec(spec_name, spp)

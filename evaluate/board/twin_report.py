@@ -285,7 +285,7 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
                  f"{', '.join(derived.get('noise_from', []))}.", ""]),
              settings_table(derived, jobs), "",
              *closed_loop_lines(derived), "",
-             *flatness_lines(flatness),
+             *flatness_lines(flatness, bent=any(g.board_bend_mm is not None for g in spec.groups)),
              "## Reading", "", *reading(rows, rk, methods, diag, floor, real_s, twin_s), *flatness_reading(flatness),
              "- How each setting was measured and what each fix changed (the ρ before and after each): "
              "docs/board.md, \"Digital twin\".", "",
@@ -300,10 +300,16 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
     return report
 
 
-def flatness_lines(flatness: dict | None) -> list[str]:
-    """Table 5: is the board flat, on the photos, the twin and the twin's exact outline (``flatness_rows``)."""
+def flatness_lines(flatness: dict | None, bent: bool = False) -> list[str]:
+    """Table 5: is the board flat, on the photos, the twin and the twin's exact outline (``flatness_rows``);
+    ``bent``: the twin's spec curls its boards (``board_bend_mm``)."""
     if not flatness:
         return []
+    exact = ("The twin's boards are curled (its spec's `board_bend_mm`): the exact outline's row reads that bend "
+             "back through the study's procedure alone, without any method's error." if bent else
+             "The exact outline's row is the study's procedure alone on a flat board: its corners carry only the "
+             "small smooth error of straight lines fitted to sides the lens bows, which a bend of a hundredth of a "
+             "millimetre takes in part -- significant at that RMS, not a bend.")
     body = []
     for label, f in flatness.items():
         q, c = f["quadratic"], f["cubic"]
@@ -317,10 +323,7 @@ def flatness_lines(flatness: dict | None) -> list[str]:
             "study's k1, k2 leave out), then refitted with the board's height in each view a quadratic of its board "
             "coordinates (3 terms a view), or a cubic (7), by `evaluate/board_bend.py`: the share of the residual "
             "energy the bend takes (what chance gives), the F test of the nested fits, and the bend's median "
-            "peak-to-valley depth over a view's corners (mm).  The exact outline's row is the study's procedure "
-            "alone on a flat board: its corners carry only the small smooth error of straight lines fitted to sides "
-            "the lens bows, which a bend of a hundredth of a millimetre takes in part -- significant at that "
-            "RMS, not a bend.", "",
+            "peak-to-valley depth over a view's corners (mm).  " + exact, "",
             table(["corners of", "method", "views", "corners", "RMS flat (px)", "RMS bent (px)",
                    "quadratic bend takes (chance)", "F", "p", "depth (mm)", "cubic takes (chance)"], body), ""]
 

@@ -3,6 +3,8 @@ depth, a flat board is not called bent, and OpenCV's photos bend (``edgetruth ca
 from __future__ import annotations
 
 import json
+import re
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -10,7 +12,10 @@ import pytest
 
 from edgetruth.evaluate.board_bend import bend_check, project, reading
 from edgetruth.evaluate.calibration import DIST_MODELS, free_dist
+from edgetruth.render.dataset.spec import load_spec
 from tests.evaluate.bent_views import DIST_TRUE, K_TRUE, view_poses, curled_views
+
+ROOT = Path(__file__).resolve().parents[2]
 
 def test_projection_is_opencvs():
     """``project`` reproduces cv2.projectPoints (5-term Brown-Conrady) to 1e-9 px on points off the board plane."""
@@ -127,3 +132,34 @@ def test_opencv_photos_bend(tmp_path, capsys):
     assert 0.25 < q["bend_share"] < 0.4 and q["p_value"] < 1e-20 and q["rms_bent_px"] < 0.135
     assert all(0.2 < d < 1.2 for d in q["depth_mm"]) and all(h[2] > 0.1 for h in q["coefficients_mm"])
     assert b["cubic"]["bend_share"] > q["bend_share"] and "the board bends" in capsys.readouterr().out
+
+
+def test_a_rendered_curl_reads_back(fast_variant, tmp_path, capsys):
+    """The closed loop: OpenCV's twin rendered with each photo's own curl (``scenes/opencv_left_twin_bent.toml``,
+    16 spp) and calibrated from its PNGs as the photos are (line corners, 5-term model): the check finds the bend
+    and every view's coefficients at those the spec renders (rescaled to the check's s), within 0.1 mm (the
+    photos' standard errors are 0.06-0.11 mm); the bent fit leaves the flat twin's RMS (0.023 px at 256 spp).
+    Measured at 256 spp (docs/board.md, "A bent twin"): flat RMS 0.090 px, 93 % to the bend, bent 0.023 px;
+    read-back error 0.013-0.020 mm RMS per term, at most 0.039 mm."""
+    from edgetruth.cli import main
+    from edgetruth.render.dataset.driver import render_spec
+    from edgetruth.render.scene.bend import BoardBend
+
+    text = (ROOT / "scenes" / "opencv_left_twin_bent.toml").read_text()
+    p = tmp_path / "bent.toml"
+    p.write_text(re.sub(r"(?m)^spp = \d+", "spp = 16", text))
+    spec = load_spec(p)
+    render_spec(spec, tmp_path / "r", progress=False, announce=lambda s: None)
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", str(tmp_path / "r" / "*.png"), "--pattern", "9x6", "--square-m", "0.025",
+                 "--corners", "lines", "-o", str(out), "--no-progress"]) == 0
+    q = json.loads(out.read_text())["board_bend"]["quadratic"]
+    s_render = BoardBend.of((0, 0, 0), spec.squares.black_quads_local(0.0)).scale_m * 1e3
+    given = np.array([g.board_bend_mm for g in spec.groups]) * (np.array(q["scale_mm"])[:, None] / s_render) ** 2
+    err = np.array(q["coefficients_mm"]) - given
+    assert "the board bends" in capsys.readouterr().out
+    with capsys.disabled():
+        print(f"read-back error: RMS {np.sqrt((err ** 2).mean(0)).round(3)} mm, max {np.abs(err).max():.3f}; "
+              f"RMS {q['rms_flat_px']:.3f} -> {q['rms_bent_px']:.3f} px, share {q['bend_share']:.2f}")
+    assert q["views"] == 13 and np.abs(err).max() < 0.1
+    assert q["rms_bent_px"] < 0.035 < 0.07 < q["rms_flat_px"] and q["bend_share"] > 0.8

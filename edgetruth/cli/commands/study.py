@@ -12,7 +12,7 @@ from edgetruth.errors import InputError
 _SYNTHETIC_ONLY = {"preset": "--preset", "images_per_scenario": "--images-per-scenario", "workers": "-j/--workers",
                    "address": "--address"}
 _BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model", "pattern": "--pattern", "square": "--square", "tone": "--tone"}
-_TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant"}
+_TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant", "twin": "--twin"}
 
 
 def register(sub) -> None:
@@ -61,6 +61,10 @@ def register(sub) -> None:
     p.add_argument("--spp", type=positive_int, default=None,
                    help="twin: samples per pixel of the renders (a power of 4 up to 16384; default the scene's 256)")
     p.add_argument("--variant", default=None, help="twin: Mitsuba variant of the renders (default: the fastest here)")
+    p.add_argument("--twin", default=None, metavar="SPEC",
+                   help="twin: the twin scene to render, a shipped spec or a TOML path with one image per photo "
+                        "(default: the set's, SET_twin); opencv_left_twin_bent curls each board as its photo's "
+                        "(docs/board.md, 'A bent twin')")
     p.add_argument("--preset", choices=["quick", "full"], default=None,
                    help="synthetic: quick (default): 24 images per scenario (~1 min); full: 200 per scenario "
                         "(the seed's scale)")
@@ -103,7 +107,7 @@ def run(args) -> int:
             raise InputError("study twin: give one shipped set's name, e.g. `edgetruth study twin zhang1998 -o DIR`")
         report = run_twin_study(args.inputs[0], out, methods=method_list(args.methods), images=_images(args.images),
                                 spp=args.spp, thresholds=args.thresholds, channel=args.channel, variant=args.variant,
-                                progress=not args.no_progress)
+                                progress=not args.no_progress, twin=args.twin)
         console.say(f"report: {report}")
         return 0
     if args.kind == "board":
