@@ -109,3 +109,21 @@ def test_render_help_and_spec_doc_list_every_shipped_spec(capsys):
 def test_every_render_option_still_has_help():
     sub = next(a for a in build_parser()._actions if a.__class__.__name__ == "_SubParsersAction")
     assert all(a.help for a in sub.choices["render"]._actions)
+
+
+def test_a_closed_pipe_ends_quietly(tmp_path):
+    """`edgetruth methods | head -1`: when the reader goes away the command ends with the shell's SIGPIPE code
+    (141) and no traceback."""
+    import subprocess
+    import sys
+
+    read, write = os.pipe()
+    os.close(read)  # the reader is gone before the first line
+    try:
+        proc = subprocess.run([sys.executable, "-c", "import sys; from edgetruth.cli import main; "
+                               "sys.exit(main(['methods']))"], stdout=write, stderr=subprocess.PIPE, cwd=tmp_path,
+                              env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+    finally:
+        os.close(write)
+    err = proc.stderr.decode()
+    assert proc.returncode == 141 and "Traceback" not in err, err
