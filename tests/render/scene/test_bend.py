@@ -260,3 +260,15 @@ levels = [ { name = "flat" }, { name = "c05", board_bend_mm = [0.0, 0.0, 0.5] } 
     assert len(flat) == len(curled) == 3
     assert [j.pose_seed for j in flat] == [j.pose_seed for j in curled]
     assert {j.radiance_unit for j in flat}.isdisjoint({j.radiance_unit for j in curled})
+
+
+def test_shipped_curl_sweep_pairs_its_boards():
+    """scenes/calibration_curl.toml: three boards (flat, cylinder, dome) on the same 20 poses, each its own render."""
+    spec = load_spec("calibration_curl")
+    cells = {}
+    for j in spec.jobs:
+        cells.setdefault(j.group, []).append(j)
+    assert sorted(cells) == ["cylinder", "dome", "flat"] and all(len(v) == 20 for v in cells.values())
+    assert cells["flat"][0].board_bend_mm is None and cells["dome"][0].board_bend_mm == (0.5, 0.0, 0.5)
+    assert [j.pose_seed for j in cells["flat"]] == [j.pose_seed for j in cells["dome"]]
+    assert len({j.radiance_unit for v in cells.values() for j in v[:1]}) == 3
