@@ -43,7 +43,7 @@ def _median_time(fn, repeats: int) -> float:
 
 
 def run_bench(repeats: int = 3) -> list[str]:
-    lines = ["bent-board check (edgetruth calibrate; quadratic + cubic refits of 9x6 boards), median of "
+    lines = ["bent-board check (edgetruth calibrate; quadratic, cubic and common refits of 9x6 boards), median of "
              f"{repeats} (dense: 1 run):"]
     bend_check(*analytic_views(SIZES[0][0]))  # imports and first calls, untimed
     for n_views, dense in SIZES:

@@ -30,6 +30,8 @@ class Fit:
     residual: np.ndarray
     block_var: np.ndarray
     iterations: int
+    #: (ns,) each shared parameter's variance per unit residual variance (NaN where held fixed)
+    shared_var: np.ndarray | None = None
 
 
 def _jacobian(residual, shared, blocks, fs, fb, row_block):
@@ -116,7 +118,9 @@ def solve(residual, shared0, blocks0, row_block, free_shared, free_block, rel_to
     var = np.einsum("vii->vi", Vinv + np.einsum("vij,ik,vkl->vjl", Y, np.linalg.pinv(S), Y))
     block_var = np.full(blocks.shape, np.nan)
     block_var[:, fb] = var
-    return Fit(shared, blocks, r, block_var, it)
+    shared_var = np.full(shared.shape, np.nan)
+    shared_var[fs] = np.diag(np.linalg.pinv(S))  # the shared block of (J^T J)^-1 is the Schur complement's inverse
+    return Fit(shared, blocks, r, block_var, it, shared_var)
 
 
 def solve_dense(residual, shared0, blocks0, row_block, free_shared, free_block, rel_tol: float = 1e-12) -> Fit:
@@ -138,7 +142,9 @@ def solve_dense(residual, shared0, blocks0, row_block, free_shared, free_block, 
     r = least_squares(lambda v: residual(*unpack(v)), np.r_[shared0[fs], blocks0[:, fb].ravel()], method="lm",
                       x_scale="jac", xtol=rel_tol, ftol=rel_tol, max_nfev=100 * MAX_ITERATIONS)
     shared, blocks = unpack(r.x)
-    var = np.diag(np.linalg.pinv(r.jac.T @ r.jac))[fs.sum():].reshape(n_views, -1)
+    diag = np.diag(np.linalg.pinv(r.jac.T @ r.jac))
     block_var = np.full(blocks.shape, np.nan)
-    block_var[:, fb] = var
-    return Fit(shared, blocks, r.fun, block_var, int(r.nfev))
+    block_var[:, fb] = diag[fs.sum():].reshape(n_views, -1)
+    shared_var = np.full(shared.shape, np.nan)
+    shared_var[fs] = diag[:fs.sum()]
+    return Fit(shared, blocks, r.fun, block_var, int(r.nfev), shared_var)

@@ -266,7 +266,8 @@ def calibrate_dataset(out_dir: str | Path, names: list[str] | None = None, progr
 
 
 def use_bent_board(cal: Calibration, results: list, model: str = "quadratic") -> Calibration:
-    """``edgetruth calibrate --board bent``: the calibration with the board bent per view (``cal.board_bend[model]``,
+    """``edgetruth calibrate --board bent|common``: the calibration with the board bent per view, or by one shape
+    common to every view (``model`` = "common"; ``cal.board_bend[model]``,
     ``evaluate/board_bend.py``) in place of the flat one: K, distortion, RMS and each photo's RMS (``results``,
     ``PhotoResult``, updated).  Every found photo must have taken part (``board_bend.MIN_CORNERS`` corners)."""
     from edgetruth.evaluate.board_bend import MIN_CORNERS
@@ -274,15 +275,19 @@ def use_bent_board(cal: Calibration, results: list, model: str = "quadratic") ->
     b = cal.board_bend.get(model)
     if not b or b["views"] != cal.n_views:
         few = [r.photo for r in results if r.found and r.corners < MIN_CORNERS]
-        raise InputError(f"--board bent: {', '.join(few) or 'some photos'} measured fewer than {MIN_CORNERS} corners, "
-                         f"and a bend per photo needs {MIN_CORNERS}; leave those photos out or use --board flat")
+        flag = "common" if model == "common" else "bent"
+        raise InputError(f"--board {flag}: {', '.join(few) or 'some photos'} measured fewer than {MIN_CORNERS} "
+                         f"corners, and the bent fits need {MIN_CORNERS} a photo; leave those photos out or use "
+                         "--board flat")
     i = b["intrinsics_bent"]
     K = np.array([[i["fx_px"], 0.0, i["cx_px"]], [0.0, i["fy_px"], i["cy_px"]], [0.0, 0.0, 1.0]])
     for r, v in zip([r for r in results if r.found], b["per_view_rms_bent_px"]):
         r.rms_px = v
+    how = ("the board bent the same way in every photo (one quadratic height" if model == "common" else
+           f"the board bent per photo ({model} height")
     return replace(cal, K=K, dist=np.asarray(i["dist_coeffs_opencv"], float), rms_px=b["rms_bent_px"],
                    per_view_rms_px=list(b["per_view_rms_bent_px"]),
-                   method=cal.method + f", the board bent per photo ({model} height, evaluate/board_bend.py)")
+                   method=cal.method + f", {how}, evaluate/board_bend.py)")
 
 
 # --- real photographs ----------------------------------------------------------------------------------

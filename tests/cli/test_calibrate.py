@@ -129,6 +129,10 @@ def test_a_bent_board_calibration_replaces_the_flat_one(photos, tmp_path, capsys
     assert bent["reprojection_rms_px"] == q["rms_bent_px"] < flat["reprojection_rms_px"]
     assert [p["rms_px"] for p in bent["photos"] if p["found"]] == q["per_view_rms_bent_px"] == bent["per_view_rms_px"]
     assert f"RMS {q['rms_bent_px']:.4f} px" in said
+    common, _, _ = _calibrate(tmp_path, capsys, "--board", "common", photos=(photos,), name="common.json")
+    c = common["board_bend"]["common"]
+    assert common["board"] == "common" and "the same way in every photo" in common["method"]
+    assert common["fx_px"] == c["intrinsics_bent"]["fx_px"] and common["reprojection_rms_px"] == c["rms_bent_px"]
 
 
 def test_files_globs_and_a_set_name_are_photos_each_once(photos, tmp_path, capsys):
@@ -163,7 +167,7 @@ def test_the_json_keys_are_documented(photos, tmp_path, capsys):
     keys = set(doc) | set(doc["photos"][0]) | set(doc["residual_structure"])
     for fit in doc["board_bend"].values():
         keys |= set(fit) | set(fit["intrinsics_bent"])
-    assert not sorted(keys - documented) and set(doc["board_bend"]) == {"quadratic", "cubic"}
+    assert not sorted(keys - documented) and set(doc["board_bend"]) == {"quadratic", "cubic", "common"}
 
 
 # --- bad input: one stderr line, exit 2, -o untouched ----------------------------------------------

@@ -60,3 +60,5 @@ def test_a_bent_board_needs_every_photo_in_the_bend():
     with pytest.raises(InputError, match="--board bent"):
         use_bent_board(Calibration(K=np.eye(3), dist=np.zeros(5), image_size=(640, 480), rms_px=0.2, n_views=3),
                        results)
+    with pytest.raises(InputError, match="--board common: b.jpg"):
+        use_bent_board(cal, results, "common")

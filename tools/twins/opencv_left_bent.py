@@ -41,7 +41,7 @@ def bent_twin_text(calibration: dict, twin_text: str, s_render_mm: float) -> str
         if n != 1:
             raise SystemExit(f"{name}: no squares group of that name in {TWIN.name}")
     head = ("# OpenCV's twin with each photo's own bend: written by tools/twins/opencv_left_bent.py from edgetruth\n"
-            "# calibrate's bend check on the photos (line corners, 5-term model; quadratic: x^2, xy, y^2 a photo), the\n"
+            "# calibrate's bend check on the photos (line corners, 5-term model; x^2, xy, y^2 a photo), the\n"
             f"# coefficients rescaled from the check's s = {q['scale_mm'][0]:.1f} mm to the renderer's "
             f"s = {s_render_mm:.3f} mm.  docs/board.md, \"A bent twin\".\n")
     return head + text

@@ -42,11 +42,12 @@ def register(sub) -> None:
                         "Chessboards), with erf4p_fixed11 or the METHOD given (options as in --methods, e.g. "
                         "lines:canny_devernay); a grid corner whose one square between the inner corners is light is "
                         "measured on the grid segments either side of it, the outer ones in the board's outer ring")
-    p.add_argument("--board", choices=("flat", "bent"), default="flat",
+    p.add_argument("--board", choices=("flat", "bent", "common"), default="flat",
                    help="flat (default): Zhang's flat board; bent: the calibration refitted with the board's height "
                         "in each photo a quadratic of its board coordinates (a print that curls; docs/board.md), "
-                        "its K and distortion written in place of the flat ones.  Either way the JSON's board_bend "
-                        "gives both fits and how much of the residual the bend takes")
+                        "its K and distortion written in place of the flat ones; common: one quadratic height "
+                        "shared by every photo (a rigid board that is warped).  Either way the JSON's board_bend "
+                        "gives every fit and how much of the residual each bend takes")
     p.add_argument("-o", "--output", required=True, help="JSON file to write (written atomically)")
     add_image_options(p)
     add_progress_option(p)
@@ -132,10 +133,10 @@ def run(args: argparse.Namespace) -> int:
         photos, pattern, square_m, model=args.model, window_px=window, channel=args.channel,
         corner_finder=finder, corner_label=corner_label,
         progress=lambda it: console.track(it, desc="calibrate", unit="photo", enabled=not args.no_progress))
-    if args.board == "bent":
+    if args.board != "flat":
         from edgetruth.evaluate.calibration import use_bent_board
 
-        cal = use_bent_board(cal, results)
+        cal = use_bent_board(cal, results, "quadratic" if args.board == "bent" else "common")
     doc = cal.to_dict()
     doc.update({"pattern_size": list(pattern), "square_m": square_m, "model": args.model, "board": args.board,
                 "subpix_window": "auto" if window is None else window, "corners": args.corners,
