@@ -1,5 +1,6 @@
 """The block Levenberg-Marquardt (``block_lm``): exact on a linear problem with shared and per-view parameters, its
-variances the diagonal of (JᵀJ)⁻¹, and the same answer as the dense reference on a bent-board calibration."""
+variances (shared and per view) the diagonal of (JᵀJ)⁻¹, and the same answer as the dense reference on a bent-board
+calibration."""
 from __future__ import annotations
 
 import numpy as np
@@ -33,8 +34,11 @@ def test_linear_problem_is_solved_exactly():
     fit = block_lm.solve(residual, np.zeros(3), np.zeros((7, 4)), view, np.ones(3, bool), np.ones(4, bool))
     x = np.linalg.lstsq(dense, y, rcond=None)[0]
     assert np.abs(fit.shared - x[:3]).max() < 1e-8 and np.abs(fit.blocks.ravel() - x[3:]).max() < 1e-8
-    var = np.diag(np.linalg.inv(dense.T @ dense))[3:].reshape(7, 4)
-    assert np.allclose(fit.block_var, var, rtol=1e-8, atol=0)
+    var = np.diag(np.linalg.inv(dense.T @ dense))
+    assert np.allclose(fit.block_var, var[3:].reshape(7, 4), rtol=1e-8, atol=0)
+    assert np.allclose(fit.shared_var, var[:3], rtol=1e-8, atol=0)
+    ref = block_lm.solve_dense(residual, np.zeros(3), np.zeros((7, 4)), view, np.ones(3, bool), np.ones(4, bool))
+    assert np.allclose(ref.shared_var, var[:3], rtol=1e-6, atol=0)
 
 
 def test_held_parameters_stay_and_have_no_variance():
@@ -43,6 +47,7 @@ def test_held_parameters_stay_and_have_no_variance():
     fit = block_lm.solve(residual, np.zeros(3), b0, view, np.array([True, False, True]),
                          np.array([True, True, False, True]))
     assert fit.shared[1] == 0.0 and np.all(fit.blocks[:, 2] == 0.5) and np.all(np.isnan(fit.block_var[:, 2]))
+    assert np.isnan(fit.shared_var[1]) and np.all(np.isfinite(fit.shared_var[[0, 2]]))
     keep = np.r_[0, 2, [3 + 4 * v + j for v in range(7) for j in (0, 1, 3)]]
     x = np.linalg.lstsq(dense[:, keep], y - dense[:, 3 + 2::4][:, :7] @ np.full(7, 0.5), rcond=None)[0]
     assert np.abs(fit.shared[[0, 2]] - x[:2]).max() < 1e-8
