@@ -367,22 +367,55 @@ class PhotoResult:
                 "subpix_window_px": self.subpix_window_px}
 
 
+#: ``calibrate_photos(undistort_lines=True)`` stops refitting when no corner moves by more than this (px) ...
+STRAIGHTEN_TOL_PX = 1e-4
+#: ... or after this many refits.
+STRAIGHTEN_MAX_PASSES = 10
+
+
+def _straighten(grids, obj, obj_list, img_list, size, flags, K, dist) -> tuple[int, float]:
+    """Refit every photo's corners with the lens (K, dist) and recalibrate, until no corner moves by more than
+    ``STRAIGHTEN_TOL_PX`` (``calibrate_photos``); ``obj_list`` and ``img_list`` are updated in place.  -> (passes,
+    the largest distance (px) a corner moved from the photo-frame fit)."""
+    first = [np.asarray(i, float).reshape(-1, 2).copy() for i in img_list]
+    passes = 0
+    for passes in range(1, STRAIGHTEN_MAX_PASSES + 1):
+        step = 0.0
+        for v, grid in enumerate(grids):
+            c = grid.corners((K, dist))
+            ok = np.all(np.isfinite(c), axis=1)
+            old = np.asarray(img_list[v], float).reshape(-1, 2)
+            if len(old) == ok.sum():
+                step = max(step, float(np.abs(c[ok] - old).max()))
+            else:  # the refit measured a different set of corners
+                step = np.inf
+            obj_list[v], img_list[v] = obj[ok], c[ok].astype(np.float32).reshape(-1, 1, 2)
+        if step <= STRAIGHTEN_TOL_PX:
+            break
+        _, K, dist, _ = solve_points(obj_list, img_list, size, flags)
+    moved = max((float(np.abs(np.asarray(i, float).reshape(-1, 2) - f).max()) for i, f in zip(img_list, first)
+                 if len(f) == len(np.asarray(i).reshape(-1, 2))), default=0.0)
+    return passes, moved
+
+
 #: Fewest measured corners a photo needs to take part in a calibration (a homography needs 4; some to spare).
 MIN_CORNERS_PER_PHOTO = 6
 
 
 def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, int], square_m: float,
                      model: str = DEFAULT_DIST_MODEL, window_px: int | None = None, channel: str = "luma",
-                     progress=None, corner_finder=None,
-                     corner_label: str | None = None) -> tuple[Calibration, list[PhotoResult]]:
+                     progress=None, corner_finder=None, corner_label: str | None = None,
+                     undistort_lines: bool = False) -> tuple[Calibration, list[PhotoResult]]:
     """Zhang's calibration from real photos of a chessboard: ``photos`` = [(name, path)] (``find_photos``).
 
     Each photo is read with ``edgetruth.image_io.read_gray(path, channel)``; its corners with
     ``detect_corners(image, pattern_size, window_px)``, or with ``corner_finder(image, pattern_size)`` when given:
     (COLS * ROWS, 2) in OpenCV's order, NaN where it measured none, None when the board is not found (e.g.
     ``edgetruth.evaluate.board.grid_corners.line_corners``); ``corner_label`` then names it in the calibration's
-    method line.  Each photo uses its measured corners (at least ``MIN_CORNERS_PER_PHOTO``).  A photo where the
-    board is not found is
+    method line.  ``undistort_lines``: ``corner_finder`` returns a photo's grid (``.corners(lens)``, e.g.
+    ``grid_corners.grid_points``) and the corners are refitted with the calibration's own lens, where the grid
+    lines are straight, and the camera recalibrated, until no corner moves by ``STRAIGHTEN_TOL_PX``.  Each photo
+    uses its measured corners (at least ``MIN_CORNERS_PER_PHOTO``).  A photo where the board is not found is
     kept in the results (``found = False``) and left out of the fit; fewer than 3 boards, or photos
     of different sizes, raise ``InputError``.  ``square_m`` (metres) scales the board, hence the
     poses only: K and the distortion do not depend on it.
@@ -398,7 +431,7 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     nx, ny = pattern_size
     obj = object_points(pattern_size, square_m)
     results: list[PhotoResult] = []
-    obj_list, img_list, size, first = [], [], None, None
+    obj_list, img_list, grids, size, first = [], [], [], None, None
     it = photos if progress is None else progress(photos)
     for name, path in it:
         image = read_gray(path, channel)
@@ -410,6 +443,9 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
                              "one camera at one resolution and orientation")
         corners = detect_corners(image, pattern_size, window_px) if corner_finder is None else \
             corner_finder(image, pattern_size)
+        grid = None
+        if undistort_lines and corners is not None:
+            grid, corners = corners, corners.corners()
         ok = None if corners is None else np.all(np.isfinite(corners), axis=1)
         if corners is None or ok.sum() < MIN_CORNERS_PER_PHOTO:
             results.append(PhotoResult(name, False, 0))
@@ -420,6 +456,7 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
         results.append(PhotoResult(name, True, int(ok.sum()), subpix_window_px=win))
         obj_list.append(obj[ok])
         img_list.append(corners[ok].astype(np.float32).reshape(-1, 1, 2))
+        grids.append(grid)
     used = [r.photo for r in results if r.found]
     if len(used) < 3:
         missing = ", ".join(r.photo for r in results if not r.found)
@@ -432,10 +469,17 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     residuals: list = []
     poses: list = []
     rms, K, dist, per_view = solve_points(obj_list, img_list, size, flags, residuals, poses)
+    straightened = ""
+    if undistort_lines:
+        passes, moved = _straighten(grids, obj, obj_list, img_list, size, flags, K, dist)
+        residuals, poses = [], []
+        rms, K, dist, per_view = solve_points(obj_list, img_list, size, flags, residuals, poses)
+        straightened = (f", grid lines fitted in the undistorted image (the calibration's own lens, {passes} "
+                        f"refits; the corners moved by up to {moved:.3f} px)")
     for r, v in zip([r for r in results if r.found], per_view):
         r.rms_px = v
     window = "0.4 of the smallest imaged square side" if window_px is None else f"half-window {int(window_px)} px"
-    corners_used = corner_label or f"cornerSubPix corners ({window})"
+    corners_used = (corner_label or f"cornerSubPix corners ({window})") + straightened
     cal = Calibration(K=K, dist=dist, image_size=size, rms_px=rms, n_views=len(used), per_view_rms_px=per_view,
                       used=used, rejected=[r.photo for r in results if not r.found],
                       method=f"Zhang (cv2.calibrateCamera, {words}), {corners_used}",

@@ -13,9 +13,16 @@ square there is light: 2 of the 4 on a 9x6 board) is an *open corner*: its two d
 the outer ring.  Its grid lines are fitted to the points on the two grid segments either side of it
 along each line (``open_corners``), the outer one running into the ring.  A corner whose lines have
 too few points is NaN.
+
+A distorting lens bends the grid lines in the photo.  ``GridPoints.corners(lens)`` fits them in the undistorted
+image instead, where they are straight, and distorts the corners back (``edgetruth calibrate --undistort-lines``
+iterates it with the calibration's own lens): ``grid_points`` measures a photo's points once for every refit.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import cv2
 import numpy as np
 
 from edgetruth.evaluate.board import chessboard as cb
@@ -25,13 +32,78 @@ from edgetruth.evaluate.board import chessboard as cb
 DEFAULT_METHOD = "erf4p_fixed11"
 
 
-def line_corners(image: np.ndarray, pattern: tuple[int, int], method: str = DEFAULT_METHOD,
+def line_corners(image: np.ndarray, pattern: tuple[int, int], method: str = DEFAULT_METHOD, lens=None,
                  **options) -> np.ndarray | None:
     """(ROWS * COLS, 2) the inner corners of the chessboard of ``pattern`` = (COLS, ROWS) inner corners in
     ``image``, in OpenCV's order, from ``method``'s grid lines (module docstring); NaN where no pair of lines is
-    measured; None when OpenCV does not find the board."""
+    measured; None when OpenCV does not find the board.  ``lens`` = (K, dist): fit the lines where they are
+    straight, in the undistorted image (``GridPoints.corners``)."""
+    grid = grid_points(image, pattern, method, **options)
+    return None if grid is None else grid.corners(lens)
+
+
+@dataclass
+class GridPoints:
+    """One photo's board (OpenCV's grid ``view``, its dark squares ``quads`` (S, 4, 2), the ``missing`` inner
+    corners no square reaches and their grid-line ``halves``) and one method's refined points on it: what the
+    grid lines are fitted to, measured once and refitted for every lens model."""
+
+    model: object
+    view: cb.ChessboardView
+    quads: np.ndarray
+    missing: np.ndarray
+    halves: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    nx: np.ndarray
+    ny: np.ndarray
+    converged: np.ndarray
+    shape: tuple[int, int]
+
+    def corners(self, lens=None) -> np.ndarray:
+        """(ROWS * COLS, 2) the inner corners in OpenCV's order (``line_corners``).
+
+        Without ``lens`` the grid lines are fitted in the photo, where a distorting lens bends them: a line
+        fitted through a bent grid line passes on its concave side, so the corners move towards the image
+        centre, more the further out (on OpenCV's left01-14 twin, k1 = -0.28: 0.06 px on average, 0.11 px at
+        200-300 px from the centre; fx +0.17 %).  With ``lens`` = (K, dist) (OpenCV's model) the points, their
+        normals, the squares and the halves are undistorted first, the lines fitted there, where the model
+        says they are straight, and the corners distorted back."""
+        from edgetruth.evaluate.board.sides import side_fits, square_map
+
+        quads, halves, x, y, nx, ny, shape = self.quads, self.halves, self.x, self.y, self.nx, self.ny, self.shape
+        shift = np.zeros(2)
+        if lens is not None:
+            K, dist = (np.asarray(a, np.float64) for a in lens)
+            quads, halves = (undistort_px(a, K, dist) for a in (quads, halves))
+            x, y, nx, ny = undistort_points(x, y, nx, ny, K, dist)
+            # a canvas for the square map around the undistorted squares (points beyond it clip to its border)
+            ok = np.all(np.isfinite(quads), axis=2)
+            lo = np.floor(quads[ok].min(axis=0)) - CANVAS_MARGIN_PX if ok.any() else np.zeros(2)
+            hi = np.ceil(quads[ok].max(axis=0)) + CANVAS_MARGIN_PX if ok.any() else np.ones(2)
+            shift = -lo
+            quads, halves = quads + shift, halves + shift
+            x, y = x + shift[0], y + shift[1]
+            shape = (int(hi[1] - lo[1]) + 1, int(hi[0] - lo[0]) + 1)
+        fits = side_fits(quads, square_map(quads, shape), x, y, nx, ny, self.converged)
+        slots = cb.junction_corners(cb.junctions(self.model), fits, x, y, nx, ny, self.converged)
+        out = to_opencv_order(slots, self.view)
+        if len(self.missing):
+            out[self.missing] = open_corners(halves, x, y, nx, ny, self.converged)
+        if lens is None:
+            return out
+        return distort_px(out - shift, K, dist)
+
+
+#: Margin (px) of the undistorted squares' canvas (``GridPoints.corners``): wider than any assignment band.
+CANVAS_MARGIN_PX = 16.0
+
+
+def grid_points(image: np.ndarray, pattern: tuple[int, int], method: str = DEFAULT_METHOD,
+                **options) -> GridPoints | None:
+    """The board of ``pattern`` in ``image`` and ``method``'s refined points near its squares' sides and the
+    sides continued into the outer ring (``GridPoints``); None when OpenCV does not find the board."""
     from edgetruth import locate
-    from edgetruth.evaluate.board.sides import side_fits, square_map
     from edgetruth.evaluate.board.squares import board_candidates
 
     img = np.asarray(image)
@@ -39,18 +111,55 @@ def line_corners(image: np.ndarray, pattern: tuple[int, int], method: str = DEFA
     view = cb.find_squares(img, model)
     if view is None:
         return None
-    quads = view.squares.corners
+    quads = np.asarray(view.squares.corners, np.float64)
     # the inner corners no modelled square's slot reaches: the open corners (and any whose square was left out)
     missing = np.flatnonzero(~np.all(np.isfinite(to_opencv_order(np.zeros_like(quads), view)), axis=1))
     halves = open_halves(view.inner, pattern, missing)
     cand = board_candidates(img, quads, chessboard=True, extra_segments=halves.reshape(-1, 2, 2))
     pts = locate.refine(img, cand, method, **options)
-    fits = side_fits(quads, square_map(quads, img.shape), pts.x, pts.y, pts.nx, pts.ny, pts.converged)
-    slots = cb.junction_corners(cb.junctions(model), fits, pts.x, pts.y, pts.nx, pts.ny, pts.converged)
-    out = to_opencv_order(slots, view)
-    if len(missing):
-        out[missing] = open_corners(halves, pts.x, pts.y, pts.nx, pts.ny, pts.converged)
+    x, y, nx, ny = (np.asarray(v, np.float64) for v in (pts.x, pts.y, pts.nx, pts.ny))
+    return GridPoints(model, view, quads, missing, halves, x, y, nx, ny, np.asarray(pts.converged, bool),
+                      img.shape[:2])
+
+
+def undistort_px(points: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """Distorted pixel coordinates (..., 2) -> undistorted ones with the same K (OpenCV's model, iterated to
+    1e-12); NaN stays NaN."""
+    p = np.asarray(points, np.float64)
+    out = np.full(p.shape, np.nan)
+    flat, res = p.reshape(-1, 2), out.reshape(-1, 2)
+    ok = np.all(np.isfinite(flat), axis=1)
+    if ok.any():
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+        res[ok] = cv2.undistortPoints(flat[ok].reshape(-1, 1, 2), K, dist, P=K, criteria=crit).reshape(-1, 2)
     return out
+
+
+def distort_px(points: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """Undistorted pixel coordinates (N, 2) -> distorted ones (the forward model, ``cv2.projectPoints``); NaN stays
+    NaN."""
+    p = np.asarray(points, np.float64).reshape(-1, 2)
+    out = np.full(p.shape, np.nan)
+    ok = np.all(np.isfinite(p), axis=1)
+    if ok.any():
+        xn = (p[ok, 0] - K[0, 2] - K[0, 1] * (p[ok, 1] - K[1, 2]) / K[1, 1]) / K[0, 0]
+        yn = (p[ok, 1] - K[1, 2]) / K[1, 1]
+        obj = np.stack([xn, yn, np.ones_like(xn)], axis=1).reshape(-1, 1, 3)
+        out[ok] = cv2.projectPoints(obj, np.zeros(3), np.zeros(3), K, dist)[0].reshape(-1, 2)
+    return out
+
+
+def undistort_points(x, y, nx, ny, K: np.ndarray, dist: np.ndarray, step_px: float = 0.5):
+    """Refined points (x, y) and their unit normals (nx, ny) in the photo -> in the undistorted image: each
+    normal turned with the local map (the tangent ``step_px`` along the edge, mapped, turned back a right
+    angle)."""
+    p = np.stack([x, y], axis=1)
+    t = np.stack([-np.asarray(ny), np.asarray(nx)], axis=1)
+    q, q2 = undistort_px(p, K, dist), undistort_px(p + step_px * t, K, dist)
+    tu = q2 - q
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tu /= np.linalg.norm(tu, axis=1, keepdims=True)
+    return q[:, 0], q[:, 1], tu[:, 1], -tu[:, 0]
 
 
 def open_halves(inner: np.ndarray, pattern: tuple[int, int], which: np.ndarray) -> np.ndarray:

@@ -42,6 +42,12 @@ def register(sub) -> None:
                         "Chessboards), with erf4p_fixed11 or the METHOD given (options as in --methods, e.g. "
                         "lines:canny_devernay); a grid corner whose one square between the inner corners is light is "
                         "measured on the grid segments either side of it, the outer ones in the board's outer ring")
+    p.add_argument("--undistort-lines", action="store_true",
+                   help="with --corners lines: fit the grid lines where they are straight, in the undistorted "
+                        "image (the calibration's own lens, refitted until the corners settle, 2-4 refits).  "
+                        "In the photo a distorting lens bends the grid lines, and the lines fitted there move the "
+                        "corners towards the centre (on OpenCV's left01-14 twin: 0.06 px, fx +0.17 %%; "
+                        "docs/board.md)")
     p.add_argument("--board", choices=("flat", "bent", "common"), default="flat",
                    help="flat (default): Zhang's flat board; bent: the calibration refitted with the board's height "
                         "in each photo a quadratic of its board coordinates (a print that curls; docs/board.md), "
@@ -81,12 +87,16 @@ def _window(text: str) -> int | None:
     return n
 
 
-def _corner_finder(text: str, pattern: tuple[int, int], window: int | None):
-    """``--corners``: (corner_finder, label) for ``calibrate_photos``; (None, None) for cornerSubPix."""
+def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, undistort_lines: bool = False):
+    """``--corners``: (corner_finder, label) for ``calibrate_photos``; (None, None) for cornerSubPix.  With
+    ``undistort_lines`` the finder returns each photo's grid (``grid_corners.grid_points``)."""
     from edgetruth.errors import InputError
 
     kind, _, spec = str(text).partition(":")
     if kind == "subpix" and not spec:
+        if undistort_lines:
+            raise InputError("--undistort-lines: only with --corners lines (cornerSubPix fits no lines); "
+                             "add --corners lines or drop it")
         return None, None
     if kind != "lines":
         raise InputError(f"--corners {text!r}: give 'subpix' or 'lines' (or lines:METHOD, e.g. lines:canny_devernay)")
@@ -96,7 +106,7 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None):
     from edgetruth import locate
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.board.chessboard import chessboard_model
-    from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD, line_corners
+    from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD, grid_points, line_corners
     from edgetruth.locate.registry import camera_free
 
     spec = spec or DEFAULT_METHOD
@@ -112,6 +122,8 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None):
                          "corners (need 4x4 inner corners or more); use --corners subpix") from None
 
     def finder(image, pattern_size):
+        if undistort_lines:
+            return grid_points(image, pattern_size, method, **options)
         return line_corners(image, pattern_size, method, **options)
 
     return finder, f"corners where the grid lines of {spec}'s points meet (edgetruth.evaluate.board.grid_corners)"
@@ -126,12 +138,12 @@ def run(args: argparse.Namespace) -> int:
     pattern = parse_pattern(args.pattern)
     square_m = _square_m(args.square_m)
     window = _window(args.subpix_window)
-    finder, corner_label = _corner_finder(args.corners, pattern, window)
+    finder, corner_label = _corner_finder(args.corners, pattern, window, args.undistort_lines)
     photos = find_photos(args.photos)
     out = check_output_file(args.output, "-o", inputs=[path for _, path in photos])
     cal, results = calibrate_photos(
         photos, pattern, square_m, model=args.model, window_px=window, channel=args.channel,
-        corner_finder=finder, corner_label=corner_label,
+        corner_finder=finder, corner_label=corner_label, undistort_lines=args.undistort_lines,
         progress=lambda it: console.track(it, desc="calibrate", unit="photo", enabled=not args.no_progress))
     if args.board != "flat":
         from edgetruth.evaluate.calibration import use_bent_board
@@ -140,6 +152,7 @@ def run(args: argparse.Namespace) -> int:
     doc = cal.to_dict()
     doc.update({"pattern_size": list(pattern), "square_m": square_m, "model": args.model, "board": args.board,
                 "subpix_window": "auto" if window is None else window, "corners": args.corners,
+                "undistort_lines": bool(args.undistort_lines),
                 "channel": args.channel,
                 "photos": [r.to_dict() for r in results]})
     try:

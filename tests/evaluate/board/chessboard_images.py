@@ -45,3 +45,38 @@ def stored_views(curve, exposures=(1.0, 1.0, 1.0, 1.0), sigma_px: float = 0.5) -
         img, _ = render((9, 6), r, sigma_px=sigma_px)
         out.append(np.round(65535.0 * curve(np.clip(k * img / 255.0, 0.0, 1.0))).astype(np.uint16))
     return out
+
+
+#: A strongly barrel-distorting lens for ``render_distorted`` (OpenCV's k1, k2, p1, p2, k3): the image corner is
+#: pulled 11 % towards the centre, as OpenCV's left01-14 lens (k1 = -0.28) does.
+BARREL = np.array([-0.3, 0.1, 0.0, 0.0, 0.0])
+
+
+def render_distorted(pattern, rvec, dist=BARREL, sigma_px=0.7):
+    """A view of ``render``'s board through the lens ``dist`` (K as ``render``): every pixel centre is undistorted
+    (cv2.undistortPoints, converged) and the dark squares' coverage evaluated there as the product of a Gaussian
+    edge profile (``sigma_px``) across each side, so the image is 50 % dark exactly on the distorted sides.
+    -> (image 0-255 float, the true inner corners (ROWS * COLS, 2) in the image, row-major)."""
+    from scipy.special import ndtr
+
+    cols, rows = pattern
+    h = board_homography(rvec, ((cols - 1) / 2, (rows - 1) / 2))
+    quads = apply_h(h, all_dark_squares(pattern))
+    yy, xx = np.mgrid[0:SHAPE[0], 0:SHAPE[1]].astype(float)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+    u = cv2.undistortPoints(np.stack([xx, yy], axis=2).reshape(-1, 1, 2), K, dist, P=K, criteria=crit)
+    ux, uy = u[:, 0, 0].reshape(SHAPE), u[:, 0, 1].reshape(SHAPE)
+    cover = np.zeros(SHAPE)
+    for q in quads:
+        c = q.mean(axis=0)
+        m = np.ones(SHAPE)
+        for k in range(4):
+            a, b = q[k], q[(k + 1) % 4]
+            e = (b - a) / np.linalg.norm(b - a)
+            n = np.array([-e[1], e[0]]) * (1 if np.array([-e[1], e[0]]) @ (c - a) > 0 else -1)
+            m *= ndtr(((ux - a[0]) * n[0] + (uy - a[1]) * n[1]) / sigma_px)
+        cover += m
+    g = np.stack(np.meshgrid(np.arange(cols), np.arange(rows)), axis=2).reshape(-1, 2).astype(float)
+    obj = np.c_[apply_h(np.linalg.inv(K) @ h, g), np.ones(len(g))].reshape(-1, 1, 3)
+    truth = cv2.projectPoints(obj, np.zeros(3), np.zeros(3), K, dist)[0].reshape(-1, 2)
+    return 210.0 - 170.0 * np.clip(cover, 0, 1), truth
