@@ -2,21 +2,16 @@
 what loads it, and its RECORD lists exactly the files it holds."""
 from __future__ import annotations
 
-import importlib.util
 import zipfile
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.support.tools import load_tool
 
 
 @pytest.fixture(scope="module")
 def prepare():
-    spec = importlib.util.spec_from_file_location("device_prepare", ROOT / "tools" / "device" / "prepare.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_tool("tools/device/prepare.py", "device_prepare")
 
 
 KEPT = ["mitsuba/__init__.py", "mitsuba/libmitsuba.so", "mitsuba/config.py",

@@ -2,21 +2,16 @@
 each photo's bend as edgetruth calibrate measures it on the shipped photos, rescaled to the renderer's s."""
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.support.tools import load_tool
 
 
 @pytest.fixture(scope="module")
 def tool():
-    spec = importlib.util.spec_from_file_location("opencv_left_bent", ROOT / "tools" / "twins" / "opencv_left_bent.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_tool("tools/twins/opencv_left_bent.py", "opencv_left_bent")
 
 
 def test_shipped_bent_twin_is_the_photos_bend(tool, tmp_path):
