@@ -124,8 +124,9 @@ def board_points(cal: Calibration, view: int, image_pts: np.ndarray) -> np.ndarr
     ok = np.all(np.isfinite(p), axis=1)
     if not ok.any():
         return out.reshape(shape)
-    und = cv2.undistortPoints(p[ok].reshape(-1, 1, 2), cal.K, cal.dist,
-                              criteria=(cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-12))[:, 0]
+    from edgetruth.evaluate.calibration import undistort_px
+
+    und = undistort_px(p[ok], cal.K, cal.dist, normalised=True)
     rays = np.c_[und, np.ones(len(und))]
     R, _ = cv2.Rodrigues(np.asarray(cal.rvecs[view], np.float64))
     t = np.asarray(cal.tvecs[view], np.float64).ravel()

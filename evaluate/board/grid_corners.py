@@ -22,7 +22,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from edgetruth.evaluate.board import chessboard as cb
@@ -70,6 +69,7 @@ class GridPoints:
         normals, the squares and the halves are undistorted first, the lines fitted there, where the model
         says they are straight, and the corners distorted back."""
         from edgetruth.evaluate.board.sides import side_fits, square_map
+        from edgetruth.evaluate.calibration import distort_px, undistort_px
 
         quads, halves, x, y, nx, ny, shape = self.quads, self.halves, self.x, self.y, self.nx, self.ny, self.shape
         shift = np.zeros(2)
@@ -122,37 +122,12 @@ def grid_points(image: np.ndarray, pattern: tuple[int, int], method: str = DEFAU
                       img.shape[:2])
 
 
-def undistort_px(points: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """Distorted pixel coordinates (..., 2) -> undistorted ones with the same K (OpenCV's model, iterated to
-    1e-12); NaN stays NaN."""
-    p = np.asarray(points, np.float64)
-    out = np.full(p.shape, np.nan)
-    flat, res = p.reshape(-1, 2), out.reshape(-1, 2)
-    ok = np.all(np.isfinite(flat), axis=1)
-    if ok.any():
-        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-        res[ok] = cv2.undistortPoints(flat[ok].reshape(-1, 1, 2), K, dist, P=K, criteria=crit).reshape(-1, 2)
-    return out
-
-
-def distort_px(points: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """Undistorted pixel coordinates (N, 2) -> distorted ones (the forward model, ``cv2.projectPoints``); NaN stays
-    NaN."""
-    p = np.asarray(points, np.float64).reshape(-1, 2)
-    out = np.full(p.shape, np.nan)
-    ok = np.all(np.isfinite(p), axis=1)
-    if ok.any():
-        xn = (p[ok, 0] - K[0, 2] - K[0, 1] * (p[ok, 1] - K[1, 2]) / K[1, 1]) / K[0, 0]
-        yn = (p[ok, 1] - K[1, 2]) / K[1, 1]
-        obj = np.stack([xn, yn, np.ones_like(xn)], axis=1).reshape(-1, 1, 3)
-        out[ok] = cv2.projectPoints(obj, np.zeros(3), np.zeros(3), K, dist)[0].reshape(-1, 2)
-    return out
-
-
 def undistort_points(x, y, nx, ny, K: np.ndarray, dist: np.ndarray, step_px: float = 0.5):
     """Refined points (x, y) and their unit normals (nx, ny) in the photo -> in the undistorted image: each
     normal turned with the local map (the tangent ``step_px`` along the edge, mapped, turned back a right
     angle)."""
+    from edgetruth.evaluate.calibration import undistort_px
+
     p = np.stack([x, y], axis=1)
     t = np.stack([-np.asarray(ny), np.asarray(nx)], axis=1)
     q, q2 = undistort_px(p, K, dist), undistort_px(p + step_px * t, K, dist)

@@ -74,11 +74,9 @@ class Undistorter:
 
     def undistort_points(self, pts_px: np.ndarray) -> np.ndarray:
         """Distorted pixel coordinates (N, 2) -> undistorted pixel coordinates with the same K."""
-        K = np.asarray(self.K, np.float64)
-        p = np.asarray(pts_px, np.float64).reshape(-1, 1, 2)
-        return cv2.undistortPoints(p, K, np.asarray(self.dist, np.float64), P=K,
-                                   criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-                                   ).reshape(-1, 2)
+        from edgetruth.evaluate.calibration import undistort_px
+
+        return undistort_px(np.asarray(pts_px, np.float64).reshape(-1, 2), self.K, self.dist)
 
 
 def from_calibration(cal, interpolation: str = DEFAULT_INTERPOLATION) -> Undistorter:
