@@ -15,8 +15,9 @@ along each line (``open_corners``), the outer one running into the ring.  A corn
 too few points is NaN.
 
 A distorting lens bends the grid lines in the photo.  ``GridPoints.corners(lens)`` fits them in the undistorted
-image instead, where they are straight, and distorts the corners back (``edgetruth calibrate --undistort-lines``
-iterates it with the calibration's own lens): ``grid_points`` measures a photo's points once for every refit.
+image instead, where they are straight, and distorts the corners back (``edgetruth calibrate --corners lines``
+iterates it with the calibration's own lens, unless ``--line-frame photo``): ``grid_points`` measures a photo's
+points once for every refit.
 """
 from __future__ import annotations
 

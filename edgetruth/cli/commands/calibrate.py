@@ -42,12 +42,15 @@ def register(sub) -> None:
                         "Chessboards), with erf4p_fixed11 or the METHOD given (options as in --methods, e.g. "
                         "lines:canny_devernay); a grid corner whose one square between the inner corners is light is "
                         "measured on the grid segments either side of it, the outer ones in the board's outer ring")
-    p.add_argument("--undistort-lines", action="store_true",
-                   help="with --corners lines: fit the grid lines where they are straight, in the undistorted "
-                        "image (the calibration's own lens, refitted until the corners settle, 2-4 refits).  "
-                        "In the photo a distorting lens bends the grid lines, and the lines fitted there move the "
-                        "corners towards the centre (on OpenCV's left01-14 twin: 0.06 px, fx +0.17 %%; "
-                        "docs/board.md)")
+    p.add_argument("--line-frame", choices=("undistorted", "photo"), default=None,
+                   help="with --corners lines, where the grid lines are fitted: 'undistorted' (default) = in the "
+                        "undistorted image, where they are straight (the calibration's own lens, refitted until "
+                        "the corners settle, 2-4 refits); 'photo' = straight through the photo's grid lines, which "
+                        "a distorting lens bends, so the corners move towards the centre (on OpenCV's left01-14 "
+                        "twin: 0.06 px, fx +0.17 %%; docs/formats.md)")
+    # the option's name before --line-frame (stop 35); kept so that scripts that pass it still run
+    p.add_argument("--undistort-lines", dest="line_frame", action="store_const", const="undistorted",
+                   help=argparse.SUPPRESS)
     p.add_argument("--board", choices=("flat", "bent", "common"), default="flat",
                    help="flat (default): Zhang's flat board; bent: the calibration refitted with the board's height "
                         "in each photo a quadratic of its board coordinates (a print that curls; docs/board.md), "
@@ -87,17 +90,18 @@ def _window(text: str) -> int | None:
     return n
 
 
-def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, undistort_lines: bool = False):
-    """``--corners``: (corner_finder, label) for ``calibrate_photos``; (None, None) for cornerSubPix.  With
-    ``undistort_lines`` the finder returns each photo's grid (``grid_corners.grid_points``)."""
+def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, line_frame: str | None = None):
+    """``--corners``: (corner_finder, label, undistort_lines) for ``calibrate_photos``; (None, None, False) for
+    cornerSubPix.  Line corners are fitted in the undistorted image unless ``line_frame`` is 'photo'; for that the
+    finder returns each photo's grid (``grid_corners.grid_points``), which ``calibrate_photos`` refits."""
     from edgetruth.errors import InputError
 
     kind, _, spec = str(text).partition(":")
     if kind == "subpix" and not spec:
-        if undistort_lines:
-            raise InputError("--undistort-lines: only with --corners lines (cornerSubPix fits no lines); "
+        if line_frame is not None:
+            raise InputError(f"--line-frame {line_frame}: only with --corners lines (cornerSubPix fits no lines); "
                              "add --corners lines or drop it")
-        return None, None
+        return None, None, False
     if kind != "lines":
         raise InputError(f"--corners {text!r}: give 'subpix' or 'lines' (or lines:METHOD, e.g. lines:canny_devernay)")
     if window is not None:
@@ -121,12 +125,15 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, undi
         raise InputError(f"--corners lines: a {pattern[0]}x{pattern[1]} board has too few squares between its inner "
                          "corners (need 4x4 inner corners or more); use --corners subpix") from None
 
+    undistort_lines = line_frame != "photo"
+
     def finder(image, pattern_size):
         if undistort_lines:
             return grid_points(image, pattern_size, method, **options)
         return line_corners(image, pattern_size, method, **options)
 
-    return finder, f"corners where the grid lines of {spec}'s points meet (edgetruth.evaluate.board.grid_corners)"
+    label = f"corners where the grid lines of {spec}'s points meet (edgetruth.evaluate.board.grid_corners)"
+    return finder, label, undistort_lines
 
 
 def run(args: argparse.Namespace) -> int:
@@ -138,12 +145,12 @@ def run(args: argparse.Namespace) -> int:
     pattern = parse_pattern(args.pattern)
     square_m = _square_m(args.square_m)
     window = _window(args.subpix_window)
-    finder, corner_label = _corner_finder(args.corners, pattern, window, args.undistort_lines)
+    finder, corner_label, undistort_lines = _corner_finder(args.corners, pattern, window, args.line_frame)
     photos = find_photos(args.photos)
     out = check_output_file(args.output, "-o", inputs=[path for _, path in photos])
     cal, results = calibrate_photos(
         photos, pattern, square_m, model=args.model, window_px=window, channel=args.channel,
-        corner_finder=finder, corner_label=corner_label, undistort_lines=args.undistort_lines,
+        corner_finder=finder, corner_label=corner_label, undistort_lines=undistort_lines,
         progress=lambda it: console.track(it, desc="calibrate", unit="photo", enabled=not args.no_progress))
     if args.board != "flat":
         from edgetruth.evaluate.calibration import use_bent_board
@@ -152,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
     doc = cal.to_dict()
     doc.update({"pattern_size": list(pattern), "square_m": square_m, "model": args.model, "board": args.board,
                 "subpix_window": "auto" if window is None else window, "corners": args.corners,
-                "undistort_lines": bool(args.undistort_lines),
+                "undistort_lines": undistort_lines,
                 "channel": args.channel,
                 "photos": [r.to_dict() for r in results]})
     try:

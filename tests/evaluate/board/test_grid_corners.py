@@ -115,20 +115,21 @@ def test_undistorted_points_keep_their_normals_across_the_mapped_edge():
 
 
 def test_calibrate_with_undistorted_lines(tmp_path, capsys):
-    """`edgetruth calibrate --corners lines --undistort-lines` on 6 views through a barrel lens (``BARREL``, fx 600,
-    k1 k2 model): fitted in the photo the lines give fx 0.43 px (0.07 %) long; refitted with the calibration's own
-    lens they give the camera back.  Measured: fx 600.43 -> 600.000, RMS 0.0024 -> 0.0013 px, k1 -0.3006 -> -0.3001;
+    """`edgetruth calibrate --corners lines` on 6 views through a barrel lens (``BARREL``, fx 600, k1 k2 model): fitted
+    in the photo (``--line-frame photo``) the lines give fx 0.43 px (0.07 %) long; refitted with the calibration's own
+    lens (the default; ``--undistort-lines``, the option's first name, gives the same) they give the camera back.  Measured: fx 600.43 -> 600.000, RMS 0.0024 -> 0.0013 px, k1 -0.3006 -> -0.3001;
     the corners settle within 4 refits."""
     for i, r in enumerate(ROTATIONS_6):
         img, _ = render_distorted((9, 6), r)
         cv2.imwrite(str(tmp_path / f"v{i}.png"), np.clip(np.round(img), 0, 255).astype(np.uint8))
     out = {}
-    for key, extra in (("photo", []), ("undistorted", ["--undistort-lines"])):
+    for key, extra in (("photo", ["--line-frame", "photo"]), ("undistorted", []), ("alias", ["--undistort-lines"])):
         rc = main(["calibrate", str(tmp_path), "--pattern", "9x6", "--square-m", "0.025", "--corners", "lines",
                    "--model", "k1k2", *extra, "-o", str(tmp_path / f"{key}.json"), "--no-progress"])
         assert rc == 0
         out[key] = json.loads((tmp_path / f"{key}.json").read_text())
     photo, und = out["photo"], out["undistorted"]
+    assert out["alias"]["K"] == und["K"] and out["alias"]["undistort_lines"] is True
     assert photo["undistort_lines"] is False and und["undistort_lines"] is True
     assert "undistorted image" in und["method"] and "undistorted image" not in photo["method"]
     k_p, k_u = np.array(photo["K"]), np.array(und["K"])
@@ -139,13 +140,14 @@ def test_calibrate_with_undistorted_lines(tmp_path, capsys):
     assert und["reprojection_rms_px"] < photo["reprojection_rms_px"]
 
 
-def test_undistort_lines_needs_line_corners(tmp_path, capsys):
-    """--undistort-lines with cornerSubPix corners is refused before any photo is read: exit 2, one line naming
-    the option and the fix."""
-    rc = main(["calibrate", str(tmp_path), "--pattern", "9x6", "--square-m", "0.025", "--undistort-lines",
+@pytest.mark.parametrize("flag", [["--line-frame", "photo"], ["--line-frame", "undistorted"], ["--undistort-lines"]])
+def test_line_frame_needs_line_corners(tmp_path, capsys, flag):
+    """--line-frame (or its first name, --undistort-lines) with cornerSubPix corners is refused before any photo is
+    read: exit 2, one line naming the option and the fix."""
+    rc = main(["calibrate", str(tmp_path), "--pattern", "9x6", "--square-m", "0.025", *flag,
                "-o", str(tmp_path / "c.json"), "--no-progress"])
     err = capsys.readouterr().err.strip().splitlines()
-    assert rc == 2 and len(err) == 1 and "--undistort-lines" in err[0] and "--corners lines" in err[0]
+    assert rc == 2 and len(err) == 1 and "--line-frame" in err[0] and "--corners lines" in err[0]
     assert not (tmp_path / "c.json").exists()
 
 
