@@ -30,10 +30,10 @@ A third model shares one quadratic shape among all views (``common``: a rigid bo
 normalised over the board's distinct corners): fewer parameters, so a warp that is the same in every view is found
 with errors of a few micrometres where the per-view fit's are tens.
 
-Measured (docs/board.md): OpenCV's photos (54 line corners, 5-term model): a quadratic bend takes 31 % of the
-residual energy (RMS 0.154 → 0.128 px, F = 14.7, p ≈ 10⁻⁷⁷), 0.3-1.0 mm deep, the sheet curled the same way in
-all 13 photos (ŷ² coefficient +0.23 to +0.78 mm, 1.7-7 standard errors); the cubic one 45 % (0.114 px).  Their
-flat twin: 3 % and 7 % (chance), ≤ 0.12 mm.  Zhang's own corners: 2 % against 1 %, mostly noise.
+Measured (docs/board.md): OpenCV's photos (54 line corners, 5-term model): a quadratic bend takes 30 % of the
+residual energy (RMS 0.155 → 0.130 px, F = 13.9, p ≈ 10⁻⁷²), 0.3-1.0 mm deep, the sheet curled the same way in
+all 13 photos (ŷ² coefficient +0.24 to +0.76 mm, 1.6-6.7 standard errors); the cubic one 45 % (0.115 px).  Their
+flat twin: 1 % and 5 % (chance), ≤ 0.04 mm.  Zhang's own corners: 2 % against 1 %, mostly noise.
 """
 from __future__ import annotations
 

@@ -140,7 +140,7 @@ def test_zhangs_board_barely_bends():
 @pytest.mark.slow
 def test_opencv_photos_bend(tmp_path, capsys):
     """A finding, measured (docs/board.md): OpenCV's photos (54 line corners, 5-term model) bend: a quadratic bend
-    per view takes 31 % of the residual energy (3 % by chance), RMS 0.154 -> 0.128 px, 0.3-1.0 mm deep, curled the
+    per view takes 30 % of the residual energy (3 % by chance), RMS 0.155 -> 0.130 px, 0.3-1.0 mm deep, curled the
     same way in all 13 photos (ŷ² > 0: the long rows nearer the camera than the outer ones)."""
     from edgetruth.cli import main
 
@@ -158,9 +158,9 @@ def test_a_rendered_curl_reads_back(fast_variant, tmp_path, capsys):
     """The closed loop: OpenCV's twin rendered with each photo's own curl (``scenes/opencv_left_twin_bent.toml``,
     16 spp) and calibrated from its PNGs as the photos are (line corners, 5-term model): the check finds the bend
     and every view's coefficients at those the spec renders (rescaled to the check's s), within 0.1 mm (the
-    photos' standard errors are 0.06-0.11 mm); the bent fit leaves the flat twin's RMS (0.023 px at 256 spp).
-    Measured at 256 spp (docs/board.md, "A bent twin"): flat RMS 0.090 px, 93 % to the bend, bent 0.023 px;
-    read-back error 0.012-0.021 mm RMS per term, at most 0.044 mm."""
+    photos' standard errors are 0.06-0.11 mm); the bent fit leaves the flat twin's RMS (0.022 px at 256 spp).
+    Measured at 256 spp (docs/board.md, "A bent twin"): flat RMS 0.086 px, 94 % to the bend, bent 0.021 px;
+    read-back error 0.009-0.015 mm RMS per term, at most 0.036 mm."""
     from edgetruth.cli import main
     from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.scene.bend import BoardBend

@@ -82,7 +82,7 @@ def test_missing_corners_and_small_views():
 def test_opencv_photos_carry_a_smooth_field(tmp_path, capsys):
     """A finding, measured (docs/board.md): OpenCV's photos, calibrated on their 54 line corners, leave residuals
     smooth per view (neighbour correlation 0.60, quadratic share 0.46 against 0.11, p <= 0.0005), where their
-    rendered twin's flat board leaves noise (-0.24, 0.11, p = 0.26; not re-rendered here)."""
+    rendered twin's flat board leaves noise (-0.38, 0.05, p = 1; not re-rendered here)."""
     from edgetruth.cli import main
 
     out = tmp_path / "cal.json"

@@ -22,7 +22,7 @@ def test_shipped_bent_twin_is_the_photos_bend(tool, tmp_path):
     out = tmp_path / "cal.json"
     assert main(["calibrate", "opencv_left", "--pattern", "9x6", "--square-m", "0.025", "--corners", "lines",
                  "-o", str(out), "--no-progress"]) == 0
-    s_render_mm = 112.375  # (8 squares + 2 x 0.495 of the ring) x 25 mm / 2
+    s_render_mm = 112.25  # (8 squares + 2 x 0.490 of the ring) x 25 mm / 2
     text = tool.bent_twin_text(json.loads(out.read_text()), tool.TWIN.read_text(), s_render_mm)
     assert text == tool.OUT.read_text()
     flat = tool.TWIN.read_text().splitlines()
@@ -32,10 +32,10 @@ def test_shipped_bent_twin_is_the_photos_bend(tool, tmp_path):
 
 
 def test_renderer_scale_is_the_squares_half_side():
-    """The scale the tool converts to is the renderer's own for the twin's board (112.375 mm)."""
+    """The scale the tool converts to is the renderer's own for the twin's board (112.25 mm)."""
     from edgetruth.render.dataset.spec import load_spec
     from edgetruth.render.scene.bend import BoardBend
 
     spec = load_spec("opencv_left_twin_bent")
-    assert BoardBend.of((0, 0, 0), spec.squares.black_quads_local(0.0)).scale_m == pytest.approx(0.112375, abs=1e-12)
+    assert BoardBend.of((0, 0, 0), spec.squares.black_quads_local(0.0)).scale_m == pytest.approx(0.11225, abs=1e-12)
     assert all(g.board_bend_mm is not None and len(g.board_bend_mm) == 3 for g in spec.groups)

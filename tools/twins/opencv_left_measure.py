@@ -3,12 +3,14 @@
 Run from the checkout: ``python tools/twins/opencv_left_measure.py > /tmp/opencv_left_twin.json``;
 ``tools/twins/opencv_left_scene.py`` turns the JSON into ``scenes/opencv_left_twin.toml``.
 
-- **Camera.**  Zhang's calibration (``cv2.calibrateCamera``, 5-term Brown-Conrady) on the 54 line corners
-  of every photo (``grid_corners.line_corners``, ERF4P-fixed11: what ``edgetruth calibrate opencv_left
-  --corners lines`` gives, RMS 0.154 px).
-- **Poses.**  ``cv2.solvePnP`` (iterative, with that K and distortion) on the corners of the board study's
-  chessboard model (its 20 dark squares, model order, unit = one square), so the twin's chessboard
-  (``[spec.squares] chessboard``, parity 0) puts its dark squares where the photo's are.
+- **Camera.**  Zhang's calibration (``calibrate_photos``, 5-term Brown-Conrady) on the 54 line corners of
+  every photo, their grid lines fitted in the undistorted image (``grid_corners.grid_points``, ERF4P-fixed11:
+  what ``edgetruth calibrate opencv_left --corners lines`` gives, RMS 0.155 px; fitted straight in the photo
+  the lines make fx 0.17 % long, docs/formats.md).
+- **Poses.**  ``cv2.solvePnP`` (iterative, with that K and distortion) on the same corners (each photo's grid
+  refitted with the final lens), in the order of the board study's chessboard model (its 20 dark squares,
+  unit = one square), so the twin's chessboard (``[spec.squares] chessboard``, parity 0) puts its dark squares
+  where the photo's are.
 - **Outer ring.**  How far the cut outer ring reaches beyond the outermost inner corners: along the middle
   of each ring square, the point where the stored value crosses halfway from dark to white, in squares.
 - **Levels.**  ``levels.square_levels`` at the squares' centres (median, noise SD, saturated flag).
@@ -23,11 +25,11 @@ import cv2
 import numpy as np
 
 from edgetruth.evaluate.board import chessboard as cb
-from edgetruth.evaluate.board.grid_corners import line_corners
+from edgetruth.evaluate.board.grid_corners import grid_points
 from edgetruth.evaluate.board.inputs import resolve_inputs
 from edgetruth.evaluate.board.levels import saturated, square_levels
 from edgetruth.evaluate.board.photo_model import measure_photo
-from edgetruth.evaluate.calibration import object_points
+from edgetruth.evaluate.calibration import calibrate_photos
 from edgetruth.image_io import read_gray
 
 PATTERN = (9, 6)
@@ -78,17 +80,13 @@ def main() -> None:
     inp = resolve_inputs(["opencv_left"])
     model = cb.chessboard_model(PATTERN, 1.0)
     rows = []
-    obj, imgpts, views, images = [], [], [], []
+    cal, _ = calibrate_photos([(p.name, p) for p in inp.photos], PATTERN, 1.0, corner_finder=grid_points,
+                              undistort_lines=True)
+    rms, K, dist = cal.rms_px, cal.K, cal.dist
     for p in inp.photos:
         img = read_gray(p)
         view = cb.find_squares(img, model)
-        lc = line_corners(img, PATTERN)
-        images.append(img)
-        views.append((view, lc))
-        obj.append(object_points(PATTERN, 1.0))
-        imgpts.append(lc.astype(np.float32).reshape(-1, 1, 2))
-    rms, K, dist, _, _ = cv2.calibrateCamera(obj, imgpts, images[0].shape[::-1], None, None)
-    for p, img, (view, lc) in zip(inp.photos, images, views):
+        lc = grid_points(img, PATTERN).corners((K, dist))
         mc = model_order(view, lc)
         board = np.c_[model.corners.reshape(-1, 2), np.zeros(mc.size // 2)]
         ok, rvec, tvec = cv2.solvePnP(board, mc.reshape(-1, 2), K, dist, flags=cv2.SOLVEPNP_ITERATIVE)

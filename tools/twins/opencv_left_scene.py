@@ -59,8 +59,9 @@ def main(path: str) -> None:
         return PITCH_UM * math.sqrt(max(sigma_px ** 2 - 1.0 / 12.0 - airy_sigma_px() ** 2, 0.0))
 
     cam = f"""# The camera of OpenCV's left01-14 sample photos (assets/real/opencv_left), as edgetruth measured it: Zhang's
-# calibration on the 54 line corners of every photo (ERF4P-fixed11; `edgetruth calibrate opencv_left --pattern 9x6
-# --corners lines`), RMS {d['rms_px']:.4f} px.  Written by tools/twins/opencv_left_scene.py.
+# calibration on the 54 line corners of every photo (ERF4P-fixed11, the grid lines fitted in the undistorted image;
+# `edgetruth calibrate opencv_left --pattern 9x6 --corners lines`), RMS {d['rms_px']:.4f} px.  Written by
+# tools/twins/opencv_left_scene.py.
 # Assumed (nothing published): the pixel pitch ({PITCH_UM} um), the f-number (f/{F_NUMBER:g}) and the focus (the
 # median board distance, with a square of {SIDE_M * 1000:g} mm); they set f = fx * pitch and the defocus, which is
 # small here.  The lens blur is the median of the unsaturated photos' ERF sigma per axis

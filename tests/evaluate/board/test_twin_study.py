@@ -137,7 +137,7 @@ def test_opencv_left_twin_reproduces_the_clipped_photos_shrink(tmp_path, fast_va
     lie on the exact outline where the white is not clipped (|mean| < 0.02 px) and inside the dark squares where it
     is (< -0.05 px), and its squares' own corners shrink where the photos' do (Table 2b).  Table 5: a bend per view
     takes a third of the photos' residual energy (measured 0.37, p ~ 1e-23) and less than half of that on the
-    twin's flat board (0.09 here: 3 views at 4 spp; 0.02 over all 13 at 256 spp), and the exact outline's corners
+    twin's flat board (0.08 here: 3 views at 4 spp; 0.03 over all 13 at 256 spp), and the exact outline's corners
     need no bend deeper than 0.05 mm (0.009)."""
     import json
 
@@ -163,8 +163,8 @@ def test_opencv_left_twin_reproduces_the_clipped_photos_shrink(tmp_path, fast_va
 
 def test_bent_opencv_twin_reads_its_bend_back(tmp_path, fast_variant):
     """``--twin opencv_left_twin_bent`` (each board curled as its photo's; left01, 03, 05 at 4 spp): Table 5 finds
-    the bend on the twin too (measured 71 % of its residual energy here, 93 % over all 13 at 256 spp; the flat
-    twin's 9 % and 2 %), its exact outline reads
+    the bend on the twin too (measured 70 % of its residual energy here, 93 % over all 13 at 256 spp; the flat
+    twin's 8 % and 3 %), its exact outline reads
     each view's curl at the coefficients the spec renders (within 0.05 mm, rescaled to the check's s), the caption
     says the twin is curled, and the header names the spec."""
     import json
