@@ -4,8 +4,8 @@
 
 1. **Render** the set's twin scene (``scenes/zhang1998_twin.toml``: Zhang's camera, board and poses;
    optics, noise and output measured on his photos, ``photo_model``; ``scenes/opencv_left_twin.toml``:
-   written by ``tools/twins/``) into ``DIR/renders`` with the render driver (resumable: a run that stops
-   picks up where it was).  A chessboard twin renders the model's squares first, then the outer ring's.
+   ``twin_derive``'s, written by ``tools/twins/opencv_left_scene.py``) into ``DIR/renders`` with the render
+   driver (resumable: a run that stops picks up where it was).  A chessboard twin renders the model's squares first, then the outer ring's.
 2. **The same board study** (``study.compute_board_study``) on the twin's PNGs, read like photos
    (``edgetruth.image_io.read_gray``), and on the real photos: the same methods and options, the same
    squares, sides, lines, calibration and leave-one-out code.  Each study's own files go to
@@ -49,7 +49,8 @@ KIND = "study twin"
 TWINS = {"zhang1998": "zhang1998_twin", "opencv_left": "opencv_left_twin"}
 #: sets whose twin settings were derived outside ``photo_model.derive_twin`` (a chessboard in JPEG, stored close to
 #: linear): where they come from, for the report's settings table
-DERIVED_ELSEWHERE = {"opencv_left": "tools/twins/opencv_left_measure.py and opencv_left_scene.py (docs/board.md)"}
+DERIVED_ELSEWHERE = {"opencv_left": "`edgetruth twin` (evaluate/board/twin_derive.py, through "
+                                    "tools/twins/opencv_left_scene.py; docs/board.md)"}
 EXACT_OUTLINE = "exact_outline"
 OUTLINE_STEP_PX = 0.5
 CORNER_EXCLUSION_PX = 3.0

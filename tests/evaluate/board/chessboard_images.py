@@ -80,3 +80,21 @@ def render_distorted(pattern, rvec, dist=BARREL, sigma_px=0.7):
     obj = np.c_[apply_h(np.linalg.inv(K) @ h, g), np.ones(len(g))].reshape(-1, 1, 3)
     truth = cv2.projectPoints(obj, np.zeros(3), np.zeros(3), K, dist)[0].reshape(-1, 2)
     return 210.0 - 170.0 * np.clip(cover, 0, 1), truth
+
+
+def write_views(folder, suffix: str, noise_dn: float = 2.0):
+    """The 4 ``ROTATIONS`` views of a 9x6 board (fx 600, σ 0.8 px, dark 40, white 210, Gaussian noise of
+    ``noise_dn``) as 8-bit files in ``folder`` (``suffix`` '.png', or '.jpg' at quality 75) -> (paths, each view's
+    true inner corners, (54, 2) row-major)."""
+    rng = np.random.default_rng(1)
+    paths, corners = [], []
+    r, c = np.mgrid[0:6, 0:9]
+    grid = np.c_[c.ravel(), r.ravel()].astype(float)
+    for i, rot in enumerate(ROTATIONS):
+        img, h = render((9, 6), rot, sigma_px=0.8)
+        img = np.clip(np.round(img + rng.normal(0, noise_dn, img.shape)), 0, 255).astype(np.uint8)
+        p = folder / f"v{i}{suffix}"
+        cv2.imwrite(str(p), img, [cv2.IMWRITE_JPEG_QUALITY, 75] if suffix == ".jpg" else [])
+        paths.append(p)
+        corners.append(apply_h(h, grid))
+    return paths, corners

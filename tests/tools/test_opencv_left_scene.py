@@ -1,10 +1,26 @@
-"""tools/twins/opencv_left_scene.py: the shipped camera of OpenCV's photos (assets/cameras/opencv_left.toml) is what
-`edgetruth calibrate opencv_left --corners lines` measures on the shipped photos now, to the file's rounding."""
+"""tools/twins/opencv_left_scene.py: OpenCV's shipped twin (scenes/opencv_left_twin.toml) and its camera
+(assets/cameras/opencv_left.toml) are `edgetruth twin`'s derivation on the shipped photos, byte for byte, and the
+camera is what `edgetruth calibrate opencv_left --corners lines` measures."""
 from __future__ import annotations
 
 import json
 
 import numpy as np
+import pytest
+
+from tests.support.tools import load_tool
+
+
+@pytest.fixture(scope="module")
+def tool():
+    return load_tool("tools/twins/opencv_left_scene.py", "opencv_left_scene")
+
+
+def test_shipped_twin_is_the_packaged_derivation(tool):
+    """Derived now from the shipped photos, both files are the shipped ones byte for byte."""
+    cam, scene = tool.texts()
+    assert cam == tool.CAMERA.read_text()
+    assert scene == tool.SCENE.read_text()
 
 
 def test_shipped_camera_is_the_photos_calibration(tmp_path):

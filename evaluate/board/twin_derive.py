@@ -1,0 +1,466 @@
+"""A digital twin of your own chessboard photos: measure what a twin needs on them, write its camera and scene.
+
+``edgetruth twin PHOTOS --pattern 9x6 --square-m 0.025 -o DIR`` (``derive_twin_files``) writes ``DIR/camera.toml``,
+``DIR/twin.toml`` (one group per photo: ``edgetruth render DIR/twin.toml`` renders it with exact truth) and
+``DIR/measurements.json``.  OpenCV's shipped twin (``scenes/opencv_left_twin.toml``, ``assets/cameras/
+opencv_left.toml``) is this module's output on its photos (``tools/twins/opencv_left_scene.py``).
+
+Measured on the photos (``measure_chessboard``):
+
+- **Camera.**  Zhang's calibration (``calibrate_photos``, 5-term Brown-Conrady) on every photo's line corners,
+  the grid lines fitted in the undistorted image (``grid_corners.grid_points``, ERF4P-fixed11: what ``edgetruth
+  calibrate --corners lines`` gives).
+- **Poses.**  ``cv2.solvePnP`` (iterative, with that K and distortion) on the same corners in the order of the
+  board study's chessboard model (its dark squares between the inner corners; unit = one square), so the twin's
+  chessboard (``[spec.squares] chessboard``) puts its dark squares where the photo's are.
+- **Outer ring.**  How far the cut outer ring reaches beyond the outermost inner corners: along the middle of each
+  ring square, the point where the stored value crosses halfway from dark to white, in squares (median).
+- **Levels.**  ``levels.square_levels`` at the squares' centres (median, noise SD, saturated flag): each photo's
+  white sets its exposure; the print's contrast (white / dark, median over the unsaturated photos) the squares'
+  reflectance; a saturated photo's white becomes the clip (``output_clip_dn``), its white before the clip its dark
+  level times that contrast.
+- **Blur.**  ``photo_model.measure_photo``: the ERF σ (px) per axis, less the pixel and the Airy core in quadrature
+  (``aberration_sigma_um``); a saturated photo takes the unsaturated ones' median (a clipped edge biases its σ).
+- **Tone.**  ``tone_fit.estimate_power`` on the unsaturated photos: linear (``output_gamma = 1``) when its 95 %
+  interval holds 1, else the power found.
+- **Output.**  JPEG photos: the quality whose IJG (Annex K) luminance table the file carries (``jpeg_quality``);
+  other photos: 8-bit PNG.
+
+Assumed (nothing in a photo gives them; ``TwinAssumptions``): the pixel pitch, the f-number (they set f = fx · pitch
+and the defocus, small at these distances), the focus (the median board distance), the board's reflectance, the
+light's direction, and the sensor's noise: shot-noise limited, with the white's noise SD before the output coding
+``white_noise_dn`` at a white of ``WHITE_REF_DN``.  A photo's noise is measured after its JPEG; by default the twin
+takes the photos' white SD, times ``JPEG_NOISE_FACTOR`` for JPEG photos (the ratio a closed loop through the JPEG
+found on OpenCV's photos at quality 50: 4.5 DN before it for their 2.1 after it).  The twin study's Table 3 compares
+the noise of photos and twin.
+"""
+from __future__ import annotations
+
+import math
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from edgetruth.errors import InputError
+
+#: the white level (8-bit) the white noise SD is stated at
+WHITE_REF_DN = 220.0
+#: pre-JPEG / post-JPEG white noise SD that a closed loop through the renders found on OpenCV's quality-50 photos
+JPEG_NOISE_FACTOR = 4.5 / 2.1
+#: IJG (JPEG Annex K) luminance quantisation table, natural (row-major) order
+IJG_LUMA = np.array([
+    16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55, 14, 13, 16, 24, 40, 57, 69, 56,
+    14, 17, 22, 29, 51, 87, 80, 62, 18, 22, 37, 56, 68, 109, 103, 77, 24, 35, 55, 64, 81, 104, 113, 92,
+    49, 64, 78, 87, 103, 121, 120, 101, 72, 92, 95, 98, 112, 100, 103, 99])
+#: zig-zag index -> natural index (a DQT segment stores its table in zig-zag order)
+ZIGZAG = np.array([
+    0, 1, 8, 16, 9, 2, 3, 10, 17, 24, 32, 25, 18, 11, 4, 5, 12, 19, 26, 33, 40, 48, 41, 34, 27, 20, 13, 6, 7, 14, 21,
+    28, 35, 42, 49, 56, 57, 50, 43, 36, 29, 22, 15, 23, 30, 37, 44, 51, 58, 59, 52, 45, 38, 31, 39, 46, 53, 60, 61,
+    54, 47, 55, 62, 63])
+
+
+@dataclass(frozen=True)
+class TwinAssumptions:
+    """What the photos do not say (module docstring); ``None``: derived as the docstring says."""
+
+    pitch_um: float = 6.0
+    f_number: float = 4.0
+    wavelength_nm: float = 550.0
+    board_reflectance: float = 0.8
+    #: the 8-bit 255 is 1/output_gain of the ADC's range, so that whites above 255 exist to be clipped
+    output_gain: float = 1.6
+    #: the white's noise SD (8-bit DN) before the output coding, at a white of ``WHITE_REF_DN``
+    white_noise_dn: float | None = None
+    #: how ``white_noise_dn`` was found, for the scene's header (when given)
+    white_noise_why: str = "given"
+    dark_noise_e: float = 15.0
+    light_position_m: tuple[float, float, float] = (0.0, -1.5, -2.0)
+
+
+# --- the photos' files ------------------------------------------------------------------------------
+def ijg_table(quality: int) -> np.ndarray:
+    """The IJG luminance table at ``quality`` (1-100; libjpeg's ``jpeg_quality_scaling``), natural order."""
+    q = int(quality)
+    scale = 5000 // q if q < 50 else 200 - 2 * q
+    return np.clip((IJG_LUMA * scale + 50) // 100, 1, 255)
+
+
+def jpeg_quality(path) -> tuple[int, bool] | None:
+    """(quality, exact) of a JPEG file's first luminance table against the IJG tables, or None for a file that is
+    not a baseline JPEG with one: ``exact`` when it is the IJG table at that quality, else the nearest (least
+    summed |log ratio|)."""
+    data = Path(path).read_bytes()
+    if data[:2] != b"\xff\xd8":
+        return None
+    i = 2
+    while i + 4 <= len(data) and data[i] == 0xFF:
+        marker, length = data[i + 1], struct.unpack(">H", data[i + 2:i + 4])[0]
+        if marker == 0xDB:  # DQT: one or more tables, each (precision | id) then 64 or 128 bytes
+            j, end = i + 4, i + 2 + length
+            while j < end:
+                precision, ident = data[j] >> 4, data[j] & 15
+                size = 128 if precision else 64
+                raw = data[j + 1:j + 1 + size]
+                values = np.frombuffer(raw, ">u2" if precision else np.uint8).astype(int)
+                if ident == 0 and values.size == 64:
+                    table = np.empty(64, int)
+                    table[ZIGZAG] = values
+                    err = [float(np.abs(np.log(table / ijg_table(q))).sum()) for q in range(1, 101)]
+                    best = int(np.argmin(err)) + 1
+                    return best, bool(err[best - 1] == 0.0)
+                j += 1 + size
+        if marker == 0xDA:  # start of scan: no table before it
+            return None
+        i += 2 + length
+    return None
+
+
+# --- measurements -----------------------------------------------------------------------------------
+def model_order(view, corners: np.ndarray) -> np.ndarray:
+    """The model's (S, 4, 2) square corners taken from ``corners`` (OpenCV's order), via the view's grid."""
+    q = view.squares.corners.reshape(-1, 2)
+    d = np.linalg.norm(q[:, None, :] - view.inner[None, :, :], axis=2)
+    k = np.argmin(d, axis=1)
+    if not np.all(d[np.arange(len(q)), k] < 1e-6):  # pragma: no cover - the grid's squares are its inner corners
+        raise RuntimeError("a model corner is not one of OpenCV's inner corners")
+    return corners[k].reshape(view.squares.corners.shape)
+
+
+def ring_reach(img, K, dist, rvec, tvec, cols: int, rows: int) -> dict:
+    """Median reach (in squares) of the dark outer-ring squares beyond the outermost inner corners, along x and y."""
+    reach = {"x": [], "y": []}
+    s = np.linspace(0.0, 1.2, 241)
+    for r in range(-1, rows):
+        for c in range(-1, cols):
+            if (r + c) % 2 or not (r in (-1, rows - 1) or c in (-1, cols - 1)):
+                continue
+            for axis, edge in (("x", c == -1), ("x", c == cols - 1), ("y", r == -1), ("y", r == rows - 1)):
+                if not edge or (axis == "x" and r in (-1, rows - 1)) or (axis == "y" and c in (-1, cols - 1)):
+                    continue  # the ring's corner squares: both cuts meet there
+                if axis == "x":
+                    x = -s if c == -1 else (cols - 1) + s
+                    y = np.full_like(s, r + 0.5)
+                else:
+                    y = -s if r == -1 else (rows - 1) + s
+                    x = np.full_like(s, c + 0.5)
+                p, _ = cv2.projectPoints(np.stack([x, y, 0 * x], 1), rvec, tvec, K, dist)
+                p = p.reshape(-1, 2)
+                ok = (p[:, 0] >= 0) & (p[:, 0] <= img.shape[1] - 1) & (p[:, 1] >= 0) & (p[:, 1] <= img.shape[0] - 1)
+                if not ok.all():
+                    continue
+                v = cv2.remap(img.astype(np.float32), p[:, 0:1].astype(np.float32), p[:, 1:2].astype(np.float32),
+                              cv2.INTER_LINEAR).ravel()
+                dark, white = np.median(v[20:60]), np.max(v)
+                above = np.flatnonzero(v[20:] > 0.5 * (dark + white))
+                if above.size:
+                    reach[axis].append(float(s[20 + above[0]]))
+    return {k: float(np.median(v)) if v else float("nan") for k, v in reach.items()}
+
+
+def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: str = "luma",
+                       progress=None) -> dict:
+    """Every measurement a twin of these chessboard photos needs (module docstring), as JSON-ready data:
+    ``rms_px``, ``K``, ``dist``, ``tone`` and one record per photo (pose with t in squares, ring, levels, blur,
+    JPEG quality).  Every photo must show the board (an ``InputError`` names one that does not)."""
+    from edgetruth.evaluate.board import chessboard as cb
+    from edgetruth.evaluate.board.grid_corners import grid_points
+    from edgetruth.evaluate.board.levels import saturated, square_levels
+    from edgetruth.evaluate.board.photo_model import measure_photo
+    from edgetruth.evaluate.calibration import calibrate_photos
+    from edgetruth.image_io import full_scale, read_gray
+
+    photos = [Path(p) for p in photos]
+    model = cb.chessboard_model(pattern, 1.0)
+    cal, results = calibrate_photos([(p.name, p) for p in photos], pattern, 1.0, channel=channel,
+                                    corner_finder=grid_points, undistort_lines=True, progress=progress)
+    lost = [r.photo for r in results if not r.found]
+    if lost:
+        raise InputError(f"{lost[0]}: the {pattern[0]}x{pattern[1]} board was not found on it; a twin renders one "
+                         "image per photo, so leave it out (or check --pattern)")
+    K, dist = cal.K, cal.dist
+    rows, images = [], []
+    for p in photos:
+        img = read_gray(p, channel=channel)
+        if full_scale(img.dtype) != 255.0:
+            raise InputError(f"{p}: {img.dtype} values; give 8-bit photos (a twin's renders are 8-bit)")
+        view = cb.find_squares(img, model)
+        if view is None:
+            raise InputError(f"{p}: the board study's squares were not found on it; leave it out")
+        mc = model_order(view, grid_points(img, pattern).corners((K, dist)))
+        board = np.c_[model.corners.reshape(-1, 2), np.zeros(mc.size // 2)]
+        ok = np.all(np.isfinite(mc.reshape(-1, 2)), axis=1)
+        _, rvec, tvec = cv2.solvePnP(board[ok], mc.reshape(-1, 2)[ok], K, dist, flags=cv2.SOLVEPNP_ITERATIVE)
+        proj, _ = cv2.projectPoints(board[ok], rvec, tvec, K, dist)
+        res = np.linalg.norm(proj.reshape(-1, 2) - mc.reshape(-1, 2)[ok], axis=1)
+        lev = square_levels(img, view.squares.corners)
+        pm = measure_photo(img, model, p.name, p)
+        blur = pm.get("blur") or {}
+        if lev.dark <= 0:
+            raise InputError(f"{p}: its dark squares read 0, so the print's contrast cannot be measured; leave it out "
+                             "or give photos whose blacks are not clipped")
+        q = jpeg_quality(p)
+        rows.append({
+            "photo": p.name, "R": cv2.Rodrigues(rvec)[0].tolist(), "t_squares": tvec.ravel().tolist(),
+            "pose_rms_px": float(np.sqrt(np.mean(res ** 2))),
+            "ring": ring_reach(img, K, dist, rvec, tvec, *pattern),
+            "dark": lev.dark, "white": lev.white, "dark_sd": lev.dark_sd, "white_sd": lev.white_sd,
+            "white_saturated": bool(saturated(lev)),
+            "sigma_x_px": blur.get("vertical", {}).get("sigma_px"),
+            "sigma_y_px": blur.get("horizontal", {}).get("sigma_px"),
+            "jpeg_quality": None if q is None else {"quality": q[0], "exact": q[1]},
+        })
+        images.append(img)
+    return {"pattern": list(pattern), "image_size": list(cal.image_size), "rms_px": cal.rms_px,
+            "K": np.asarray(K).tolist(),
+            "dist": np.asarray(dist).ravel().tolist(), "tone": measure_tone(photos, images, rows, model),
+            "photos": rows}
+
+
+def measure_tone(photos, images, rows, model) -> dict:
+    """``tone_fit.estimate_power`` (ERF4P-fixed11) on the unsaturated photos -> {power, ci, photos, output_gamma}:
+    ``output_gamma`` 1 (linear) when the 95 % interval holds 1, else the power.  Too few unsaturated photos (or no
+    power found): linear, and ``note`` says why."""
+    from edgetruth.evaluate import method_order as mo
+    from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD
+    from edgetruth.evaluate.board.inputs import BoardInputs
+    from edgetruth.evaluate.board.tone_fit import estimate_power
+
+    keep = [i for i, r in enumerate(rows) if not r["white_saturated"]]
+    if len(keep) < 3:
+        return {"power": None, "ci": None, "photos": [rows[i]["photo"] for i in keep], "output_gamma": 1.0,
+                "note": f"{len(keep)} unsaturated photo(s): too few to measure the tone; linear assumed"}
+    method, options = mo.resolve(DEFAULT_METHOD, mo.study_options())
+    inp = BoardInputs([photos[i] for i in keep], model)
+    try:
+        fit = estimate_power(inp, [images[i] for i in keep], [255.0] * len(keep), "ERF4P-fixed11", method, options)
+    except InputError as exc:
+        return {"power": None, "ci": None, "photos": [rows[i]["photo"] for i in keep], "output_gamma": 1.0,
+                "note": f"no tone measured ({exc}); linear assumed"}
+    lo, hi = fit.ci
+    gamma = 1.0 if lo <= 1.0 <= hi else round(float(fit.power), 2)
+    return {"power": float(fit.power), "ci": [float(lo), float(hi)], "photos": fit.photos,
+            "per_photo": fit.per_photo, "output_gamma": gamma}
+
+
+# --- the twin's files -------------------------------------------------------------------------------
+def airy_sigma_px(a: TwinAssumptions) -> float:
+    """The Gaussian that matches the Airy core (σ = 0.42 λN), in px."""
+    return 0.42 * a.wavelength_nm * 1e-3 * a.f_number / a.pitch_um
+
+
+def _median(values, empty: float = float("nan")) -> float:
+    """The median of the finite ``values`` (None or NaN: not measured), ``empty`` when there are none."""
+    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    return float(np.median(v)) if v else empty
+
+
+def _range(values, fmt: str = ".1f") -> str:
+    lo, hi = min(values), max(values)
+    return f"{lo:{fmt}}" if f"{lo:{fmt}}" == f"{hi:{fmt}}" else f"{lo:{fmt}}-{hi:{fmt}}"
+
+
+def _output(rows) -> tuple[str, int | None, str]:
+    """(output, jpeg quality or None, the words for the header)."""
+    q = [r["jpeg_quality"] for r in rows]
+    if any(v is None for v in q):
+        return "srgb8", None, "8-bit PNG (not every photo is a JPEG)"
+    qualities = sorted({v["quality"] for v in q})
+    quality = int(np.median([v["quality"] for v in q]))
+    exact = all(v["exact"] for v in q)
+    words = (f"every photo's luminance table is the IJG table at quality {quality} exactly" if exact and
+             len(qualities) == 1 else f"the photos' luminance tables are nearest the IJG tables at qualities "
+             f"{', '.join(str(v) for v in qualities)}: quality {quality} (the median)")
+    return "jpeg", quality, words
+
+
+def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: float, source: str,
+               assumptions: TwinAssumptions = TwinAssumptions()) -> tuple[str, str]:
+    """(camera TOML, scene TOML) of the twin of the photos ``m`` (``measure_chessboard``): ``name`` and
+    ``description`` the spec's, ``camera_ref`` how the spec names the camera (a shipped name or a path relative to
+    the spec), ``square_m`` the printed square's side (m; it scales the poses only), ``source`` the photos in words
+    (for the headers)."""
+    from edgetruth.render.sensor.linear_model import SensorModel
+
+    a = assumptions
+    K, dist, photos = np.asarray(m["K"]), m["dist"], m["photos"]
+    names = [group_name(p["photo"]) for p in photos]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise InputError(f"{twice[0]}: two photos share this name; a twin names one group per photo, so rename one")
+    cols, rows = m["pattern"]
+    clean = [p for p in photos if not p["white_saturated"]] or photos
+    ratio = float(np.median([p["white"] / p["dark"] for p in clean]))
+    sig_x, sig_y = (_median([p[k] for p in clean]) for k in ("sigma_x_px", "sigma_y_px"))
+    if not (math.isfinite(sig_x) and math.isfinite(sig_y)):
+        raise InputError("the photos' edges gave no blur (the photo model found no sides); the twin needs it")
+    # a full square at most (the crossing reads a half-step past its far side); no ring square in view: a full one
+    ring = [min(_median([p["ring"][k] for p in photos], 1.0), 1.0) for k in ("x", "y")]
+    dist_m = float(np.median([p["t_squares"][2] for p in photos])) * square_m
+    output, quality, output_words = _output(photos)
+    gamma = float(m["tone"]["output_gamma"])
+    white_sd, white_why = a.white_noise_dn, a.white_noise_why
+    if white_sd is None:  # shot-noise limited: SD as the square root of the level, then back through the coding
+        white_sd = float(np.median([p["white_sd"] * math.sqrt(WHITE_REF_DN / p["white"]) for p in clean]))
+        white_why = "the photos' white SD at that level"
+        if output == "jpeg":
+            white_sd *= JPEG_NOISE_FACTOR
+            white_why += f" x {JPEG_NOISE_FACTOR:.2f}, what a JPEG at quality 50 takes off it"
+    s0 = SensorModel()
+    span = s0.max_dn - s0.dark_offset_dn
+    k = white_sd ** 2 * span / (255.0 * a.output_gain * WHITE_REF_DN)  # DN per electron
+    ppr = s0.photons_per_radiance(a.f_number, a.pitch_um)  # photons per W m^-2 sr^-1
+
+    def irradiance(white_8bit: float) -> float:
+        electrons = white_8bit * span / (255.0 * a.output_gain * k)
+        return electrons * math.pi / (s0.qe * ppr * a.board_reflectance)
+
+    def aberration_um(sigma_px: float) -> float:
+        return a.pitch_um * math.sqrt(max(sigma_px ** 2 - 1.0 / 12.0 - airy_sigma_px(a) ** 2, 0.0))
+
+    cal_words = (f"Zhang's calibration on the {cols * rows} line corners of every photo (ERF4P-fixed11, the grid "
+                 f"lines fitted in the undistorted image; `edgetruth calibrate --pattern {cols}x{rows} --corners "
+                 f"lines`), RMS {m['rms_px']:.4f} px")
+    cam = _comment(
+        f"The camera of {source}, as edgetruth measured it: {cal_words}.  Written by `edgetruth twin` "
+        f"(edgetruth.evaluate.board.twin_derive).  Assumed (nothing published): the pixel pitch ({a.pitch_um} um), "
+        f"the f-number (f/{a.f_number:g}) and the focus (the median board distance, with a square of "
+        f"{square_m * 1000:g} mm); they set f = fx * pitch and the defocus, which is small here.  The lens blur is "
+        f"the median of the unsaturated photos' ERF sigma per axis (edgetruth.evaluate.board.photo_model: "
+        f"{sig_x:.3f} px along x, {sig_y:.3f} px along y) less the pixel and the Airy core (in quadrature); the twin "
+        "scene sets it per photo only where a photo's own sigma is unbiased.") + f"""
+[camera]
+width_px = {m["image_size"][0]}
+height_px = {m["image_size"][1]}
+pitch_um = {a.pitch_um}
+fx_px = {K[0, 0]:.4f}
+fy_px = {K[1, 1]:.4f}
+cx_px = {K[0, 2]:.4f}
+cy_px = {K[1, 2]:.4f}
+f_number = {a.f_number}
+focus_distance_m = {dist_m:.4f}
+diffraction_wavelength_nm = {a.wavelength_nm}
+aberration_sigma_um = {aberration_um(sig_x):.3f}
+aberration_sigma_y_um = {aberration_um(sig_y):.3f}
+aberration_sigma_growth = 0.0
+natural_vignetting = false
+
+[camera.distortion]
+k1 = {dist[0]:.6f}
+k2 = {dist[1]:.6f}
+p1 = {dist[2]:.6f}
+p2 = {dist[3]:.6f}
+k3 = {dist[4]:.6f}
+"""
+    groups = []
+    light = "[" + ", ".join(f"{v}" for v in a.light_position_m) + "]"
+    for p in photos:
+        sat = p["white_saturated"]
+        white = p["dark"] * ratio if sat else p["white"]
+        sx = sig_x if sat or p["sigma_x_px"] is None else p["sigma_x_px"]
+        sy = sig_y if sat or p["sigma_y_px"] is None else p["sigma_y_px"]
+        R = ", ".join("[" + ", ".join(f"{v:.7f}" for v in row) + "]" for row in p["R"])
+        t = ", ".join(f"{v:.5f}" for v in p["t_squares"])
+        sensor = f"output_clip_dn = {p['white']:.1f}" if sat else ""
+        note = (f"white saturated at {p['white']:.0f} (SD {p['white_sd']:.2f}); before the clip dark x {ratio:.2f} = "
+                f"{white:.0f}; blur: the unsaturated photos' median" if sat else
+                f"white {p['white']:.1f}, dark {p['dark']:.1f}; blur: "
+                + ("its own" if p["sigma_x_px"] is not None and p["sigma_y_px"] is not None else
+                   "the unsaturated photos' median"))
+        groups.append(f"""[[group]]  # {p['photo']}: {note}
+name = "{group_name(p['photo'])}"
+kind = "squares"
+irradiance_w_m2 = {irradiance(white):.4f}
+light_position_m = {light}
+pose_unit_m = {square_m}
+camera = {{ aberration_sigma_um = {aberration_um(sx):.3f}, aberration_sigma_y_um = {aberration_um(sy):.3f} }}
+{"sensor = { " + sensor + " }" if sensor else ""}
+poses = [{{ R = [{R}], t = [{t}] }}]
+""".replace("\n\n", "\n"))
+    sat = [p for p in photos if p["white_saturated"]]
+    tone = m["tone"]
+    tone_words = (f"the unsaturated photos' power {tone['power']:.2f} (95 % {tone['ci'][0]:.2f}-{tone['ci'][1]:.2f}; "
+                  f"--tone auto)" if tone.get("power") is not None else tone.get("note", "not measured"))
+    unsat = [p for p in photos if not p["white_saturated"]]
+    noise = (f"dark SD {_range([p['dark_sd'] for p in unsat])} at {_range([p['dark'] for p in unsat], '.0f')}, "
+             f"white SD {_range([p['white_sd'] for p in unsat])} at {_range([p['white'] for p in unsat], '.0f')}"
+             if unsat else "no unsaturated photo")
+    sensor_lines = [f'output = "{output}"'] + ([f"jpeg_quality = {quality}"] if quality is not None else [])
+    clip = f" at {_range([p['white'] for p in sat], '.0f')}" if sat else ""
+    scene = "\n".join([
+        _comment(f"A digital twin of {source}: a {cols}x{rows} chessboard, the camera edgetruth calibrated on them "
+                 f"({camera_ref}), one group per photo at the pose its line corners give (cv2.solvePnP on the board "
+                 "study's chessboard model; t in squares).  Written by `edgetruth twin` "
+                 "(edgetruth.evaluate.board.twin_derive); docs/board.md.  Measured on the photos:"),
+        _comment(f"the board: {cols + 1} x {rows + 1} squares, the outer ring cut at {ring[0]:.2f} (x) and "
+                 f"{ring[1]:.2f} (y) of a square beyond the outermost inner corners (median over the photos);", True),
+        _comment(f"tone: {tone_words}: output_gamma = {gamma:g};", True),
+        _comment(f"output: {output_words};", True),
+        _comment("levels: each photo's white at its light squares' centres (its exposure, irradiance_w_m2 here); the "
+                 f"print's contrast, white / dark = {ratio:.2f} (median of the unsaturated photos), sets the squares' "
+                 "reflectance;", True),
+        _comment(f"saturation: {len(sat)} photo(s) with whites flat (noise SD < half the dark's){clip}: "
+                 f"output_clip_dn there, with the white before the clip their dark level x {ratio:.2f};", True),
+        _comment(f"noise: {noise}: shot-noise limited, a sensor of K = {k:.4f} DN/e-, {a.dark_noise_e:g} e- read "
+                 f"noise, the white's SD before the output coding {white_sd:.2f} DN at {WHITE_REF_DN:g} ({white_why}; "
+                 "the twin study's Table 3 compares the photos' noise and the twin's).", True),
+        _comment("Not reproduced: the room behind the board (black here), the board's margin beyond the ring, uneven "
+                 "light.")]) + f"""
+[spec]
+name = {_toml_str(name)}
+description = {_toml_str(description)}
+camera = {_toml_str(camera_ref)}
+spp = 256
+sampler = "multijitter"
+
+[spec.squares]
+chessboard = "{cols}x{rows}"
+side_m = {square_m}
+ring = [{ring[0]:.3f}, {ring[1]:.3f}]
+margin_m = {0.35 * square_m:.5f}
+square_reflectance = {a.board_reflectance / ratio:.4f}
+board_reflectance = {a.board_reflectance}
+
+[sensor]
+{chr(10).join(sensor_lines)}
+output_gamma = {gamma}
+output_gain = {a.output_gain}
+k0_dn_per_e = {k:.5f}
+dark_noise_e = {a.dark_noise_e}
+full_well_e = 100000.0
+
+""" + "\n".join(groups)
+    return cam, scene
+
+
+def _toml_str(text: str) -> str:
+    """A TOML basic string (JSON's escapes are TOML's)."""
+    import json
+
+    return json.dumps(str(text), ensure_ascii=False)
+
+
+def _comment(text: str, bullet: bool = False, width: int = 116) -> str:
+    """``text`` as TOML comment lines of at most ``width`` characters (a bullet: '# - ', continued '#   ')."""
+    import textwrap
+
+    first, rest = ("# - ", "#   ") if bullet else ("# ", "# ")
+    return "\n".join(textwrap.wrap(text, width, initial_indent=first, subsequent_indent=rest,
+                                   break_on_hyphens=False, break_long_words=False))
+
+
+def safe_name(text: str) -> str:
+    """``text`` as a spec or group name (``render.schema.NAME_RE``): anything but letters, digits, '-' and '_' as
+    '_', starting with a letter or digit, at most 100 characters."""
+    import re
+
+    name = re.sub(r"[^A-Za-z0-9_-]", "_", str(text))
+    name = name if name[:1].isalnum() and name[:1].isascii() else "p" + name
+    return name[:100]
+
+
+def group_name(photo: str) -> str:
+    """A spec group's name for a photo file: its stem as ``safe_name`` makes it."""
+    return safe_name(Path(photo).stem)

@@ -1,0 +1,92 @@
+"""A twin derived from chessboard photos (``twin_derive``): the JPEG quality read from the file, the scene a valid
+spec, and rendered, the twin's board where the photos' is."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from edgetruth.errors import InputError
+from edgetruth.evaluate.board import twin_derive as td
+from tests.evaluate.board.chessboard_images import write_views as views
+
+
+@pytest.mark.parametrize("quality", [10, 50, 75, 95])
+def test_jpeg_quality_is_read_from_the_file(tmp_path, quality):
+    """OpenCV's encoder (libjpeg) stores the IJG table at the quality asked for: read back exactly; a PNG has
+    none."""
+    img = np.random.default_rng(0).integers(0, 255, (32, 32)).astype(np.uint8)
+    cv2.imwrite(str(tmp_path / "a.jpg"), img, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    cv2.imwrite(str(tmp_path / "a.png"), img)
+    assert td.jpeg_quality(tmp_path / "a.jpg") == (quality, True)
+    assert td.jpeg_quality(tmp_path / "a.png") is None
+
+
+def test_ijg_tables():
+    """Quality 50 is the Annex K table itself; 100 is all ones; the scaling is libjpeg's (quality 75: half)."""
+    assert np.array_equal(td.ijg_table(50), td.IJG_LUMA)
+    assert np.all(td.ijg_table(100) == 1)
+    assert np.array_equal(td.ijg_table(75), np.clip((td.IJG_LUMA * 50 + 50) // 100, 1, 255))
+    assert sorted(td.ZIGZAG) == list(range(64))
+
+
+def test_group_names():
+    assert td.group_name("dir/left01.jpg") == "left01" and td.group_name("a b.c.png") == "a_b_c"
+    assert td.group_name("_x.png") == "p_x" and td.safe_name("my twin") == "my_twin"
+
+
+def test_derived_twin_of_jpeg_views(tmp_path):
+    """4 JPEG views (quality 75) of a known camera: the measured camera is it (fx 600 to 0.1 %), the output is the
+    photos' JPEG quality, the tone linear (noise-free linear renders: power 1 within its interval), one group per
+    photo with its white, and the spec loads."""
+    from edgetruth.render.dataset.spec import load_spec
+
+    paths, _ = views(tmp_path, ".jpg")
+    m = td.measure_chessboard(paths, (9, 6))
+    assert abs(m["K"][0][0] - 600.0) < 0.6 and abs(m["K"][0][2] - 319.5) < 0.5
+    assert m["tone"]["output_gamma"] == 1.0 and all(p["jpeg_quality"] == {"quality": 75, "exact": True}
+                                                    for p in m["photos"])
+    cam, scene = td.twin_texts(m, "t", "a test twin", "camera.toml", 0.03, "four test views")
+    (tmp_path / "camera.toml").write_text(cam)
+    (tmp_path / "twin.toml").write_text(scene)
+    spec = load_spec(tmp_path / "twin.toml")
+    assert spec.n_images == 4 and [g.name for g in spec.groups] == ["v0", "v1", "v2", "v3"]
+    assert spec.sensor.output == "jpeg" and spec.sensor.jpeg_quality == 75 and spec.sensor.output_gamma == 1.0
+    assert spec.camera.fx_px == pytest.approx(m["K"][0][0], abs=1e-4)
+    assert max(len(ln) for ln in scene.splitlines() if ln.startswith("#")) <= 116
+
+
+def test_rendered_twin_puts_the_board_where_the_photos_have_it(fast_variant, tmp_path):
+    """The twin of 4 PNG views (8-bit PNG out), rendered at 4 spp: every inner corner of its truth lies within
+    0.05 px of the view's true corner (measured: mean 0.006, max 0.010 px): the calibration, the poses and the
+    chessboard model's frame carry the board into the twin."""
+    from edgetruth.render.dataset.driver import render_spec
+    from edgetruth.render.dataset.reader import open_dataset
+    from edgetruth.render.dataset.spec import load_spec
+
+    paths, truth = views(tmp_path, ".png")
+    m = td.measure_chessboard(paths, (9, 6))
+    cam, scene = td.twin_texts(m, "t", "a test twin", "camera.toml", 0.03, "four test views")
+    assert 'output = "srgb8"' in scene and "jpeg_quality" not in scene
+    (tmp_path / "camera.toml").write_text(cam)
+    (tmp_path / "twin.toml").write_text(scene.replace("\nspp = 256\n", "\nspp = 4\n", 1))
+    spec = load_spec(tmp_path / "twin.toml")
+    render_spec(spec, tmp_path / "r", progress=False, announce=lambda s: None)
+    samples = sorted(open_dataset(tmp_path / "r").square_boards(), key=lambda s: s.index)
+    err = []
+    for s, t in zip(samples, truth):
+        c = np.asarray(s.truth["squares"]["corners_distorted_px"], float).reshape(-1, 2)
+        d = np.linalg.norm(t[:, None, :] - c[None, :, :], axis=2).min(axis=1)
+        err.append(d)
+    err = np.concatenate(err)
+    print(f"twin corners vs the views': mean {err.mean():.4f}, max {err.max():.4f} px")
+    assert err.max() < 0.05
+
+
+def test_a_photo_without_the_board_is_named(tmp_path):
+    """A photo where the board is not found: one InputError naming it (a twin renders one image per photo)."""
+    paths, _ = views(tmp_path, ".png")
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
+    with pytest.raises(InputError, match="blank.png: the 9x6 board was not found"):
+        td.measure_chessboard([*paths, blank], (9, 6))
