@@ -1,0 +1,95 @@
+"""``edgetruth twin PHOTOS... --pattern 9x6 --square-m 0.025 -o DIR``: a digital twin of your own chessboard photos.
+
+Measures on the photos what a twin needs (``edgetruth.evaluate.board.twin_derive``: camera, poses, board, levels,
+clip, blur, tone, JPEG quality) and writes ``DIR/twin.toml`` (one group per photo), ``DIR/camera.toml`` and
+``DIR/measurements.json``; ``edgetruth render DIR/twin.toml -o RENDERS`` renders it with exact truth.
+"""
+from __future__ import annotations
+
+import argparse
+
+FILES = ("twin.toml", "camera.toml", "measurements.json")
+
+
+def register(sub) -> None:
+    from edgetruth.cli import add_image_options, add_pattern_option, add_progress_option
+
+    p = sub.add_parser("twin", help="derive a digital twin (a render spec) of your own chessboard photos",
+                       description="Measure on chessboard photos what a digital twin of them needs -- the camera "
+                                   "(Zhang's calibration on line corners), each photo's pose, the board's outer "
+                                   "ring, levels and clip, blur, tone and JPEG quality -- and write a render spec "
+                                   "with one image per photo (DIR/twin.toml), its camera (DIR/camera.toml) and the "
+                                   "measurements (DIR/measurements.json).  `edgetruth render DIR/twin.toml -o R` "
+                                   "renders it with exact truth (docs/board.md, 'Your own twin').")
+    p.add_argument("photos", nargs="*", metavar="PHOTOS",
+                   help="image files, folders, glob patterns (quoted), or a shipped photo set's name (opencv_left); "
+                        "8-bit, every photo showing the whole board")
+    add_pattern_option(p, "the board the photos show", required=True)
+    p.add_argument("--square-m", required=True, metavar="METRES",
+                   help="side of one printed square in metres (e.g. 0.025); it sets the twin's board size and "
+                        "its distances")
+    p.add_argument("-o", "--output", required=True, metavar="DIR",
+                   help="directory for twin.toml, camera.toml and measurements.json (refused if it holds a "
+                        "twin.toml already)")
+    p.add_argument("--name", default=None, help="the spec's name (default: the directory's name)")
+    p.add_argument("--pitch-um", type=float, default=6.0, metavar="UM",
+                   help="assumed pixel pitch (default 6); with fx it sets the focal length, hence the defocus")
+    p.add_argument("--f-number", type=float, default=4.0, metavar="N", help="assumed f-number (default 4)")
+    p.add_argument("--white-noise-dn", type=float, default=None, metavar="DN",
+                   help="the white's noise SD (8-bit DN, at a white of 220) before the output coding; default: the "
+                        "photos' own, scaled back through their JPEG (docs/board.md)")
+    add_image_options(p)
+    add_progress_option(p)
+    p.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import math
+    import shlex
+
+    from edgetruth import console
+    from edgetruth.cli.commands.calibrate import _square_m
+    from edgetruth.errors import InputError
+    from edgetruth.evaluate.board.twin_derive import TwinAssumptions, measure_chessboard, safe_name, twin_texts
+    from edgetruth.evaluate.calibration import find_photos, parse_pattern
+    from edgetruth.fileio import atomic_write_text, check_output_dir, make_output_dir, write_json
+
+    pattern = parse_pattern(args.pattern)
+    square_m = _square_m(args.square_m)
+    for flag, v, lo, hi in (("--pitch-um", args.pitch_um, 0.5, 50.0), ("--f-number", args.f_number, 0.5, 64.0),
+                            ("--white-noise-dn", args.white_noise_dn, 0.01, 50.0)):
+        if v is not None and not (math.isfinite(v) and lo <= v <= hi):
+            raise InputError(f"{flag} {v:g}: give a number from {lo:g} to {hi:g}")
+    out = check_output_dir(args.output)
+    if (out / "twin.toml").exists():
+        raise InputError(f"-o {out}: it holds a twin.toml already; choose a new directory or remove that one")
+    photos = find_photos(args.photos)
+    if len(photos) < 3:
+        raise InputError(f"{len(photos)} photo(s): Zhang's calibration needs 3 or more views of the board")
+    from edgetruth.render.schema import NAME_RE
+
+    if args.name is not None and not (NAME_RE.match(args.name) and ".." not in args.name):
+        raise InputError(f"--name {args.name!r}: use 1-100 letters, digits, '_', '-', '.', starting with a letter or "
+                         "digit (it names files and directories)")
+    name = args.name or safe_name(out.resolve().name or "twin")
+    m = measure_chessboard([p for _, p in photos], pattern, channel=args.channel,
+                           progress=lambda it: console.track(it, desc="twin: calibrate", unit="photo",
+                                                             enabled=not args.no_progress))
+    assumptions = TwinAssumptions(pitch_um=args.pitch_um, f_number=args.f_number, white_noise_dn=args.white_noise_dn)
+    source = f"{len(photos)} photos ({photos[0][0]} ... {photos[-1][0]})" if len(photos) > 2 else "the photos"
+    cam, scene = twin_texts(m, name, f"digital twin of {source}", "camera.toml", square_m, source, assumptions)
+    make_output_dir(out)
+    write_json(out / "measurements.json", m)
+    atomic_write_text(out / "camera.toml", cam)
+    atomic_write_text(out / "twin.toml", scene)  # last: its presence says the directory is complete
+    from edgetruth.render.dataset.spec import load_spec
+
+    spec = load_spec(out / "twin.toml")
+    tone = m["tone"]
+    console.say(f"twin: {spec.n_images} photos; camera fx {m['K'][0][0]:.2f} fy {m['K'][1][1]:.2f} px, RMS "
+                f"{m['rms_px']:.4f} px; {spec.sensor.output}"
+                + (f" quality {spec.sensor.jpeg_quality}" if spec.sensor.output == "jpeg" else "")
+                + f", output_gamma {tone['output_gamma']:g}; {sum(p['white_saturated'] for p in m['photos'])} "
+                f"clipped -> {out / 'twin.toml'}")
+    console.say(f"twin: render it with `edgetruth render {shlex.quote(str(out / 'twin.toml'))} -o RENDERS`")
+    return 0

@@ -1,0 +1,53 @@
+"""`edgetruth twin`: a twin spec of your own chessboard photos, written whole or not at all."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from edgetruth.cli import main
+from tests.evaluate.board.chessboard_images import write_views
+
+
+def test_twin_of_four_views(tmp_path, capsys):
+    """4 PNG views -> DIR/twin.toml (one group per view, PNG out, the camera by relative path), DIR/camera.toml
+    (fx 600 to 0.1 %) and DIR/measurements.json; the spec loads from any directory; the printed lines say how to
+    render it."""
+    from edgetruth.render.dataset.spec import load_spec
+
+    (tmp_path / "photos").mkdir()
+    write_views(tmp_path / "photos", ".png")
+    out = tmp_path / "my twin"
+    rc = main(["twin", str(tmp_path / "photos"), "--pattern", "9x6", "--square-m", "0.03", "-o", str(out),
+               "--no-progress"])
+    assert rc == 0 and sorted(p.name for p in out.iterdir()) == ["camera.toml", "measurements.json", "twin.toml"]
+    spec = load_spec(out / "twin.toml")
+    assert spec.name == "my_twin" and spec.n_images == 4 and spec.sensor.output == "srgb8"
+    assert spec.camera.fx_px == pytest.approx(600.0, rel=1e-3)
+    m = json.loads((out / "measurements.json").read_text())
+    assert m["pattern"] == [9, 6] and len(m["photos"]) == 4 and m["image_size"] == [640, 480]
+    text = capsys.readouterr().out
+    assert "twin: 4 photos" in text and "edgetruth render" in text
+
+
+def test_twin_refuses_bad_input_before_writing(tmp_path, capsys):
+    """Each bad input: exit 2, one line naming it; an existing twin.toml is left as it was."""
+    (tmp_path / "photos").mkdir()
+    paths, _ = write_views(tmp_path / "photos", ".png")
+    out = tmp_path / "t"
+    out.mkdir()
+    (out / "twin.toml").write_text("# mine\n")
+    base = ["twin", "--pattern", "9x6", "--square-m", "0.03", "--no-progress"]
+    cases = [
+        ([str(tmp_path / "photos"), "-o", str(out)], "holds a twin.toml already"),
+        ([str(p) for p in paths[:2]] + ["-o", str(tmp_path / "u")], "needs 3 or more views"),
+        ([str(tmp_path / "photos"), "-o", str(tmp_path / "u"), "--name", "a b"], "--name 'a b'"),
+        ([str(tmp_path / "photos"), "-o", str(tmp_path / "u"), "--pitch-um", "0"], "--pitch-um 0"),
+        ([str(tmp_path / "photos"), "-o", str(tmp_path / "u"), "--square-m", "-1"], "--square-m"),
+    ]
+    for extra, words in cases:
+        capsys.readouterr()
+        assert main([*base, *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0], (extra, err)
+    assert (out / "twin.toml").read_text() == "# mine\n" and not (tmp_path / "u").exists()
