@@ -1,11 +1,13 @@
-"""The digital twin of a shipped photo set: render it, run the same board study on twin and photos, compare.
+"""The digital twin of a photo set: render it, run the same board study on twin and photos, compare.
 
-``edgetruth study twin zhang1998 -o DIR`` (or ``opencv_left``: OpenCV's chessboard photos):
+``edgetruth study twin zhang1998 -o DIR`` (or ``opencv_left``: OpenCV's chessboard photos; or your own photos,
+``edgetruth study twin PHOTOS... --pattern 9x6 --twin DIR/twin.toml``, with the twin ``edgetruth twin`` derives):
 
 1. **Render** the set's twin scene (``scenes/zhang1998_twin.toml``: Zhang's camera, board and poses;
    optics, noise and output measured on his photos, ``photo_model``; ``scenes/opencv_left_twin.toml``:
    ``twin_derive``'s, written by ``tools/twins/opencv_left_scene.py``) into ``DIR/renders`` with the render
-   driver (resumable: a run that stops picks up where it was).  A chessboard twin renders the model's squares first, then the outer ring's.
+   driver (resumable: a run that stops picks up where it was).  A chessboard twin renders the model's squares
+   first, then the outer ring's.
 2. **The same board study** (``study.compute_board_study``) on the twin's PNGs, read like photos
    (``edgetruth.image_io.read_gray``), and on the real photos: the same methods and options, the same
    squares, sides, lines, calibration and leave-one-out code.  Each study's own files go to
@@ -13,8 +15,8 @@
 3. **Against the truth** (twin only): every method's points that the study assigned to a side are
    scored against the square's exact distorted outline from the render's JSON (signed distance, > 0 on
    the bright board; the study's assignment already leaves out the 3 px next to each corner): RMS,
-   median |e|, mean (the bias) and SD (the scatter about it).  Two truth rows: the exact corners (the JSON's), and *the exact outline*: points
-   on the exact outline at 0.5 px spacing, 3 px from the corners, through the study's line fit and
+   median |e|, mean (the bias) and SD (the scatter about it).  Two truth rows: the exact corners (the JSON's),
+   and *the exact outline*: points on the exact outline at 0.5 px spacing, 3 px from the corners, through the study's line fit and
    intersection -- the floor of the study's procedure (a straight line through a side that the lens
    bends).
 4. **The photo model** (``photo_model.measure_photo``) of each real photo and each twin image, side by side,
@@ -210,12 +212,40 @@ def settings_of(set_name: str, methods, options, images, spp, spec_sha: str, cha
             "spp": spp, "spec_identity": spec_sha, "channel": channel}
 
 
-def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | None = None, thresholds=None,
+def own_inputs(photos: list[str], twin: str | None, model_path=None, pattern=None, square=None):
+    """Your own photos and their twin (``edgetruth twin`` writes one) -> (label, BoardInputs, spec name or path)."""
+    if twin is None:
+        raise InputError("study twin PHOTOS...: give one shipped set's name (zhang1998, opencv_left), or your "
+                         "photos with their twin scene, --twin FILE (`edgetruth twin PHOTOS --pattern ... -o DIR` "
+                         "writes DIR/twin.toml)")
+    real = resolve_inputs(list(photos), model_path, pattern, square)
+    return real.set_name, real, twin
+
+
+def model_unit_m(set_name: str, model, spec) -> float:
+    """Metres per board-model unit, for Table 5's depths: the shipped sets' own; else the side of the twin's first
+    square (a chessboard twin renders the model's squares first, in its order) over the model's."""
+    if set_name in MODEL_UNIT_M:
+        return MODEL_UNIT_M[set_name]
+
+    def side(q) -> float:
+        q = np.asarray(q, float)
+        return float(np.linalg.norm(q[1, :2] - q[0, :2]))
+
+    squares = getattr(spec, "squares", None)
+    if squares is None or side(model.corners[0]) <= 0:
+        return 1.0
+    return side(squares.quads_model_m[0]) / side(model.corners[0])
+
+
+def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = None, thresholds=None,
                    channel: str = "luma", variant: str | None = None, progress: bool = True,
-                   twin: str | None = None) -> Path:
+                   twin: str | None = None, model_path=None, pattern=None, square=None) -> Path:
     """Render the twin of ``set_name`` and compare it with the photos (module docstring); returns report.md.
     ``twin``: the twin scene (a shipped spec name or a TOML path; default the set's own, ``TWINS``), e.g.
-    ``opencv_left_twin_bent``, whose boards curl as the photos' do."""
+    ``opencv_left_twin_bent``, whose boards curl as the photos' do.  ``set_name`` may also be a list of your own
+    photos (files, folders, globs; ``resolve_inputs`` with ``model_path`` or ``pattern`` and ``square``): then
+    ``twin`` is required, e.g. the ``twin.toml`` of ``edgetruth twin``."""
     from edgetruth.evaluate.board.photo_model import derive_twin, measure_photo
     from edgetruth.evaluate.board.study import compute_board_study, write_board_run
     from edgetruth.evaluate.run_dir import prepare_run_dir
@@ -224,11 +254,15 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     from edgetruth.render.dataset.reader import open_dataset
 
     t0 = time.perf_counter()
-    spec_name = check_set(set_name)
-    spec_name = spec_name if twin is None else twin
-    real_all = resolve_inputs([set_name])
+    if isinstance(set_name, str):
+        spec_name = check_set(set_name)
+        spec_name = spec_name if twin is None else twin
+        real_all = resolve_inputs([set_name])
+    else:
+        set_name, real_all, spec_name = own_inputs(set_name, twin, model_path, pattern, square)
     keep = check_images(images, len(real_all.photos))
     spec = twin_spec(spec_name, spp)
+    set_name = set_name or spec.name  # your own photos: named by their twin
     if spec.n_images != len(real_all.photos):
         raise InputError(f"{spec_name}: {spec.n_images} images for {len(real_all.photos)} photos; the twin must "
                          "render one image per photo")
@@ -282,7 +316,8 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     corners = per_photo_corners(real_run, twin_run, truths, PER_PHOTO_METHOD)
     floor_row = calibrate_row(exact_outline_row(truths, twin.model), twin.model, twin_run.size)
     floor = row_summary(floor_row, twin.model, twin_run.reference, twin.reference_corners)
-    flatness = flatness_rows(set_name, real_run, twin_run, floor_row, PER_PHOTO_METHOD)
+    flatness = flatness_rows(model_unit_m(set_name, real.model, spec), real_run, twin_run, floor_row,
+                             PER_PHOTO_METHOD)
 
     # 4. the photo model of both, and the settings the photos give
     t_p = time.perf_counter()
@@ -294,6 +329,9 @@ def run_twin_study(set_name: str, out, methods=None, images=None, spp: int | Non
     defocus = [float(j.camera.defocus_radius_px(j.pose.distance_m)) for j in jobs]
     if set_name in DERIVED_ELSEWHERE:
         derived = {"derived_by": DERIVED_ELSEWHERE[set_name]}
+    elif set_name not in BASE_LEVELS:  # your own photos: the scene says how it was made
+        derived = {"derived_by": f"whoever wrote {spec_name} (`edgetruth twin` writes its measurements.json beside "
+                                 "it)"}
     else:
         try:
             base_black, base_white = BASE_LEVELS[set_name]
@@ -342,7 +380,7 @@ BASE_LEVELS = {"zhang1998": (41.1, 215.2)}
 MODEL_UNIT_M = {"zhang1998": 0.0254, "opencv_left": 0.025}
 
 
-def flatness_rows(set_name: str, real_run, twin_run, floor_row, method: str) -> dict:
+def flatness_rows(unit_m: float, real_run, twin_run, floor_row, method: str) -> dict:
     """Table 5: the bent-board check (``flatness.board_flatness``) on ``method``'s corners of the photos and of the
     twin, and on the twin's exact outline; {label: result}, empty results left out."""
     from edgetruth.evaluate.board.flatness import board_flatness
@@ -354,7 +392,7 @@ def flatness_rows(set_name: str, real_run, twin_run, floor_row, method: str) -> 
             row = next((r for r in run.rows if r.label == method), None)
         if row is None or row.corners is None:
             continue
-        res = board_flatness(row.corners, run.inp.model.corners, run.size, MODEL_UNIT_M.get(set_name, 1.0))
+        res = board_flatness(row.corners, run.inp.model.corners, run.size, unit_m)
         if res:
             out[label] = {"method": method if label != "twin, exact outline" else EXACT_OUTLINE, **res}
     return out

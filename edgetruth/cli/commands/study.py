@@ -36,17 +36,19 @@ def register(sub) -> None:
                                    "on the photos, scores the twin's points against its exact outlines, measures "
                                    "both with the photo model, and writes DIR/report.md with real and twin side "
                                    "by side and the Spearman rank correlations (docs/board.md, 'Digital twin'); "
-                                   "~3-5 min on 2 cores.")
+                                   "~3-5 min on 2 cores; of your own photos: `edgetruth study twin PHOTOS... "
+                                   "--pattern 9x6 --twin DIR/twin.toml -o RUN` (`edgetruth twin` writes the twin).")
     p.add_argument("kind", choices=["synthetic", "board", "twin"], help="which study")
     p.add_argument("inputs", nargs="*", metavar="PHOTOS",
                    help="board: photo files, folders of photos, or a shipped set's name (zhang1998: its photos, "
                         "model, corners and published calibration; opencv_left: OpenCV's chessboard photos); twin: "
-                        "the shipped set's name (zhang1998 or opencv_left)")
+                        "the shipped set's name (zhang1998 or opencv_left), or your photos (as for board) with "
+                        "--twin")
     p.add_argument("--model", default=None, metavar="FILE",
                    help="board: the board model, one square per line, x y of its four corners in board units "
                         "(Zhang's Model.txt layout)")
-    add_pattern_option(p, "board: the photos show this chessboard, and its dark squares between the inner corners "
-                          "are studied (in place of --model)")
+    add_pattern_option(p, "board, and twin of your own photos: the photos show this chessboard, and its dark squares "
+                          "between the inner corners are studied (in place of --model)")
     p.add_argument("--square", default=None, metavar="SIZE",
                    help="board, with --pattern: the side of one square, in the unit side lengths are reported in "
                         "(default 1: lengths in squares)")
@@ -64,7 +66,8 @@ def register(sub) -> None:
     p.add_argument("--twin", default=None, metavar="SPEC",
                    help="twin: the twin scene to render, a shipped spec or a TOML path with one image per photo "
                         "(default: the set's, SET_twin); opencv_left_twin_bent curls each board as its photo's "
-                        "(docs/board.md, 'A bent twin')")
+                        "(docs/board.md, 'A bent twin'); with your own photos, required: e.g. the DIR/twin.toml "
+                        "`edgetruth twin` writes")
     p.add_argument("--preset", choices=["quick", "full"], default=None,
                    help="synthetic: quick (default): 24 images per scenario (~1 min); full: 200 per scenario "
                         "(the seed's scale)")
@@ -100,14 +103,20 @@ def run(args) -> int:
     if args.kind == "twin":
         from edgetruth.evaluate.board.twin import run_twin_study
 
-        _refuse(args, _SYNTHETIC_ONLY | {k: v for k, v in _BOARD_ONLY.items() if k != "inputs"}, "twin")
+        # one name that is not a path: a shipped set; else your own photos, with their twin scene (--twin)
+        shipped = len(args.inputs) == 1 and not Path(args.inputs[0]).exists()
+        board_only = {k: v for k, v in _BOARD_ONLY.items() if k != "inputs" and (shipped or k == "tone")}
+        _refuse(args, _SYNTHETIC_ONLY | board_only, "twin" + (" SET" if shipped else " PHOTOS..."))
         if args.backend != "local":
             raise InputError("--backend: not an option of `study twin` (it renders in-process); drop it")
-        if len(args.inputs) != 1:
-            raise InputError("study twin: give one shipped set's name, e.g. `edgetruth study twin zhang1998 -o DIR`")
-        report = run_twin_study(args.inputs[0], out, methods=method_list(args.methods), images=_images(args.images),
-                                spp=args.spp, thresholds=args.thresholds, channel=args.channel, variant=args.variant,
-                                progress=not args.no_progress, twin=args.twin)
+        if not args.inputs:
+            raise InputError("study twin: give one shipped set's name, e.g. `edgetruth study twin zhang1998 -o DIR`, "
+                             "or your photos with --twin FILE")
+        report = run_twin_study(args.inputs[0] if shipped else list(args.inputs), out,
+                                methods=method_list(args.methods), images=_images(args.images), spp=args.spp,
+                                thresholds=args.thresholds, channel=args.channel, variant=args.variant,
+                                progress=not args.no_progress, twin=args.twin, model_path=args.model,
+                                pattern=args.pattern, square=args.square)
         console.say(f"report: {report}")
         return 0
     if args.kind == "board":
