@@ -16,9 +16,9 @@
    scored against the square's exact distorted outline from the render's JSON (signed distance, > 0 on
    the bright board; the study's assignment already leaves out the 3 px next to each corner): RMS,
    median |e|, mean (the bias) and SD (the scatter about it).  Two truth rows: the exact corners (the JSON's),
-   and *the exact outline*: points on the exact outline at 0.5 px spacing, 3 px from the corners, through the study's line fit and
-   intersection -- the floor of the study's procedure (a straight line through a side that the lens
-   bends).
+   and *the exact outline*: points on the exact outline at 0.5 px spacing, 3 px from the corners, through the
+   study's line fit and intersection -- the floor of the study's procedure (a straight line through a side that
+   the lens bends).
 4. **The photo model** (``photo_model.measure_photo``) of each real photo and each twin image, side by side,
    and the twin settings the photos give (``photo_model.derive_twin``) next to those the scene uses.
 5. **Rankings**: Spearman ρ (``scipy.stats.spearmanr``, with its two-sided p and n) between real and twin
