@@ -213,6 +213,11 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
             "jpeg_quality": None if q is None else {"quality": q[0], "exact": q[1]},
         })
         images.append(img)
+    # each photo's quadratic bend (the calibration's bend check), in squares: the calibration's unit is one square
+    quad = (cal.board_bend or {}).get("quadratic") or {}
+    if quad.get("views") == len(rows):
+        for r, c, sc in zip(rows, quad["coefficients_mm"], quad["scale_mm"]):
+            r["bend_squares"] = {"coefficients": [v / 1e3 for v in c], "scale": sc / 1e3}
     return {"pattern": list(pattern), "image_size": list(cal.image_size), "rms_px": cal.rms_px,
             "K": np.asarray(K).tolist(),
             "dist": np.asarray(dist).ravel().tolist(), "tone": measure_tone(photos, images, rows, model),
@@ -276,12 +281,30 @@ def _output(rows) -> tuple[str, int | None, str]:
     return "jpeg", quality, words
 
 
+def bend_mm(m: dict, ring: list[float], square_m: float) -> list[list[float]]:
+    """Each photo's quadratic bend (x², xy, y², mm) on the renderer's scale (``render.scene.bend``: half the larger
+    side of the printed squares' box), from the bend check's (half the corners' larger extent): a monomial of
+    degree 2 scales as (s_render / s_check)².  Both are centred on the board: the box and the corners are
+    symmetric about its centre.  An ``InputError`` when a photo took no part in the check (too few corners)."""
+    cols, rows = m["pattern"]
+    s_render = max(cols - 1 + 2 * ring[0], rows - 1 + 2 * ring[1]) / 2.0 * square_m * 1e3
+    out = []
+    for p in m["photos"]:
+        b = p.get("bend_squares")
+        if b is None:
+            raise InputError(f"{p['photo']}: no bend measured (the bend check needs every photo's corners, 13 or "
+                             "more); drop --bend or leave the photo out")
+        s_check = b["scale"] * square_m * 1e3
+        out.append([round(c * square_m * 1e3 * (s_render / s_check) ** 2, 5) for c in b["coefficients"]])
+    return out
+
+
 def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: float, source: str,
-               assumptions: TwinAssumptions = TwinAssumptions()) -> tuple[str, str]:
+               assumptions: TwinAssumptions = TwinAssumptions(), bend: bool = False) -> tuple[str, str]:
     """(camera TOML, scene TOML) of the twin of the photos ``m`` (``measure_chessboard``): ``name`` and
     ``description`` the spec's, ``camera_ref`` how the spec names the camera (a shipped name or a path relative to
     the spec), ``square_m`` the printed square's side (m; it scales the poses only), ``source`` the photos in words
-    (for the headers)."""
+    (for the headers); ``bend``: each board curled as its photo's (``bend_mm``)."""
     from edgetruth.render.sensor.linear_model import SensorModel
 
     a = assumptions
@@ -297,7 +320,7 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     if not (math.isfinite(sig_x) and math.isfinite(sig_y)):
         raise InputError("the photos' edges gave no blur (the photo model found no sides); the twin needs it")
     # a full square at most (the crossing reads a half-step past its far side); no ring square in view: a full one
-    ring = [min(_median([p["ring"][k] for p in photos], 1.0), 1.0) for k in ("x", "y")]
+    ring = [round(min(_median([p["ring"][k] for p in photos], 1.0), 1.0), 3) for k in ("x", "y")]
     dist_m = float(np.median([p["t_squares"][2] for p in photos])) * square_m
     output, quality, output_words = _output(photos)
     gamma = float(m["tone"]["output_gamma"])
@@ -356,7 +379,8 @@ k3 = {dist[4]:.6f}
 """
     groups = []
     light = "[" + ", ".join(f"{v}" for v in a.light_position_m) + "]"
-    for p in photos:
+    bends = bend_mm(m, ring, square_m) if bend else [None] * len(photos)
+    for p, curl in zip(photos, bends):
         sat = p["white_saturated"]
         white = p["dark"] * ratio if sat else p["white"]
         sx = sig_x if sat or p["sigma_x_px"] is None else p["sigma_x_px"]
@@ -372,6 +396,7 @@ k3 = {dist[4]:.6f}
         groups.append(f"""[[group]]  # {p['photo']}: {note}
 name = "{group_name(p['photo'])}"
 kind = "squares"
+{"" if curl is None else f"board_bend_mm = {curl}"}
 irradiance_w_m2 = {irradiance(white):.4f}
 light_position_m = {light}
 pose_unit_m = {square_m}
@@ -394,8 +419,8 @@ poses = [{{ R = [{R}], t = [{t}] }}]
                  f"({camera_ref}), one group per photo at the pose its line corners give (cv2.solvePnP on the board "
                  "study's chessboard model; t in squares).  Written by `edgetruth twin` "
                  "(edgetruth.evaluate.board.twin_derive); docs/board.md.  Measured on the photos:"),
-        _comment(f"the board: {cols + 1} x {rows + 1} squares, the outer ring cut at {ring[0]:.2f} (x) and "
-                 f"{ring[1]:.2f} (y) of a square beyond the outermost inner corners (median over the photos);", True),
+        _comment(f"the board: {cols + 1} x {rows + 1} squares, the outer ring cut at {ring[0]:.3f} (x) and "
+                 f"{ring[1]:.3f} (y) of a square beyond the outermost inner corners (median over the photos);", True),
         _comment(f"tone: {tone_words}: output_gamma = {gamma:g};", True),
         _comment(f"output: {output_words};", True),
         _comment("levels: each photo's white at its light squares' centres (its exposure, irradiance_w_m2 here); the "
@@ -406,6 +431,9 @@ poses = [{{ R = [{R}], t = [{t}] }}]
         _comment(f"noise: {noise}: shot-noise limited, a sensor of K = {k:.4f} DN/e-, {a.dark_noise_e:g} e- read "
                  f"noise, the white's SD before the output coding {white_sd:.2f} DN at {WHITE_REF_DN:g} ({white_why}; "
                  "the twin study's Table 3 compares the photos' noise and the twin's).", True),
+        *([_comment("bend: each photo's board curled as the calibration's bend check fitted it (x^2, xy, y^2; "
+                    "board_bend_mm, rescaled to the renderer's s; docs/board.md, 'A bent twin');", True)]
+          if bend else []),
         _comment("Not reproduced: the room behind the board (black here), the board's margin beyond the ring, uneven "
                  "light.")]) + f"""
 [spec]

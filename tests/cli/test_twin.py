@@ -51,3 +51,30 @@ def test_twin_refuses_bad_input_before_writing(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and words in err[0], (extra, err)
     assert (out / "twin.toml").read_text() == "# mine\n" and not (tmp_path / "u").exists()
+
+
+def test_twin_bend_curls_each_board(tmp_path):
+    """`--bend`: every group carries its photo's quadratic curl (flat analytic views: noise, each term within
+    0.05 mm; measured ≤ 0.02), the header says so, and the renderer's scale the curls were converted to is the one
+    the spec's board has (``render.scene.bend.BoardBend``)."""
+    import numpy as np
+
+    from edgetruth.evaluate.board.twin_derive import bend_mm
+    from edgetruth.render.dataset.spec import load_spec
+    from edgetruth.render.scene.bend import BoardBend
+
+    (tmp_path / "photos").mkdir()
+    write_views(tmp_path / "photos", ".png")
+    out = tmp_path / "bent"
+    assert main(["twin", str(tmp_path / "photos"), "--pattern", "9x6", "--square-m", "0.03", "-o", str(out),
+                 "--bend", "--no-progress"]) == 0
+    spec = load_spec(out / "twin.toml")
+    curls = np.array([g.board_bend_mm for g in spec.groups])
+    assert curls.shape == (4, 3) and np.abs(curls).max() < 0.05
+    assert "- bend: each photo's board curled" in (out / "twin.toml").read_text()
+    m = json.loads((out / "measurements.json").read_text())
+    s_render = BoardBend.of((0, 0, 0), spec.squares.black_quads_local(0.0)).scale_m * 1e3
+    # this board's ring is whole (1 square each way): s = (8 + 2) x 30 mm / 2 = 150 mm, as the renderer has it
+    assert s_render == pytest.approx(150.0, abs=1e-9)
+    assert np.allclose(bend_mm(m, [1.0, 1.0], 0.03), curls, atol=1e-5)
+    print(f"flat views' curls: max |term| {np.abs(curls).max():.4f} mm")

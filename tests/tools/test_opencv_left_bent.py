@@ -39,3 +39,18 @@ def test_renderer_scale_is_the_squares_half_side():
     spec = load_spec("opencv_left_twin_bent")
     assert BoardBend.of((0, 0, 0), spec.squares.black_quads_local(0.0)).scale_m == pytest.approx(0.11225, abs=1e-12)
     assert all(g.board_bend_mm is not None and len(g.board_bend_mm) == 3 for g in spec.groups)
+
+
+def test_twin_bend_is_the_shipped_bent_twins():
+    """`edgetruth twin --bend`'s curls (``twin_derive.bend_mm``, the derivation's own calibration in squares) on the
+    shipped photos are the shipped bent twin's, written from `edgetruth calibrate`'s JSON in metres, to its
+    rounding (measured: within 1e-5 mm, the last digit)."""
+    import numpy as np
+
+    from edgetruth.evaluate.board.inputs import resolve_inputs
+    from edgetruth.evaluate.board.twin_derive import bend_mm, measure_chessboard
+    from edgetruth.render.dataset.spec import load_spec
+
+    m = measure_chessboard(resolve_inputs(["opencv_left"]).photos, (9, 6))
+    shipped = np.array([g.board_bend_mm for g in load_spec("opencv_left_twin_bent").groups])
+    assert np.abs(np.array(bend_mm(m, [0.490, 0.955], 0.025)) - shipped).max() <= 2e-5

@@ -38,6 +38,10 @@ def register(sub) -> None:
     p.add_argument("--white-noise-dn", type=float, default=None, metavar="DN",
                    help="the white's noise SD (8-bit DN, at a white of 220) before the output coding; default: the "
                         "photos' own, scaled back through their JPEG (docs/board.md)")
+    p.add_argument("--bend", action="store_true",
+                   help="curl each photo's board as the calibration's bend check measures it (a quadratic height "
+                        "per photo, board_bend_mm; docs/board.md, 'A bent twin'): prints curl, and a flat twin "
+                        "leaves that in the photos' residuals only")
     add_image_options(p)
     add_progress_option(p)
     p.set_defaults(handler=run)
@@ -77,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
                                                              enabled=not args.no_progress))
     assumptions = TwinAssumptions(pitch_um=args.pitch_um, f_number=args.f_number, white_noise_dn=args.white_noise_dn)
     source = f"{len(photos)} photos ({photos[0][0]} ... {photos[-1][0]})" if len(photos) > 2 else "the photos"
-    cam, scene = twin_texts(m, name, f"digital twin of {source}", "camera.toml", square_m, source, assumptions)
+    cam, scene = twin_texts(m, name, f"digital twin of {source}", "camera.toml", square_m, source, assumptions,
+                            bend=args.bend)
     make_output_dir(out)
     write_json(out / "measurements.json", m)
     atomic_write_text(out / "camera.toml", cam)
@@ -90,6 +95,6 @@ def run(args: argparse.Namespace) -> int:
                 f"{m['rms_px']:.4f} px; {spec.sensor.output}"
                 + (f" quality {spec.sensor.jpeg_quality}" if spec.sensor.output == "jpeg" else "")
                 + f", output_gamma {tone['output_gamma']:g}; {sum(p['white_saturated'] for p in m['photos'])} "
-                f"clipped -> {out / 'twin.toml'}")
+                f"clipped" + ("; each board curled as its photo's" if args.bend else "") + f" -> {out / 'twin.toml'}")
     console.say(f"twin: render it with `edgetruth render {shlex.quote(str(out / 'twin.toml'))} -o RENDERS`")
     return 0
