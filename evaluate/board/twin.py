@@ -330,8 +330,9 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
     if set_name in DERIVED_ELSEWHERE:
         derived = {"derived_by": DERIVED_ELSEWHERE[set_name]}
     elif set_name not in BASE_LEVELS:  # your own photos: the scene says how it was made
-        derived = {"derived_by": f"whoever wrote {spec_name} (`edgetruth twin` writes its measurements.json beside "
-                                 "it)"}
+        beside = Path(str(spec_name)).parent / "measurements.json"
+        derived = {"derived_by": f"`edgetruth twin` ({beside})" if beside.is_file() else
+                   f"whoever wrote {spec_name} (`edgetruth twin` writes a measurements.json beside its twin.toml)"}
     else:
         try:
             base_black, base_white = BASE_LEVELS[set_name]

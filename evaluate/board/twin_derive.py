@@ -164,7 +164,8 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
                        progress=None) -> dict:
     """Every measurement a twin of these chessboard photos needs (module docstring), as JSON-ready data:
     ``rms_px``, ``K``, ``dist``, ``tone`` and one record per photo (pose with t in squares, ring, levels, blur,
-    JPEG quality).  Every photo must show the board (an ``InputError`` names one that does not)."""
+    JPEG quality, bend).  Every photo must show the board (an ``InputError`` names one that does not).
+    ``progress``: wraps an iterable of photos in a progress bar (the calibration's pass, then the measurements')."""
     from edgetruth.evaluate.board import chessboard as cb
     from edgetruth.evaluate.board.grid_corners import grid_points
     from edgetruth.evaluate.board.levels import saturated, square_levels
@@ -182,7 +183,7 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
                          "image per photo, so leave it out (or check --pattern)")
     K, dist = cal.K, cal.dist
     rows, images = [], []
-    for p in photos:
+    for p in photos if progress is None else progress(photos):
         img = read_gray(p, channel=channel)
         if full_scale(img.dtype) != 255.0:
             raise InputError(f"{p}: {img.dtype} values; give 8-bit photos (a twin's renders are 8-bit)")

@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
                          "digit (it names files and directories)")
     name = args.name or safe_name(out.resolve().name or "twin")
     m = measure_chessboard([p for _, p in photos], pattern, channel=args.channel,
-                           progress=lambda it: console.track(it, desc="twin: calibrate", unit="photo",
+                           progress=lambda it: console.track(it, desc="twin", unit="photo",
                                                              enabled=not args.no_progress))
     assumptions = TwinAssumptions(pitch_um=args.pitch_um, f_number=args.f_number, white_noise_dn=args.white_noise_dn)
     source = f"{len(photos)} photos ({photos[0][0]} ... {photos[-1][0]})" if len(photos) > 2 else "the photos"

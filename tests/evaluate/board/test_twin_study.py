@@ -208,6 +208,7 @@ def test_twin_study_of_your_own_photos(tmp_path, fast_variant, capsys):
     assert main(argv) == 0
     report = (out / "report.md").read_text()
     assert report.startswith("# Digital twin — mine:") and "Table 5" in report
+    assert "derived by `edgetruth twin` (" in report  # its measurements.json, beside the twin
     rows = json.loads((out / "corners_per_photo.json").read_text())
     means = [r["twin_truth_mean_px"] for r in rows]
     with capsys.disabled():
