@@ -160,7 +160,7 @@ def test_a_rendered_curl_reads_back(fast_variant, tmp_path, capsys):
     and every view's coefficients at those the spec renders (rescaled to the check's s), within 0.1 mm (the
     photos' standard errors are 0.06-0.11 mm); the bent fit leaves the flat twin's RMS (0.022 px at 256 spp).
     Measured at 256 spp (docs/board.md, "A bent twin"): flat RMS 0.086 px, 94 % to the bend, bent 0.021 px;
-    read-back error 0.009-0.015 mm RMS per term, at most 0.036 mm."""
+    read-back error 0.012-0.015 mm RMS per term, at most 0.031 mm."""
     from edgetruth.cli import main
     from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.scene.bend import BoardBend

@@ -1,6 +1,7 @@
-"""tools/twins/opencv_left_scene.py: OpenCV's shipped twin (scenes/opencv_left_twin.toml) and its camera
-(assets/cameras/opencv_left.toml) are `edgetruth twin`'s derivation on the shipped photos, byte for byte, and the
-camera is what `edgetruth calibrate opencv_left --corners lines` measures."""
+"""tools/twins/opencv_left_scene.py: OpenCV's shipped twins (scenes/opencv_left_twin.toml, opencv_left_twin_bent.toml)
+and their camera (assets/cameras/opencv_left.toml) are `edgetruth twin`'s derivation on the shipped photos (the bent
+one with --bend), byte for byte; the camera and the curls are what `edgetruth calibrate opencv_left --corners lines`
+measures."""
 from __future__ import annotations
 
 import json
@@ -16,11 +17,36 @@ def tool():
     return load_tool("tools/twins/opencv_left_scene.py", "opencv_left_scene")
 
 
-def test_shipped_twin_is_the_packaged_derivation(tool):
-    """Derived now from the shipped photos, both files are the shipped ones byte for byte."""
-    cam, scene = tool.texts()
+def test_shipped_twins_are_the_packaged_derivation(tool):
+    """Derived now from the shipped photos, the three files are the shipped ones byte for byte; the bent twin differs
+    from the flat one only in its header, name, description and one board_bend_mm a group."""
+    cam, flat, bent = tool.texts()
     assert cam == tool.CAMERA.read_text()
-    assert scene == tool.SCENE.read_text()
+    assert flat == tool.SCENE.read_text()
+    assert bent == tool.BENT.read_text()
+    extra = [ln for ln in bent.splitlines() if ln not in flat.splitlines()]
+    assert sum(ln.startswith("board_bend_mm = ") for ln in extra) == 13
+    assert {ln.split(" =")[0] for ln in extra if not ln.startswith("#")} == {"board_bend_mm", "name", "description"}
+
+
+def test_bent_twin_is_what_calibrate_measures(tmp_path):
+    """The shipped curls, converted from `edgetruth calibrate`'s bend check (its s, in metres) to the renderer's s
+    (half the printed squares' box, ``render.scene.bend.BoardBend``: 112.25 mm for this board), agree with the
+    derivation's own (in squares) to the file's rounding: within 2e-5 mm (measured: 1e-5, the last digit)."""
+    from edgetruth.cli import main
+    from edgetruth.render.dataset.spec import load_spec
+    from edgetruth.render.scene.bend import BoardBend
+
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", "opencv_left", "--pattern", "9x6", "--square-m", "0.025", "--corners", "lines",
+                 "-o", str(out), "--no-progress"]) == 0
+    q = json.loads(out.read_text())["board_bend"]["quadratic"]
+    spec = load_spec("opencv_left_twin_bent")
+    s_render_mm = 1e3 * BoardBend.of((0, 0, 0), spec.squares.black_quads_local(0.0)).scale_m
+    assert s_render_mm == pytest.approx(112.25, abs=1e-9)  # (8 squares + 2 x 0.490 of the ring) x 25 mm / 2
+    given = np.array([g.board_bend_mm for g in spec.groups])
+    measured = np.array(q["coefficients_mm"]) * (s_render_mm / np.array(q["scale_mm"])[:, None]) ** 2
+    assert given.shape == (13, 3) and np.abs(measured - given).max() <= 2e-5
 
 
 def test_shipped_camera_is_the_photos_calibration(tmp_path):
