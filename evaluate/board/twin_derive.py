@@ -1,9 +1,10 @@
 """A digital twin of your own chessboard photos: measure what a twin needs on them, write its camera and scene.
 
-``edgetruth twin PHOTOS --pattern 9x6 --square-m 0.025 -o DIR`` (``derive_twin_files``) writes ``DIR/camera.toml``,
-``DIR/twin.toml`` (one group per photo: ``edgetruth render DIR/twin.toml`` renders it with exact truth) and
-``DIR/measurements.json``.  OpenCV's shipped twin (``scenes/opencv_left_twin.toml``, ``assets/cameras/
-opencv_left.toml``) is this module's output on its photos (``tools/twins/opencv_left_scene.py``).
+``edgetruth twin PHOTOS --pattern 9x6 --square-m 0.025 -o DIR`` (``measure_chessboard``, then ``twin_texts``)
+writes ``DIR/camera.toml``, ``DIR/twin.toml`` (one group per photo: ``edgetruth render DIR/twin.toml`` renders it
+with exact truth) and ``DIR/measurements.json``.  OpenCV's shipped twins (``scenes/opencv_left_twin.toml``, and
+with ``--bend`` ``opencv_left_twin_bent.toml``) and their camera (``assets/cameras/opencv_left.toml``) are this
+module's output on its photos (``tools/twins/opencv_left_scene.py``).
 
 Measured on the photos (``measure_chessboard``):
 
@@ -25,6 +26,8 @@ Measured on the photos (``measure_chessboard``):
   interval holds 1, else the power found.
 - **Output.**  JPEG photos: the quality whose IJG (Annex K) luminance table the file carries (``jpeg_quality``);
   other photos: 8-bit PNG.
+- **Bend** (``--bend``).  The calibration's quadratic bend check per photo (``evaluate.board_bend``), written as the
+  group's ``board_bend_mm`` on the renderer's scale (``bend_mm``).
 
 Assumed (nothing in a photo gives them; ``TwinAssumptions``): the pixel pitch, the f-number (they set f = fx · pitch
 and the defocus, small at these distances), the focus (the median board distance), the board's reflectance, the
