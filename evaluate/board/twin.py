@@ -222,6 +222,22 @@ def own_inputs(photos: list[str], twin: str | None, model_path=None, pattern=Non
     return real.set_name, real, twin
 
 
+def paired(real_names: list, real_used: list, twin_names: list, twin_used: list) -> list[int]:
+    """The positions where the board study found the board on both the photo and its twin image; when some are
+    missing, one line says which (an ``InputError`` when fewer than ``MIN_PHOTOS`` pairs remain)."""
+    ru, tu = set(real_used), set(twin_used)
+    both = [k for k, (r, t) in enumerate(zip(real_names, twin_names)) if r in ru and t in tu]
+    lost = [f"{r} / {t}" for k, (r, t) in enumerate(zip(real_names, twin_names)) if k not in both]
+    if lost and len(both) < MIN_PHOTOS:
+        raise InputError(f"study twin: the board was found on both a photo and its twin image for {len(both)} pair(s) "
+                         f"only (not on {', '.join(lost)}: photo / twin image); need {MIN_PHOTOS}: render with more "
+                         "--spp, or check the twin")
+    if lost:
+        console.say(f"study twin: the board was not found on {', '.join(lost)} (photo / twin image); comparing the "
+                    f"{len(both)} pairs where it was")
+    return both
+
+
 def model_unit_m(set_name: str, model, spec) -> float:
     """Metres per board-model unit, for Table 5's depths: the shipped sets' own; else the side of the twin's first
     square (a chessboard twin renders the model's squares first, in its order) over the model's."""
@@ -306,6 +322,17 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
     real_run = compute_board_study(real, rows_methods, options, channel, progress, images=real_images)
     twin_run = compute_board_study(twin, rows_methods, options, channel, progress, images=twin_images,
                                    keep_points=True)
+    both = paired(real.names, real_run.names, twin.names, twin_run.names)
+    if len(both) < len(keep):  # compare only the pairs where both studies found the board
+        keep, samples = [keep[k] for k in both], [samples[k] for k in both]
+        truths = [s.truth for s in samples]
+        real = replace(real, photos=[real.photos[k] for k in both], reference_corners=None if
+                       real.reference_corners is None else [real.reference_corners[k] for k in both])
+        twin = truth_inputs(samples, real.model, real)
+        real_images, twin_images = [real_images[k] for k in both], [twin_images[k] for k in both]
+        real_run = compute_board_study(real, rows_methods, options, channel, progress, images=real_images)
+        twin_run = compute_board_study(twin, rows_methods, options, channel, progress, images=twin_images,
+                                       keep_points=True)
     study_s = time.perf_counter() - t_s
 
     # 3. the twin against its truth

@@ -228,3 +228,14 @@ def test_your_own_photos_need_their_twin(tmp_path, capsys, extra, match):
     photos.mkdir()
     write_views(photos, ".png")
     _bad(tmp_path, capsys, [str(photos), "--pattern", "9x6", *extra], match)
+
+
+def test_pairs_where_the_board_was_found_on_both(capsys):
+    """A photo or twin image where the board study found no board takes its pair out of the comparison, with one
+    line saying which (a 4-spp twin can lose a board to its noise); fewer than 3 pairs left is an input error."""
+    photos, renders = ["a.jpg", "b.jpg", "c.jpg", "d.jpg"], ["0_a.png", "1_b.png", "2_c.png", "3_d.png"]
+    assert twin.paired(photos, photos, renders, renders) == [0, 1, 2, 3] and capsys.readouterr().out == ""
+    assert twin.paired(photos, ["a.jpg", "c.jpg", "d.jpg"], renders, ["0_a.png", "2_c.png", "3_d.png"]) == [0, 2, 3]
+    assert "not found on b.jpg / 1_b.png" in capsys.readouterr().out
+    with pytest.raises(InputError, match="for 2 pair"):
+        twin.paired(photos, photos, renders, ["0_a.png", "3_d.png"])
