@@ -337,7 +337,15 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
             white_why += f" x {JPEG_NOISE_FACTOR:.2f}, what a JPEG at quality 50 takes off it"
     s0 = SensorModel()
     span = s0.max_dn - s0.dark_offset_dn
-    k = white_sd ** 2 * span / (255.0 * a.output_gain * WHITE_REF_DN)  # DN per electron
+    # stored s = 255 g v^(1/G) (render.sensor.pipeline: the curve, then ``output_gain`` g), v the linear signal:
+    # levels, contrast and noise go back to the linear s = 255 g v they would have had with G = 1
+    full = 255.0 * a.output_gain
+
+    def lin(stored_8bit: float) -> float:
+        return stored_8bit if gamma == 1.0 else full * (stored_8bit / full) ** gamma
+
+    sd_lin = white_sd * (1.0 if gamma == 1.0 else gamma * (WHITE_REF_DN / full) ** (gamma - 1.0))
+    k = sd_lin ** 2 * span / (255.0 * a.output_gain * lin(WHITE_REF_DN))  # DN per electron
     ppr = s0.photons_per_radiance(a.f_number, a.pitch_um)  # photons per W m^-2 sr^-1
 
     def irradiance(white_8bit: float) -> float:
@@ -401,7 +409,7 @@ k3 = {dist[4]:.6f}
 name = "{group_name(p['photo'])}"
 kind = "squares"
 {"" if curl is None else f"board_bend_mm = {curl}"}
-irradiance_w_m2 = {irradiance(white):.4f}
+irradiance_w_m2 = {irradiance(lin(white)):.4f}
 light_position_m = {light}
 pose_unit_m = {square_m}
 camera = {{ aberration_sigma_um = {aberration_um(sx):.3f}, aberration_sigma_y_um = {aberration_um(sy):.3f} }}
@@ -452,7 +460,7 @@ chessboard = "{cols}x{rows}"
 side_m = {square_m}
 ring = [{ring[0]:.3f}, {ring[1]:.3f}]
 margin_m = {0.35 * square_m:.5f}
-square_reflectance = {a.board_reflectance / ratio:.4f}
+square_reflectance = {a.board_reflectance / ratio ** gamma:.4f}
 board_reflectance = {a.board_reflectance}
 
 [sensor]

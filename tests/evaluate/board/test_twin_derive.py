@@ -90,3 +90,38 @@ def test_a_photo_without_the_board_is_named(tmp_path):
     cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
     with pytest.raises(InputError, match="blank.png: the 9x6 board was not found"):
         td.measure_chessboard([*paths, blank], (9, 6))
+
+
+def test_a_tone_curve_is_measured_and_rendered(fast_variant, tmp_path):
+    """Views stored through a power curve (s = 255 (v/255)^(1/1.6), dark 40 and white 210 linear: 80 and 226
+    stored): the derivation measures the power (output_gamma within 0.1 of 1.6) and takes levels, contrast and noise
+    back through it, so that the rendered twin (4 spp) has the views' dark and white levels within 4 DN (measured:
+    the same medians; with the stored levels taken as linear, as before this test, 20 and 29 DN off)."""
+    from edgetruth.evaluate.board import chessboard as cb
+    from edgetruth.evaluate.board.levels import square_levels
+    from edgetruth.render.dataset.driver import render_spec
+    from edgetruth.render.dataset.reader import open_dataset
+    from edgetruth.render.dataset.spec import load_spec
+
+    paths, _ = views(tmp_path, ".png", noise_dn=1.0)
+    for p in paths:  # the linear views through the curve
+        lin = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE).astype(float)
+        cv2.imwrite(str(p), np.round(255.0 * (lin / 255.0) ** (1 / 1.6)).astype(np.uint8))
+    m = td.measure_chessboard(paths, (9, 6))
+    assert abs(m["tone"]["output_gamma"] - 1.6) < 0.1
+    cam, scene = td.twin_texts(m, "g", "a twin through a curve", "camera.toml", 0.03, "four curved views")
+    (tmp_path / "camera.toml").write_text(cam)
+    (tmp_path / "twin.toml").write_text(scene.replace("\nspp = 256\n", "\nspp = 4\n", 1))
+    render_spec(load_spec(tmp_path / "twin.toml"), tmp_path / "r", progress=False, announce=lambda s: None)
+    samples = sorted(open_dataset(tmp_path / "r").square_boards(), key=lambda s: s.index)
+    model = cb.chessboard_model((9, 6), 1.0)
+    diff = []
+    for s, p in zip(samples, paths):
+        png = s.dataset.path / s.dataset.manifest["images"][s.name]["files"]["png"]["path"]
+        for path in (p, png):
+            img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+            lev = square_levels(img, cb.find_squares(img, model).squares.corners)
+            diff.append((lev.dark, lev.white))
+    d = np.abs(np.diff(np.array(diff).reshape(-1, 2, 2), axis=1)).reshape(-1, 2)
+    print(f"twin vs views: dark within {d[:, 0].max():.1f}, white within {d[:, 1].max():.1f} DN")
+    assert d.max() <= 4.0
