@@ -60,6 +60,27 @@ def add_pattern_option(p: argparse.ArgumentParser, what: str, required: bool = F
                         f"10 x 7 squares is 9x6); {what}")
 
 
+def add_square_m_option(p: argparse.ArgumentParser, what: str) -> None:
+    """``--square-m METRES``: a chessboard's printed square, as every command that reads one takes it
+    (``parse_square_m``); ``what`` says what the side sets."""
+    p.add_argument("--square-m", required=True, metavar="METRES",
+                   help=f"side of one printed square in metres (e.g. 0.025); {what}")
+
+
+def parse_square_m(text: str) -> float:
+    """``--square-m``'s value: a positive number of metres below 1 km, else one ``InputError`` line."""
+    from edgetruth.errors import InputError
+
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (v > 0 and v < 1e3):  # NaN fails too
+        raise InputError(f"--square-m {text!r}: give the side of one square in metres, a positive number "
+                         "(e.g. 0.025 for 25 mm)")
+    return v
+
+
 def add_image_options(p: argparse.ArgumentParser) -> None:
     """Options of every command that reads photos: how colour becomes gray."""
     p.add_argument("--channel", choices=CHANNEL_CHOICES, default="luma",

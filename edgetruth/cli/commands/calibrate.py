@@ -12,7 +12,7 @@ import argparse
 
 
 def register(sub) -> None:
-    from edgetruth.cli import add_image_options, add_pattern_option, add_progress_option
+    from edgetruth.cli import add_image_options, add_pattern_option, add_progress_option, add_square_m_option
     from edgetruth.evaluate.calibration import DEFAULT_DIST_MODEL, DIST_MODELS
 
     p = sub.add_parser("calibrate", help="calibrate a camera from photos of a chessboard (Zhang) -> JSON",
@@ -24,9 +24,7 @@ def register(sub) -> None:
                    help="image files, folders (every image inside, sorted), glob patterns (quoted), or the name "
                         "of a shipped photo set (opencv_left)")
     add_pattern_option(p, "the board the photos show", required=True)
-    p.add_argument("--square-m", required=True, metavar="METRES",
-                   help="side of one printed square in metres (e.g. 0.025); it scales the board poses only, "
-                        "not K or the distortion")
+    add_square_m_option(p, "it scales the board poses only, not K or the distortion")
     p.add_argument("--model", choices=tuple(DIST_MODELS), default=DEFAULT_DIST_MODEL,
                    help="distortion terms to estimate (the others are held at 0): "
                         + "; ".join(f"{k}: {v[1]}" for k, v in DIST_MODELS.items())
@@ -61,19 +59,6 @@ def register(sub) -> None:
     add_image_options(p)
     add_progress_option(p)
     p.set_defaults(handler=run)
-
-
-def _square_m(text: str) -> float:
-    from edgetruth.errors import InputError
-
-    try:
-        v = float(text)
-    except ValueError:
-        v = float("nan")
-    if not (v > 0 and v < 1e3):  # NaN fails too
-        raise InputError(f"--square-m {text!r}: give the side of one square in metres, a positive number "
-                         "(e.g. 0.025 for 25 mm)")
-    return v
 
 
 def _window(text: str) -> int | None:
@@ -138,12 +123,13 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, line
 
 def run(args: argparse.Namespace) -> int:
     from edgetruth import console
+    from edgetruth.cli import parse_square_m
     from edgetruth.errors import InputError
     from edgetruth.evaluate.calibration import calibrate_photos, find_photos, parse_pattern
     from edgetruth.fileio import check_output_file, write_json
 
     pattern = parse_pattern(args.pattern)
-    square_m = _square_m(args.square_m)
+    square_m = parse_square_m(args.square_m)
     window = _window(args.subpix_window)
     finder, corner_label, undistort_lines = _corner_finder(args.corners, pattern, window, args.line_frame)
     photos = find_photos(args.photos)

@@ -12,7 +12,7 @@ FILES = ("twin.toml", "camera.toml", "measurements.json")
 
 
 def register(sub) -> None:
-    from edgetruth.cli import add_image_options, add_pattern_option, add_progress_option
+    from edgetruth.cli import add_image_options, add_pattern_option, add_progress_option, add_square_m_option
 
     p = sub.add_parser("twin", help="derive a digital twin (a render spec) of your own chessboard photos",
                        description="Measure on chessboard photos what a digital twin of them needs -- the camera "
@@ -25,9 +25,7 @@ def register(sub) -> None:
                    help="image files, folders, glob patterns (quoted), or a shipped photo set's name (opencv_left); "
                         "8-bit, every photo showing the whole board")
     add_pattern_option(p, "the board the photos show", required=True)
-    p.add_argument("--square-m", required=True, metavar="METRES",
-                   help="side of one printed square in metres (e.g. 0.025); it sets the twin's board size and "
-                        "its distances")
+    add_square_m_option(p, "it sets the twin's board size and its distances")
     p.add_argument("-o", "--output", required=True, metavar="DIR",
                    help="directory for twin.toml, camera.toml and measurements.json (refused if it holds a "
                         "twin.toml already)")
@@ -52,14 +50,14 @@ def run(args: argparse.Namespace) -> int:
     import shlex
 
     from edgetruth import console
-    from edgetruth.cli.commands.calibrate import _square_m
+    from edgetruth.cli import parse_square_m
     from edgetruth.errors import InputError
     from edgetruth.evaluate.board.twin_derive import TwinAssumptions, measure_chessboard, safe_name, twin_texts
     from edgetruth.evaluate.calibration import find_photos, parse_pattern
     from edgetruth.fileio import atomic_write_text, check_output_dir, make_output_dir, write_json
 
     pattern = parse_pattern(args.pattern)
-    square_m = _square_m(args.square_m)
+    square_m = parse_square_m(args.square_m)
     for flag, v, lo, hi in (("--pitch-um", args.pitch_um, 0.5, 50.0), ("--f-number", args.f_number, 0.5, 64.0),
                             ("--white-noise-dn", args.white_noise_dn, 0.01, 50.0)):
         if v is not None and not (math.isfinite(v) and lo <= v <= hi):
