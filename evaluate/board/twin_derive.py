@@ -178,22 +178,28 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
 
     photos = [Path(p) for p in photos]
     model = cb.chessboard_model(pattern, 1.0)
+    grids = []  # each photo's edge points, measured once: the calibration's refits and the poses use them
+
+    def finder(image, pattern_size):
+        grids.append(grid_points(image, pattern_size))
+        return grids[-1]
+
     cal, results = calibrate_photos([(p.name, p) for p in photos], pattern, 1.0, channel=channel,
-                                    corner_finder=grid_points, undistort_lines=True, progress=progress)
+                                    corner_finder=finder, undistort_lines=True, progress=progress)
     lost = [r.photo for r in results if not r.found]
     if lost:
         raise InputError(f"{lost[0]}: the {pattern[0]}x{pattern[1]} board was not found on it; a twin renders one "
                          "image per photo, so leave it out (or check --pattern)")
     K, dist = cal.K, cal.dist
     rows, images = [], []
-    for p in photos if progress is None else progress(photos):
+    for p, grid in zip(photos if progress is None else progress(photos), grids):
         img = read_gray(p, channel=channel)
         if full_scale(img.dtype) != 255.0:
             raise InputError(f"{p}: {img.dtype} values; give 8-bit photos (a twin's renders are 8-bit)")
         view = cb.find_squares(img, model)
         if view is None:
             raise InputError(f"{p}: the board study's squares were not found on it; leave it out")
-        mc = model_order(view, grid_points(img, pattern).corners((K, dist)))
+        mc = model_order(view, grid.corners((K, dist)))
         board = np.c_[model.corners.reshape(-1, 2), np.zeros(mc.size // 2)]
         ok = np.all(np.isfinite(mc.reshape(-1, 2)), axis=1)
         _, rvec, tvec = cv2.solvePnP(board[ok], mc.reshape(-1, 2)[ok], K, dist, flags=cv2.SOLVEPNP_ITERATIVE)
@@ -286,12 +292,17 @@ def _output(rows) -> tuple[str, int | None, str]:
 
 
 def bend_mm(m: dict, ring: list[float], square_m: float) -> list[list[float]]:
-    """Each photo's quadratic bend (x², xy, y², mm) on the renderer's scale (``render.scene.bend``: half the larger
-    side of the printed squares' box), from the bend check's (half the corners' larger extent): a monomial of
-    degree 2 scales as (s_render / s_check)².  Both are centred on the board: the box and the corners are
-    symmetric about its centre.  An ``InputError`` when a photo took no part in the check (too few corners)."""
+    """Each photo's quadratic bend (x², xy, y², mm) on the renderer's scale (``render.scene.bend.BoardBend`` of the
+    twin's chessboard: half the larger side of the printed squares' box), from the bend check's (half the corners'
+    larger extent): a monomial of degree 2 scales as (s_render / s_check)².  Both are centred on the board: the box
+    and the corners are symmetric about its centre.  An ``InputError`` when a photo took no part in the check (too
+    few corners)."""
+    from edgetruth.render.scene.bend import BoardBend
+    from edgetruth.render.scene.targets import SquareBoard
+
     cols, rows = m["pattern"]
-    s_render = max(cols - 1 + 2 * ring[0], rows - 1 + 2 * ring[1]) / 2.0 * square_m * 1e3
+    board = SquareBoard.chessboard(cols, rows, square_m, tuple(ring))
+    s_render = BoardBend.of((0.0, 0.0, 0.0), board.black_quads_local(0.0)).scale_m * 1e3
     out = []
     for p in m["photos"]:
         b = p.get("bend_squares")
