@@ -319,9 +319,12 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
     t_s = time.perf_counter()
     real_images = [read_gray(p, channel=channel) for p in real.photos]
     twin_images = [read_gray(p, channel=channel) for p in twin.photos]
-    real_run = compute_board_study(real, rows_methods, options, channel, progress, images=real_images)
-    twin_run = compute_board_study(twin, rows_methods, options, channel, progress, images=twin_images,
-                                   keep_points=True)
+    def studies():
+        return (compute_board_study(real, rows_methods, options, channel, progress, images=real_images),
+                compute_board_study(twin, rows_methods, options, channel, progress, images=twin_images,
+                                    keep_points=True))
+
+    real_run, twin_run = studies()
     both = paired(real.names, real_run.names, twin.names, twin_run.names)
     if len(both) < len(keep):  # compare only the pairs where both studies found the board
         keep, samples = [keep[k] for k in both], [samples[k] for k in both]
@@ -330,9 +333,7 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
                        real.reference_corners is None else [real.reference_corners[k] for k in both])
         twin = truth_inputs(samples, real.model, real)
         real_images, twin_images = [real_images[k] for k in both], [twin_images[k] for k in both]
-        real_run = compute_board_study(real, rows_methods, options, channel, progress, images=real_images)
-        twin_run = compute_board_study(twin, rows_methods, options, channel, progress, images=twin_images,
-                                       keep_points=True)
+        real_run, twin_run = studies()
     study_s = time.perf_counter() - t_s
 
     # 3. the twin against its truth
