@@ -20,8 +20,11 @@ Measured on the photos (``measure_chessboard``):
   white sets its exposure; the print's contrast (white / dark, median over the unsaturated photos) the squares'
   reflectance; a saturated photo's white becomes the clip (``output_clip_dn``), its white before the clip its dark
   level times that contrast.
-- **Blur.**  ``photo_model.measure_photo``: the ERF σ (px) per axis, less the pixel and the Airy core in quadrature
-  (``aberration_sigma_um``); a saturated photo takes the unsaturated ones' median (a clipped edge biases its σ).
+- **Blur.**  ``photo_model.blur``: the ERF σ (px) per axis; for a JPEG photo less what the JPEG adds
+  (``blur_inverse.jpeg_blur_px``: on a synthetic image of its squares, ``jpeg_sigma_px``); then the Gaussian
+  aberration whose edge through the pixel, the diffraction and the photo's defocus reads that σ
+  (``blur_inverse.aberration_sigma_px``; ``aberration_sigma_um``).  A saturated photo takes the unsaturated ones'
+  medians (a clipped edge biases its σ).
 - **Tone.**  ``tone_fit.estimate_power`` on the unsaturated photos: linear (``output_gamma = 1``) when its 95 %
   interval holds 1, else the power found.
 - **Output.**  JPEG photos: the quality whose IJG (Annex K) luminance table the file carries (``jpeg_quality``);
@@ -172,7 +175,9 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     from edgetruth.evaluate.board import chessboard as cb
     from edgetruth.evaluate.board.grid_corners import grid_points
     from edgetruth.evaluate.board.levels import saturated, square_levels
-    from edgetruth.evaluate.board.photo_model import measure_photo
+    from edgetruth.evaluate.board.blur_inverse import jpeg_blur_px
+    from edgetruth.evaluate.board.photo_model import blur as edge_blur
+    from edgetruth.evaluate.board.photo_model import board_lines
     from edgetruth.evaluate.calibration import calibrate_photos
     from edgetruth.image_io import full_scale, read_gray
 
@@ -206,20 +211,22 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
         proj, _ = cv2.projectPoints(board[ok], rvec, tvec, K, dist)
         res = np.linalg.norm(proj.reshape(-1, 2) - mc.reshape(-1, 2)[ok], axis=1)
         lev = square_levels(img, view.squares.corners)
-        pm = measure_photo(img, model, p.name, p)
-        blur = pm.get("blur") or {}
+        lines = board_lines(img, model)
+        blur = {} if lines is None else edge_blur(img, lines)
         if lev.dark <= 0:
             raise InputError(f"{p}: its dark squares read 0, so the print's contrast cannot be measured; leave it out "
                              "or give photos whose blacks are not clipped")
         q = jpeg_quality(p)
+        sx, sy = (blur.get(k, {}).get("sigma_px") for k in ("vertical", "horizontal"))
+        jpeg_px = (None if q is None or sx is None or sy is None or not math.isfinite(sx + sy) else
+                   jpeg_blur_px(img.shape, lines, sx, sy, lev.dark, lev.white, q[0]))
         rows.append({
             "photo": p.name, "R": cv2.Rodrigues(rvec)[0].tolist(), "t_squares": tvec.ravel().tolist(),
             "pose_rms_px": float(np.sqrt(np.mean(res ** 2))),
             "ring": ring_reach(img, K, dist, rvec, tvec, *pattern),
             "dark": lev.dark, "white": lev.white, "dark_sd": lev.dark_sd, "white_sd": lev.white_sd,
             "white_saturated": bool(saturated(lev)),
-            "sigma_x_px": blur.get("vertical", {}).get("sigma_px"),
-            "sigma_y_px": blur.get("horizontal", {}).get("sigma_px"),
+            "sigma_x_px": sx, "sigma_y_px": sy, "jpeg_sigma_px": jpeg_px,
             "jpeg_quality": None if q is None else {"quality": q[0], "exact": q[1]},
         })
         images.append(img)
@@ -261,11 +268,6 @@ def measure_tone(photos, images, rows, model) -> dict:
 
 
 # --- the twin's files -------------------------------------------------------------------------------
-def airy_sigma_px(a: TwinAssumptions) -> float:
-    """The Gaussian that matches the Airy core (σ = 0.42 λN), in px."""
-    return 0.42 * a.wavelength_nm * 1e-3 * a.f_number / a.pitch_um
-
-
 def _median(values, empty: float = float("nan")) -> float:
     """The median of the finite ``values`` (None or NaN: not measured), ``empty`` when there are none."""
     v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
@@ -320,6 +322,8 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     ``description`` the spec's, ``camera_ref`` how the spec names the camera (a shipped name or a path relative to
     the spec), ``square_m`` the printed square's side (m; it scales the poses only), ``source`` the photos in words
     (for the headers); ``bend``: each board curled as its photo's (``bend_mm``)."""
+    from edgetruth.evaluate.board.blur_inverse import aberration_sigma_px
+    from edgetruth.render.optics.mtf import diffraction_cutoff_cy_px
     from edgetruth.render.sensor.linear_model import SensorModel
 
     a = assumptions
@@ -363,8 +367,22 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         electrons = white_8bit * span / (255.0 * a.output_gain * k)
         return electrons * math.pi / (s0.qe * ppr * a.board_reflectance)
 
-    def aberration_um(sigma_px: float) -> float:
-        return a.pitch_um * math.sqrt(max(sigma_px ** 2 - 1.0 / 12.0 - airy_sigma_px(a) ** 2, 0.0))
+    cutoff = diffraction_cutoff_cy_px(a.pitch_um, a.wavelength_nm, a.f_number)
+    aperture_m = K[0, 0] * a.pitch_um * 1e-6 / (2.0 * a.f_number)  # f = fx * pitch, the pupil's radius f / 2N
+
+    def defocus_px(p: dict) -> float:
+        """The thin-lens blur disk's radius (px) at the board's centre (render.optics.camera)."""
+        z = (np.asarray(p["R"]) @ [(cols - 1) / 2.0, (rows - 1) / 2.0, 0.0] + p["t_squares"])[2] * square_m
+        return float(K[0, 0] * aperture_m * abs(1.0 / dist_m - 1.0 / z))
+
+    def jpeg_px(p: dict, axis: str) -> float:
+        return 0.0 if p.get("jpeg_sigma_px") is None else float(p["jpeg_sigma_px"][axis])
+
+    jpeg_x, jpeg_y = (_median([jpeg_px(p, k) for p in clean], 0.0) for k in ("x", "y"))
+
+    def aberration_um(sigma_px: float, jpeg: float, defocus: float) -> float:
+        """The Gaussian aberration whose render reads ERF sigma ``sigma_px`` once a JPEG adds ``jpeg`` px."""
+        return a.pitch_um * aberration_sigma_px(sigma_px - jpeg, cutoff, defocus, ratio ** gamma, gamma)
 
     cal_words = (f"Zhang's calibration on the {cols * rows} line corners of every photo (ERF4P-fixed11, the grid "
                  f"lines fitted in the undistorted image; `edgetruth calibrate --pattern {cols}x{rows} --corners "
@@ -375,8 +393,11 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         f"the f-number (f/{a.f_number:g}) and the focus (the median board distance, with a square of "
         f"{square_m * 1000:g} mm); they set f = fx * pitch and the defocus, which is small here.  The lens blur is "
         f"the median of the unsaturated photos' ERF sigma per axis (edgetruth.evaluate.board.photo_model: "
-        f"{sig_x:.3f} px along x, {sig_y:.3f} px along y) less the pixel and the Airy core (in quadrature); the twin "
-        "scene sets it per photo only where a photo's own sigma is unbiased.") + f"""
+        f"{sig_x:.3f} px along x, {sig_y:.3f} px along y)"
+        + (f", less what the JPEG adds ({jpeg_x:.3f} and {jpeg_y:.3f} px on a synthetic board)" if output == "jpeg"
+           else "") + ", as the Gaussian aberration whose edge through the pixel and the diffraction reads that "
+        "sigma (edgetruth.evaluate.board.blur_inverse; in focus); the twin scene sets it per photo, at the photo's "
+        "defocus, and with its own sigma only where that is unbiased.") + f"""
 [camera]
 width_px = {m["image_size"][0]}
 height_px = {m["image_size"][1]}
@@ -388,8 +409,8 @@ cy_px = {K[1, 2]:.4f}
 f_number = {a.f_number}
 focus_distance_m = {dist_m:.4f}
 diffraction_wavelength_nm = {a.wavelength_nm}
-aberration_sigma_um = {aberration_um(sig_x):.3f}
-aberration_sigma_y_um = {aberration_um(sig_y):.3f}
+aberration_sigma_um = {aberration_um(sig_x, jpeg_x, 0.0):.3f}
+aberration_sigma_y_um = {aberration_um(sig_y, jpeg_y, 0.0):.3f}
 aberration_sigma_growth = 0.0
 natural_vignetting = false
 
@@ -406,8 +427,10 @@ k3 = {dist[4]:.6f}
     for p, curl in zip(photos, bends):
         sat = p["white_saturated"]
         white = p["dark"] * ratio if sat else p["white"]
-        sx = sig_x if sat or p["sigma_x_px"] is None else p["sigma_x_px"]
-        sy = sig_y if sat or p["sigma_y_px"] is None else p["sigma_y_px"]
+        own_x, own_y = not sat and p["sigma_x_px"] is not None, not sat and p["sigma_y_px"] is not None
+        sx, jx = (p["sigma_x_px"], jpeg_px(p, "x")) if own_x else (sig_x, jpeg_x)
+        sy, jy = (p["sigma_y_px"], jpeg_px(p, "y")) if own_y else (sig_y, jpeg_y)
+        ab_x, ab_y = aberration_um(sx, jx, defocus_px(p)), aberration_um(sy, jy, defocus_px(p))
         R = ", ".join("[" + ", ".join(f"{v:.7f}" for v in row) + "]" for row in p["R"])
         t = ", ".join(f"{v:.5f}" for v in p["t_squares"])
         sensor = f"output_clip_dn = {p['white']:.1f}" if sat else ""
@@ -423,7 +446,7 @@ kind = "squares"
 irradiance_w_m2 = {irradiance(lin(white)):.4f}
 light_position_m = {light}
 pose_unit_m = {square_m}
-camera = {{ aberration_sigma_um = {aberration_um(sx):.3f}, aberration_sigma_y_um = {aberration_um(sy):.3f} }}
+camera = {{ aberration_sigma_um = {ab_x:.3f}, aberration_sigma_y_um = {ab_y:.3f} }}
 {"sensor = { " + sensor + " }" if sensor else ""}
 poses = [{{ R = [{R}], t = [{t}] }}]
 """.replace("\n\n", "\n"))

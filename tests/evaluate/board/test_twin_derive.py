@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.board import chessboard as cb
 from edgetruth.evaluate.board import twin_derive as td
 from tests.evaluate.board.chessboard_images import write_views as views
 
@@ -46,6 +47,8 @@ def test_derived_twin_of_jpeg_views(tmp_path):
     assert abs(m["K"][0][0] - 600.0) < 0.6 and abs(m["K"][0][2] - 319.5) < 0.5
     assert m["tone"]["output_gamma"] == 1.0 and all(p["jpeg_quality"] == {"quality": 75, "exact": True}
                                                     for p in m["photos"])
+    # what their JPEG adds to the ERF σ (blur_inverse.jpeg_blur_px; small at quality 75), taken off the twin's blur
+    assert all(abs(p["jpeg_sigma_px"][k]) < 0.03 for p in m["photos"] for k in "xy")
     cam, scene = td.twin_texts(m, "t", "a test twin", "camera.toml", 0.03, "four test views")
     (tmp_path / "camera.toml").write_text(cam)
     (tmp_path / "twin.toml").write_text(scene)
@@ -68,6 +71,7 @@ def test_rendered_twin_puts_the_board_where_the_photos_have_it(fast_variant, tmp
     m = td.measure_chessboard(paths, (9, 6))
     cam, scene = td.twin_texts(m, "t", "a test twin", "camera.toml", 0.03, "four test views")
     assert 'output = "srgb8"' in scene and "jpeg_quality" not in scene
+    assert all(p["jpeg_sigma_px"] is None for p in m["photos"])
     (tmp_path / "camera.toml").write_text(cam)
     (tmp_path / "twin.toml").write_text(scene.replace("\nspp = 256\n", "\nspp = 4\n", 1))
     spec = load_spec(tmp_path / "twin.toml")
@@ -81,6 +85,19 @@ def test_rendered_twin_puts_the_board_where_the_photos_have_it(fast_variant, tmp
     err = np.concatenate(err)
     print(f"twin corners vs the views': mean {err.mean():.4f}, max {err.max():.4f} px")
     assert err.max() < 0.05
+    # the blur: the twin's edges read the views' ERF σ (blur_inverse; the pixel and the Airy core taken off in
+    # quadrature instead left them 0.05 px wider)
+    from edgetruth.evaluate.board.photo_model import measure_photo
+
+    model = cb.chessboard_model((9, 6), 1.0)
+    gap = []
+    for s, p in zip(samples, paths):
+        png = s.dataset.path / s.dataset.manifest["images"][s.name]["files"]["png"]["path"]
+        view, twin = (measure_photo(cv2.imread(str(f), cv2.IMREAD_GRAYSCALE).astype(float), model)["blur"]
+                      for f in (p, png))
+        gap += [twin[k]["sigma_px"] - view[k]["sigma_px"] for k in ("vertical", "horizontal")]
+    print(f"twin ERF sigma - the views': {np.round(gap, 3)}")
+    assert max(np.abs(gap)) < 0.03
 
 
 def test_a_photo_without_the_board_is_named(tmp_path):
