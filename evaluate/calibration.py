@@ -1,7 +1,7 @@
 """Camera calibration by Zhang's method (OpenCV) on rendered checkerboards, as a real user would,
 and on real photographs (``calibrate_photos``, the ``edgetruth calibrate`` command).
 
-Per board image: ``cv2.findChessboardCorners`` (on an 8-bit copy scaled to the
+Per board image: ``cv2.findChessboardCorners`` (``DETECT_FLAGS``; on an 8-bit copy scaled to the
 image's own 0.5/99.5 percentiles), then ``cv2.cornerSubPix`` on the float
 image; then one ``cv2.calibrateCamera`` over all boards with the full 5-term
 Brown–Conrady model (k1, k2, p1, p2, k3), the OpenCV default.
@@ -75,15 +75,25 @@ def subpix_window(corners: np.ndarray, pattern_size: tuple[int, int]) -> int:
     return int(np.clip(np.floor(min(dx, dy) / 2.5), 2, 30))
 
 
+#: ``cv2.findChessboardCorners``' flags, tried in turn until one finds the board: OpenCV's default (an adaptive
+#: threshold of the histogram-equalised image), then the adaptive threshold alone, then a global one.  The default
+#: loses some noisy renders of a board on a black background (2 of 40 of OpenCV's twin renders at 64 spp, and
+#: board studies then left their pairs out) that the next finds; an image it finds is detected as before.
+DETECT_FLAGS = (cv2.CALIB_CB_ADAPTIVE_THRESH + cv2.CALIB_CB_NORMALIZE_IMAGE, cv2.CALIB_CB_ADAPTIVE_THRESH, 0)
+
+
 def detect_corners(image: np.ndarray, pattern_size: tuple[int, int], window_px: int | None = None) -> np.ndarray | None:
-    """Subpixel inner corners (N, 2) in OpenCV pixel coordinates, or None if the board is not found.
+    """Subpixel inner corners (N, 2) in OpenCV pixel coordinates, or None if the board is not found
+    (``DETECT_FLAGS``).
 
     ``window_px``: cornerSubPix half-window (OpenCV's winSize; the window is 2 * window_px + 1 px
     wide); None = ``subpix_window`` (0.4 of the smallest imaged square side)."""
     img8 = to_uint8(image)
-    flags = cv2.CALIB_CB_ADAPTIVE_THRESH + cv2.CALIB_CB_NORMALIZE_IMAGE
-    found, corners = cv2.findChessboardCorners(img8, tuple(pattern_size), flags=flags)
-    if not found:
+    for flags in DETECT_FLAGS:
+        found, corners = cv2.findChessboardCorners(img8, tuple(pattern_size), flags=flags)
+        if found:
+            break
+    else:
         return None
     win = subpix_window(corners.reshape(-1, 2), pattern_size) if window_px is None else int(window_px)
     img32 = np.asarray(image, dtype=np.float32)
