@@ -31,8 +31,10 @@ def register(sub) -> None:
                         + f" (default {DEFAULT_DIST_MODEL})")
     p.add_argument("--subpix-window", default="auto", metavar="auto|N",
                    help="cornerSubPix half-window in px (OpenCV's winSize; the window is 2N+1 px wide): 'auto' "
-                        "(default) = 0.4 of the smallest imaged square side, per photo; 5 = the window of OpenCV's "
-                        "sample and regression test (docs/formats.md has both measured on its left01-14 photos)")
+                        "(default) = 0.4 of the smallest imaged square side, per photo, a corner that a window of "
+                        "0.6 of it moves by more than 0.25 px taking that one (the larger reached another edge, such "
+                        "as a cut outer ring); 5 = the window of OpenCV's sample and regression test, as it is "
+                        "(docs/formats.md has both measured on its left01-14 photos)")
     p.add_argument("--corners", default="subpix", metavar="subpix|lines[:METHOD]",
                    help="how each inner corner is measured: 'subpix' (default) = OpenCV's cornerSubPix; 'lines' = "
                         "where the two grid lines through it meet, each fitted to an edge method's points on both "
