@@ -84,9 +84,7 @@ def test_a_bent_board_needs_every_photo_in_the_bend():
 def test_a_board_the_default_flags_miss_is_found():
     """A noisy render of a board on a black background (tests/evaluate/data/chessboard, PROVENANCE.md) that OpenCV's
     default flags do not find: ``detect_corners`` falls back to the next flags (``DETECT_FLAGS``) and finds all 54
-    inner corners, each the exact junction's (within 2.5 px; measured: median 0.05 px, and 0.35, 1.1 and 2.4 px on
-    three corners of the foreshortened last row, whose 8 px cornerSubPix window reaches the cut ring squares' long
-    sides)."""
+    inner corners, each the exact junction's (within 0.2 px; measured: median 0.047, max 0.115 px)."""
     import json
     from pathlib import Path
 
@@ -102,4 +100,30 @@ def test_a_board_the_default_flags_miss_is_found():
     assert corners is not None and corners.shape == (54, 2)
     d = np.linalg.norm(truth[:, None] - corners[None], axis=2)
     assert len(set(d.argmin(axis=1))) == len(truth) == 52  # one detected corner per junction
-    assert d.min(axis=1).max() < 2.5 and np.median(d.min(axis=1)) < 0.1
+    assert d.min(axis=1).max() < 0.2 and np.median(d.min(axis=1)) < 0.1
+
+
+def test_a_corner_whose_window_reaches_another_edge_takes_the_narrower_one():
+    """The same render: its last row's inner corners lie half a square from the cut outer ring, and the automatic
+    8 px half-window reaches the ring squares' long sides.  Used as a fixed window it leaves three corners 0.35,
+    1.1 and 2.4 px from their junctions; with the automatic window those three move by more than
+    ``NARROW_SHIFT_PX`` under the narrower one and take it (all 52 then within 0.2 px)."""
+    import json
+    from pathlib import Path
+
+    import cv2
+
+    from edgetruth.evaluate.calibration import detect_corners
+
+    here = Path(__file__).parent / "data" / "chessboard"
+    img = cv2.imread(str(here / "twin_left02_64spp.png"), cv2.IMREAD_GRAYSCALE).astype(float)
+    truth = np.asarray(json.loads((here / "twin_left02_64spp.json").read_text())["inner_corners_px"])
+
+    def worst(corners):
+        return np.sort(np.linalg.norm(truth[:, None] - corners[None], axis=2).min(axis=1))
+
+    auto, fixed = {}, {}
+    e_auto = worst(detect_corners(img, (9, 6), None, auto))
+    e_fixed = worst(detect_corners(img, (9, 6), auto["window_px"], fixed))
+    assert auto["window_px"] == fixed["window_px"] == 8 and auto["narrowed"] == 3 and fixed["narrowed"] == 0
+    assert e_fixed[-3] > 0.3 and e_auto[-1] < 0.2
