@@ -7,11 +7,8 @@ pixel (1/12 px²) and the Airy core (σ = 0.42 λN) off the measured σ in quadr
 Airy pattern's tails widen the fitted ERF about twice as much as its core (at f/4, 6 µm and 550 nm: σ_ab 0.71 px
 renders an ERF σ of 0.83 px, not 0.78).  ``aberration_sigma_px`` instead solves ``erf_sigma_px(σ_ab) = σ``.
 
-A JPEG photo's σ is read after its JPEG, and the twin's JPEG blurs its renders again (by 0.00-0.05 px on OpenCV's
-photos at quality 50, depending on the side's angle to the 8x8 blocks).  ``jpeg_blur_px`` measures what the JPEG
-adds on a noise-free synthetic image of the photo's own squares (``synthetic_board``: its side lines, its levels,
-an ERF of its σ across each side), stored as it is and through the JPEG; the twin's σ before its JPEG is the
-photo's less that.
+A JPEG photo's σ is read after its JPEG, and the twin's JPEG blurs its renders again: what it adds is measured
+apart (``jpeg_synthetic.jpeg_blur_px``) and taken off the photo's σ before this inverse.
 """
 from __future__ import annotations
 
@@ -73,47 +70,3 @@ def aberration_sigma_px(sigma_px: float, cutoff_cy_px: float, defocus_px: float 
         return MAX_SIGMA_AB_PX
     return float(brentq(gap, 0.0, MAX_SIGMA_AB_PX, xtol=1e-6))
 
-
-def synthetic_board(shape: tuple[int, int], lines, sigma_x_px: float, sigma_y_px: float, dark: float,
-                    white: float) -> np.ndarray:
-    """A noise-free image (float, stored values) of the squares whose side lines ``lines`` are
-    (``photo_model.BoardLines``): ``white`` with each dark square at ``dark``, its coverage at a pixel centre the
-    product over its sides of Φ(−d/σ) (d: the distance outside the side, px; σ: ``sigma_x_px`` and ``sigma_y_px``
-    combined along the side's normal), exact along the middle of each side where ``photo_model.blur`` reads it."""
-    from scipy.special import ndtr
-
-    from edgetruth.evaluate.board.photo_model import _outward
-
-    n, d = _outward(lines)
-    h, w = shape
-    cover = np.zeros(shape)
-    reach = ESF_HALF_WIDTH_PX + 2.0
-    for s in np.flatnonzero(np.all(np.isfinite(lines.corners), axis=(1, 2))):
-        c = lines.corners[s]
-        x0, y0 = np.maximum(np.floor(c.min(0) - reach).astype(int), 0)
-        x1, y1 = np.minimum(np.ceil(c.max(0) + reach).astype(int), [w - 1, h - 1])
-        if x1 < x0 or y1 < y0:
-            continue
-        yy, xx = np.mgrid[y0:y1 + 1, x0:x1 + 1].astype(np.float64)
-        inside = np.ones_like(xx)
-        for k in range(4):
-            sigma = math.hypot(n[s, k, 0] * sigma_x_px, n[s, k, 1] * sigma_y_px)
-            inside *= ndtr(-(n[s, k, 0] * xx + n[s, k, 1] * yy - d[s, k]) / sigma)
-        cover[y0:y1 + 1, x0:x1 + 1] += inside
-    return white - (white - dark) * np.clip(cover, 0.0, 1.0)
-
-
-def jpeg_blur_px(shape: tuple[int, int], lines, sigma_x_px: float, sigma_y_px: float, dark: float, white: float,
-                 quality: int) -> dict:
-    """{"x", "y"}: how much a JPEG at ``quality`` (``render.sensor.pipeline.jpeg_round_trip``, the twin's encoder)
-    raises the ERF σ (px) ``photo_model.blur`` reads on the ``synthetic_board`` of these lines, levels and σ; the
-    same pixels stored as 8-bit without it are the reference, so the synthesis' own small bias cancels."""
-    from edgetruth.evaluate.board.photo_model import blur
-    from edgetruth.render.sensor.pipeline import jpeg_round_trip
-
-    img = synthetic_board(shape, lines, sigma_x_px, sigma_y_px, dark, white)
-    u8 = np.clip(np.round(img), 0, 255).astype(np.uint8)
-    plain = blur(u8.astype(np.float64), lines)
-    coded = blur(jpeg_round_trip(u8, int(quality)).astype(np.float64), lines)
-    return {axis: float(coded[name]["sigma_px"] - plain[name]["sigma_px"])
-            for axis, name in (("x", "vertical"), ("y", "horizontal"))}

@@ -21,7 +21,7 @@ Measured on the photos (``measure_chessboard``):
   reflectance; a saturated photo's white becomes the clip (``output_clip_dn``), its white before the clip its dark
   level times that contrast.
 - **Blur.**  ``photo_model.blur``: the ERF σ (px) per axis; for a JPEG photo less what the JPEG adds
-  (``blur_inverse.jpeg_blur_px``: on a synthetic image of its squares, ``jpeg_sigma_px``); then the Gaussian
+  (``jpeg_synthetic.jpeg_blur_px``: on a synthetic image of its squares, ``jpeg_sigma_px``); then the Gaussian
   aberration whose edge through the pixel, the diffraction and the photo's defocus reads that σ
   (``blur_inverse.aberration_sigma_px``; ``aberration_sigma_um``).  A saturated photo takes the unsaturated ones'
   medians (a clipped edge biases its σ).
@@ -36,9 +36,10 @@ Assumed (nothing in a photo gives them; ``TwinAssumptions``): the pixel pitch, t
 and the defocus, small at these distances), the focus (the median board distance), the board's reflectance, the
 light's direction, and the sensor's noise: shot-noise limited, with the white's noise SD before the output coding
 ``white_noise_dn`` at a white of ``WHITE_REF_DN``.  A photo's noise is measured after its JPEG; by default the twin
-takes the photos' white SD, times ``JPEG_NOISE_FACTOR`` for JPEG photos (the ratio a closed loop through the JPEG
-found on OpenCV's photos at quality 50: 4.5 DN before it for their 2.1 after it).  The twin study's Table 3 compares
-the noise of photos and twin.
+takes the unsaturated photos' white SD, for JPEG photos the SD before their JPEG that leaves it
+(``jpeg_synthetic.white_sd_before_jpeg``, ``white_sd_before_jpeg``: on OpenCV's quality-50 photos 3.9-4.5 DN at 220,
+median 4.27, where a closed loop through the full renders chose 4.5 of 3, 4.5 and 6).  The twin study's Table 3
+compares the noise of photos and twin.
 """
 from __future__ import annotations
 
@@ -54,8 +55,6 @@ from edgetruth.errors import InputError
 
 #: the white level (8-bit) the white noise SD is stated at
 WHITE_REF_DN = 220.0
-#: pre-JPEG / post-JPEG white noise SD that a closed loop through the renders found on OpenCV's quality-50 photos
-JPEG_NOISE_FACTOR = 4.5 / 2.1
 #: IJG (JPEG Annex K) luminance quantisation table, natural (row-major) order
 IJG_LUMA = np.array([
     16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55, 14, 13, 16, 24, 40, 57, 69, 56,
@@ -175,7 +174,7 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     from edgetruth.evaluate.board import chessboard as cb
     from edgetruth.evaluate.board.grid_corners import grid_points
     from edgetruth.evaluate.board.levels import saturated, square_levels
-    from edgetruth.evaluate.board.blur_inverse import jpeg_blur_px
+    from edgetruth.evaluate.board.jpeg_synthetic import jpeg_blur_px, white_sd_before_jpeg
     from edgetruth.evaluate.board.photo_model import blur as edge_blur
     from edgetruth.evaluate.board.photo_model import board_lines
     from edgetruth.evaluate.calibration import calibrate_photos
@@ -218,15 +217,17 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
                              "or give photos whose blacks are not clipped")
         q = jpeg_quality(p)
         sx, sy = (blur.get(k, {}).get("sigma_px") for k in ("vertical", "horizontal"))
-        jpeg_px = (None if q is None or sx is None or sy is None or not math.isfinite(sx + sy) else
-                   jpeg_blur_px(img.shape, lines, sx, sy, lev.dark, lev.white, q[0]))
+        synthetic = q is not None and sx is not None and sy is not None and math.isfinite(sx + sy)
+        jpeg_px = jpeg_blur_px(img.shape, lines, sx, sy, lev.dark, lev.white, q[0]) if synthetic else None
+        sd_before = (white_sd_before_jpeg(img.shape, lines, view.squares.corners, sx, sy, lev.dark, lev.white,
+                                          lev.white_sd, q[0]) if synthetic and not saturated(lev) else None)
         rows.append({
             "photo": p.name, "R": cv2.Rodrigues(rvec)[0].tolist(), "t_squares": tvec.ravel().tolist(),
             "pose_rms_px": float(np.sqrt(np.mean(res ** 2))),
             "ring": ring_reach(img, K, dist, rvec, tvec, *pattern),
             "dark": lev.dark, "white": lev.white, "dark_sd": lev.dark_sd, "white_sd": lev.white_sd,
             "white_saturated": bool(saturated(lev)),
-            "sigma_x_px": sx, "sigma_y_px": sy, "jpeg_sigma_px": jpeg_px,
+            "sigma_x_px": sx, "sigma_y_px": sy, "jpeg_sigma_px": jpeg_px, "white_sd_before_jpeg": sd_before,
             "jpeg_quality": None if q is None else {"quality": q[0], "exact": q[1]},
         })
         images.append(img)
@@ -344,12 +345,15 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     output, quality, output_words = _output(photos)
     gamma = float(m["tone"]["output_gamma"])
     white_sd, white_why = a.white_noise_dn, a.white_noise_why
-    if white_sd is None:  # shot-noise limited: SD as the square root of the level, then back through the coding
+    before = [p["white_sd_before_jpeg"] * math.sqrt(WHITE_REF_DN / p["white"]) for p in clean
+              if p.get("white_sd_before_jpeg") is not None]
+    if white_sd is None and output == "jpeg" and before:  # shot-noise limited: SD as the square root of the level
+        white_sd = float(np.median(before))
+        white_why = ("the photos' white SD before their JPEG at that level, found through it on a synthetic image "
+                     f"of each photo's squares: median of {len(before)}")
+    elif white_sd is None:
         white_sd = float(np.median([p["white_sd"] * math.sqrt(WHITE_REF_DN / p["white"]) for p in clean]))
         white_why = "the photos' white SD at that level"
-        if output == "jpeg":
-            white_sd *= JPEG_NOISE_FACTOR
-            white_why += f" x {JPEG_NOISE_FACTOR:.2f}, what a JPEG at quality 50 takes off it"
     s0 = SensorModel()
     span = s0.max_dn - s0.dark_offset_dn
     # stored s = 255 g v^(1/G) (render.sensor.pipeline: the curve, then ``output_gain`` g), v the linear signal:
