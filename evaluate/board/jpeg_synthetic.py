@@ -10,9 +10,9 @@ the twin's encoder):
 - ``white_sd_before_jpeg``: the white's noise SD before the JPEG that leaves the photo's after it.  A JPEG's
   quantisation takes small noise off almost whole and larger noise in part (at quality 50, 3, 4.5 and 6 DN before
   it leave about 1.1, 2.3 and 3.6 DN at a white of ~230), so no one factor maps after to before; the synthetic
-  board finds the level per photo.  On OpenCV's photos: 3.9-4.5 DN at 220 (median 4.27), where a closed loop
-  through the full renders chose 4.5 of 3, 4.5 and 6; the render adds noise the synthetic board does not, so that
-  twin's white SD at the squares' centres reads 1.10x the photos' (docs/board.md).
+  board finds the level per photo.  On OpenCV's photos: 3.9-4.5 DN at 220 (median 4.27).  The twin takes its
+  read noise off that (``twin_derive``: 4.11 DN of shot noise), and its rendered white SD at the squares' centres
+  then reads 0.97x the photos' (docs/board.md).
 """
 from __future__ import annotations
 

@@ -34,12 +34,12 @@ Measured on the photos (``measure_chessboard``):
 
 Assumed (nothing in a photo gives them; ``TwinAssumptions``): the pixel pitch, the f-number (they set f = fx · pitch
 and the defocus, small at these distances), the focus (the median board distance), the board's reflectance, the
-light's direction, and the sensor's noise: shot-noise limited, with the white's noise SD before the output coding
-``white_noise_dn`` at a white of ``WHITE_REF_DN``.  A photo's noise is measured after its JPEG; by default the twin
-takes the unsaturated photos' white SD, for JPEG photos the SD before their JPEG that leaves it
-(``jpeg_synthetic.white_sd_before_jpeg``, ``white_sd_before_jpeg``: on OpenCV's quality-50 photos 3.9-4.5 DN at 220,
-median 4.27, where a closed loop through the full renders chose 4.5 of 3, 4.5 and 6).  The twin study's Table 3
-compares the noise of photos and twin.
+light's direction, and the sensor's noise: shot-noise limited, the shot noise's SD before the output coding
+``white_noise_dn`` at a white of ``WHITE_REF_DN``, and ``dark_noise_e`` of read noise on top.  A photo's noise is
+measured after its JPEG; by default the twin takes the unsaturated photos' white SD -- for JPEG photos the SD before
+their JPEG that leaves it (``jpeg_synthetic.white_sd_before_jpeg``, ``white_sd_before_jpeg``: on OpenCV's
+quality-50 photos 3.9-4.5 DN at 220, median 4.27, where a closed loop through the full renders chose 4.5 of 3, 4.5
+and 6) -- less the read noise.  The twin study's Table 3 compares the noise of photos and twin.
 """
 from __future__ import annotations
 
@@ -77,7 +77,8 @@ class TwinAssumptions:
     board_reflectance: float = 0.8
     #: the 8-bit 255 is 1/output_gain of the ADC's range, so that whites above 255 exist to be clipped
     output_gain: float = 1.6
-    #: the white's noise SD (8-bit DN) before the output coding, at a white of ``WHITE_REF_DN``
+    #: the white's shot-noise SD (8-bit DN) before the output coding, at a white of ``WHITE_REF_DN`` (the read noise,
+    #: ``dark_noise_e``, adds to it: 1.4 DN at 4.5)
     white_noise_dn: float | None = None
     #: how ``white_noise_dn`` was found, for the scene's header (when given)
     white_noise_why: str = "given"
@@ -364,6 +365,13 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         return stored_8bit if gamma == 1.0 else full * (stored_8bit / full) ** gamma
 
     sd_lin = white_sd * (1.0 if gamma == 1.0 else gamma * (WHITE_REF_DN / full) ** (gamma - 1.0))
+    # the read noise in these units is r k 255 g / span = r s^2 / L (s the shot SD at L = lin(220)): a measured SD is
+    # both, so the shot part solves s^2 + (r s^2 / L)^2 = sd^2
+    c = (a.dark_noise_e / lin(WHITE_REF_DN)) ** 2
+    if a.white_noise_dn is None and c > 0:
+        total, sd_lin = white_sd, math.sqrt((math.sqrt(1.0 + 4.0 * c * sd_lin ** 2) - 1.0) / (2.0 * c))
+        white_sd = sd_lin / (1.0 if gamma == 1.0 else gamma * (WHITE_REF_DN / full) ** (gamma - 1.0))
+        white_why += f", {total:.2f} DN in all, less the read noise"
     k = sd_lin ** 2 * span / (255.0 * a.output_gain * lin(WHITE_REF_DN))  # DN per electron
     ppr = s0.photons_per_radiance(a.f_number, a.pitch_um)  # photons per W m^-2 sr^-1
 
@@ -479,7 +487,8 @@ poses = [{{ R = [{R}], t = [{t}] }}]
         _comment(f"saturation: {len(sat)} photo(s) with whites flat (noise SD < half the dark's){clip}: "
                  f"output_clip_dn there, with the white before the clip their dark level x {ratio:.2f};", True),
         _comment(f"noise: {noise}: shot-noise limited, a sensor of K = {k:.4f} DN/e-, {a.dark_noise_e:g} e- read "
-                 f"noise, the white's SD before the output coding {white_sd:.2f} DN at {WHITE_REF_DN:g} ({white_why}; "
+                 f"noise, the white's shot-noise SD before the output coding {white_sd:.2f} DN at {WHITE_REF_DN:g} "
+                 f"({white_why}; "
                  "the twin study's Table 3 compares the photos' noise and the twin's).", True),
         *([_comment("bend: each photo's board curled as the calibration's bend check fitted it (x^2, xy, y^2; "
                     "board_bend_mm, rescaled to the renderer's s; docs/board.md, 'A bent twin');", True)]
