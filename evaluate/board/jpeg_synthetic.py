@@ -7,12 +7,11 @@ the twin's encoder):
 
 - ``jpeg_blur_px``: how much the JPEG raises the ERF σ ``photo_model.blur`` reads (by 0.00-0.05 px on OpenCV's
   photos at quality 50, depending on the side's angle to the 8x8 blocks);
-- ``white_sd_before_jpeg``: the white's noise SD before the JPEG that leaves the photo's after it.  A JPEG's
-  quantisation takes small noise off almost whole and larger noise in part (at quality 50, 3, 4.5 and 6 DN before
-  it leave about 1.1, 2.3 and 3.6 DN at a white of ~230), so no one factor maps after to before; the synthetic
-  board finds the level per photo.  On OpenCV's photos: 3.9-4.5 DN at 220 (median 4.27).  The twin takes its
-  read noise off that (``twin_derive``: 4.11 DN of shot noise), and its rendered white SD at the squares' centres
-  then reads 0.97x the photos' (docs/board.md).
+- ``noise_before_jpeg``: the shot noise (at the white) and the constant read noise before the JPEG that leave the
+  photo's white and dark SDs after it.  A JPEG's quantisation takes small noise off almost whole and larger noise
+  in part (at quality 50, 3, 4.5 and 6 DN before it leave about 1.1, 2.3 and 3.6 DN at a white of ~230, and dark
+  noise below ~1.5 DN leaves nothing), so no one factor maps after to before; the synthetic board finds both per
+  photo (OpenCV's photos: docs/board.md, *Your own twin*).
 """
 from __future__ import annotations
 
@@ -68,38 +67,60 @@ def jpeg_blur_px(shape: tuple[int, int], lines, sigma_x_px: float, sigma_y_px: f
             for axis, name in (("x", "vertical"), ("y", "horizontal"))}
 
 
-#: the noise SDs before the JPEG, as multiples of the photo's after it, at which ``white_sd_before_jpeg`` measures
-#: what the JPEG leaves (it interpolates between them; the ratio at quality 50 is 2.0-2.3 on OpenCV's photos)
+#: the white's shot-noise SDs before the JPEG, as multiples of the photo's SD after it, at which
+#: ``noise_before_jpeg`` measures what the JPEG leaves (it interpolates between them)
 BEFORE_OVER_AFTER = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0)
 #: noise draws averaged per level (fixed seeds: the measurement is a pure function of the photo)
 NOISE_SEEDS = (0, 1)
 
 
-def white_sd_before_jpeg(shape: tuple[int, int], lines, squares, sigma_x_px: float, sigma_y_px: float, dark: float,
-                         white: float, white_sd_after: float, quality: int) -> float | None:
-    """The white's noise SD (8-bit DN, at the level ``white``) before a JPEG at ``quality`` that leaves
-    ``white_sd_after`` at the light squares' centres (``levels.square_levels`` of ``squares``, as the photo's was
-    measured): the ``synthetic_board`` of these lines, levels and σ with Gaussian noise of SD s √(v / ``white``) at
-    each stored level v (shot noise), stored as 8-bit through the JPEG, at each s of ``BEFORE_OVER_AFTER`` times
-    ``white_sd_after``; the s whose mean white SD after it (``NOISE_SEEDS``) is ``white_sd_after``, interpolated.
-    None when no noise is measured after it, or when even the largest s leaves less."""
+#: the constant (read) noise SDs before the JPEG, 8-bit DN, at which ``noise_before_jpeg`` measures the darks
+READ_NOISE_DN = (0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0)
+#: alternations of the white's and the dark's one-dimensional solutions
+NOISE_PASSES = 3
+
+
+def noise_before_jpeg(shape: tuple[int, int], lines, squares, sigma_x_px: float, sigma_y_px: float, dark: float,
+                      white: float, white_sd_after: float, dark_sd_after: float, quality: int) -> dict | None:
+    """The noise before a JPEG at ``quality`` that leaves the photo's white and dark SDs after it (at the light and
+    dark squares' centres, ``levels.square_levels``): SD² = s² v / ``white`` + r² at each stored level v, shot noise
+    of SD s at the white and a constant (read) noise r, on the ``synthetic_board`` of these lines, levels and σ.
+    The white's SD is solved for s with r held (``BEFORE_OVER_AFTER``), the dark's for r with s held
+    (``READ_NOISE_DN``), ``NOISE_PASSES`` times.  -> {"shot_dn": s, "read_dn": r}; None when no noise is measured
+    after it, or when none of the levels leaves as much."""
     from edgetruth.evaluate.board.levels import square_levels
     from edgetruth.render.sensor.pipeline import jpeg_round_trip
 
-    if not (white_sd_after > 0 and math.isfinite(white_sd_after)):
+    if not (white_sd_after > 0 and math.isfinite(white_sd_after) and math.isfinite(dark_sd_after)):
         return None
     clean = synthetic_board(shape, lines, sigma_x_px, sigma_y_px, dark, white)
-    shot = np.sqrt(np.maximum(clean, 1.0) / white)
+    rel = np.maximum(clean, 1.0) / white
     draws = [np.random.default_rng(seed).standard_normal(clean.shape) for seed in NOISE_SEEDS]
-    before = np.asarray(BEFORE_OVER_AFTER) * white_sd_after
-    after = []
-    for s in before:
-        sds = [square_levels(jpeg_round_trip(np.clip(np.round(clean + s * shot * z), 0, 255).astype(np.uint8),
-                                             int(quality)).astype(np.float64), squares).white_sd for z in draws]
-        after.append(float(np.mean(sds)))
-    after = np.maximum.accumulate(np.asarray(after))  # the JPEG leaves more of more noise: monotone
-    if after[-1] < white_sd_after:
-        return None
-    if after[0] >= white_sd_after:
-        return float(before[0] * white_sd_after / max(after[0], 1e-9))
-    return float(np.interp(white_sd_after, after, before))
+
+    def after(s: float, r: float) -> tuple[float, float]:
+        sd = np.sqrt(s * s * rel + r * r)
+        lv = [square_levels(jpeg_round_trip(np.clip(np.round(clean + sd * z), 0, 255).astype(np.uint8),
+                                            int(quality)).astype(np.float64), squares) for z in draws]
+        return float(np.mean([v.white_sd for v in lv])), float(np.mean([v.dark_sd for v in lv]))
+
+    def solve(grid, measured, target) -> float | None:
+        measured = np.maximum.accumulate(np.asarray(measured))  # more noise before leaves more after: monotone
+        if measured[-1] < target:
+            return None
+        if measured[0] >= target:
+            return float(grid[0])
+        first = int(np.argmax(measured > measured[0]))  # the flat start (a JPEG takes small noise off whole)
+        return float(np.interp(target, measured[max(first - 1, 0):], np.asarray(grid)[max(first - 1, 0):]))
+
+    s, r = white_sd_after, 0.0
+    for _ in range(NOISE_PASSES):
+        grid = np.asarray(BEFORE_OVER_AFTER) * white_sd_after
+        s_new = solve(grid, [after(v, r)[0] for v in grid], white_sd_after)
+        if s_new is None:
+            return None
+        s = s_new
+        r_new = solve(READ_NOISE_DN, [after(s, v)[1] for v in READ_NOISE_DN], dark_sd_after)
+        if r_new is None:
+            return None
+        r = r_new
+    return {"shot_dn": s, "read_dn": r}

@@ -34,12 +34,11 @@ Measured on the photos (``measure_chessboard``):
 
 Assumed (nothing in a photo gives them; ``TwinAssumptions``): the pixel pitch, the f-number (they set f = fx · pitch
 and the defocus, small at these distances), the focus (the median board distance), the board's reflectance, the
-light's direction, and the sensor's noise: shot-noise limited, the shot noise's SD before the output coding
-``white_noise_dn`` at a white of ``WHITE_REF_DN``, and ``dark_noise_e`` of read noise on top.  A photo's noise is
-measured after its JPEG; by default the twin takes the unsaturated photos' white SD -- for JPEG photos the SD before
-their JPEG that leaves it (``jpeg_synthetic.white_sd_before_jpeg``, ``white_sd_before_jpeg``: on OpenCV's
-quality-50 photos 3.9-4.5 DN at 220, median 4.27, where a closed loop through the full renders chose 4.5 of 3, 4.5
-and 6) -- less the read noise.  The twin study's Table 3 compares the noise of photos and twin.
+light's direction, and the sensor's noise: shot noise with its SD before the output coding ``white_noise_dn`` at a
+white of ``WHITE_REF_DN``, and ``dark_noise_e`` of read noise on top.  A photo's noise is measured after its JPEG; by
+default a twin of JPEG photos with a linear tone takes both from their white and dark SDs before their JPEG
+(``jpeg_synthetic.noise_before_jpeg``, ``noise_before_jpeg``: medians), other photos their white SD less
+``DARK_NOISE_E`` of read noise.  The twin study's Table 3 compares the noise of photos and twin.
 """
 from __future__ import annotations
 
@@ -55,6 +54,8 @@ from edgetruth.errors import InputError
 
 #: the white level (8-bit) the white noise SD is stated at
 WHITE_REF_DN = 220.0
+#: the read noise (e-) a twin assumes where its photos do not give it (not JPEG, or a tone curve)
+DARK_NOISE_E = 15.0
 #: IJG (JPEG Annex K) luminance quantisation table, natural (row-major) order
 IJG_LUMA = np.array([
     16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55, 14, 13, 16, 24, 40, 57, 69, 56,
@@ -78,11 +79,13 @@ class TwinAssumptions:
     #: the 8-bit 255 is 1/output_gain of the ADC's range, so that whites above 255 exist to be clipped
     output_gain: float = 1.6
     #: the white's shot-noise SD (8-bit DN) before the output coding, at a white of ``WHITE_REF_DN`` (the read noise,
-    #: ``dark_noise_e``, adds to it: 1.4 DN at 4.5)
+    #: ``dark_noise_e``, adds to it: 1.4 DN at 4.5 and 15 e-)
     white_noise_dn: float | None = None
     #: how ``white_noise_dn`` was found, for the scene's header (when given)
     white_noise_why: str = "given"
-    dark_noise_e: float = 15.0
+    #: the read noise (e-); ``None``: from JPEG photos' darks with their white (``jpeg_synthetic.noise_before_jpeg``)
+    #: when the tone is linear, else ``DARK_NOISE_E``
+    dark_noise_e: float | None = None
     light_position_m: tuple[float, float, float] = (0.0, -1.5, -2.0)
 
 
@@ -175,7 +178,7 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     from edgetruth.evaluate.board import chessboard as cb
     from edgetruth.evaluate.board.grid_corners import grid_points
     from edgetruth.evaluate.board.levels import saturated, square_levels
-    from edgetruth.evaluate.board.jpeg_synthetic import jpeg_blur_px, white_sd_before_jpeg
+    from edgetruth.evaluate.board.jpeg_synthetic import jpeg_blur_px, noise_before_jpeg
     from edgetruth.evaluate.board.photo_model import blur as edge_blur
     from edgetruth.evaluate.board.photo_model import board_lines
     from edgetruth.evaluate.calibration import calibrate_photos
@@ -220,15 +223,15 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
         sx, sy = (blur.get(k, {}).get("sigma_px") for k in ("vertical", "horizontal"))
         synthetic = q is not None and sx is not None and sy is not None and math.isfinite(sx + sy)
         jpeg_px = jpeg_blur_px(img.shape, lines, sx, sy, lev.dark, lev.white, q[0]) if synthetic else None
-        sd_before = (white_sd_before_jpeg(img.shape, lines, view.squares.corners, sx, sy, lev.dark, lev.white,
-                                          lev.white_sd, q[0]) if synthetic and not saturated(lev) else None)
+        before = (noise_before_jpeg(img.shape, lines, view.squares.corners, sx, sy, lev.dark, lev.white,
+                                    lev.white_sd, lev.dark_sd, q[0]) if synthetic and not saturated(lev) else None)
         rows.append({
             "photo": p.name, "R": cv2.Rodrigues(rvec)[0].tolist(), "t_squares": tvec.ravel().tolist(),
             "pose_rms_px": float(np.sqrt(np.mean(res ** 2))),
             "ring": ring_reach(img, K, dist, rvec, tvec, *pattern),
             "dark": lev.dark, "white": lev.white, "dark_sd": lev.dark_sd, "white_sd": lev.white_sd,
             "white_saturated": bool(saturated(lev)),
-            "sigma_x_px": sx, "sigma_y_px": sy, "jpeg_sigma_px": jpeg_px, "white_sd_before_jpeg": sd_before,
+            "sigma_x_px": sx, "sigma_y_px": sy, "jpeg_sigma_px": jpeg_px, "noise_before_jpeg": before,
             "jpeg_quality": None if q is None else {"quality": q[0], "exact": q[1]},
         })
         images.append(img)
@@ -346,15 +349,24 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     output, quality, output_words = _output(photos)
     gamma = float(m["tone"]["output_gamma"])
     white_sd, white_why = a.white_noise_dn, a.white_noise_why
-    before = [p["white_sd_before_jpeg"] * math.sqrt(WHITE_REF_DN / p["white"]) for p in clean
-              if p.get("white_sd_before_jpeg") is not None]
-    if white_sd is None and output == "jpeg" and before:  # shot-noise limited: SD as the square root of the level
-        white_sd = float(np.median(before))
-        white_why = ("the photos' white SD before their JPEG at that level, found through it on a synthetic image "
-                     f"of each photo's squares: median of {len(before)}")
+    read_e, read_why = a.dark_noise_e, "given" if a.dark_noise_e is not None else "assumed"
+    # per photo before its JPEG: the shot SD scaled to the reference white (it goes as the square root of the level)
+    # and the read noise in e- (r DN = r_e s^2 / L in linear 8-bit units, s the shot SD at the level L)
+    joint = [(b["shot_dn"] * math.sqrt(WHITE_REF_DN / p["white"]), b["read_dn"]) for p in clean
+             if (b := p.get("noise_before_jpeg")) is not None]
+    derived_shot = white_sd is None and output == "jpeg" and bool(joint) and gamma == 1.0
+    if derived_shot:
+        white_sd = float(np.median([s for s, _ in joint]))
+        white_why = ("the photos' white and dark SDs before their JPEG, found through it on a synthetic image of "
+                     f"each photo's squares: median of {len(joint)}")
+        if read_e is None:
+            read_e = round(float(np.median([r * WHITE_REF_DN / s ** 2 for s, r in joint])), 1)
+            read_why = f"with the white's, median of {len(joint)}"
     elif white_sd is None:
         white_sd = float(np.median([p["white_sd"] * math.sqrt(WHITE_REF_DN / p["white"]) for p in clean]))
         white_why = "the photos' white SD at that level"
+    if read_e is None:
+        read_e = DARK_NOISE_E
     s0 = SensorModel()
     span = s0.max_dn - s0.dark_offset_dn
     # stored s = 255 g v^(1/G) (render.sensor.pipeline: the curve, then ``output_gain`` g), v the linear signal:
@@ -367,8 +379,8 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     sd_lin = white_sd * (1.0 if gamma == 1.0 else gamma * (WHITE_REF_DN / full) ** (gamma - 1.0))
     # the read noise in these units is r k 255 g / span = r s^2 / L (s the shot SD at L = lin(220)): a measured SD is
     # both, so the shot part solves s^2 + (r s^2 / L)^2 = sd^2
-    c = (a.dark_noise_e / lin(WHITE_REF_DN)) ** 2
-    if a.white_noise_dn is None and c > 0:
+    c = (read_e / lin(WHITE_REF_DN)) ** 2
+    if a.white_noise_dn is None and not derived_shot and c > 0:
         total, sd_lin = white_sd, math.sqrt((math.sqrt(1.0 + 4.0 * c * sd_lin ** 2) - 1.0) / (2.0 * c))
         white_sd = sd_lin / (1.0 if gamma == 1.0 else gamma * (WHITE_REF_DN / full) ** (gamma - 1.0))
         white_why += f", {total:.2f} DN in all, less the read noise"
@@ -486,10 +498,10 @@ poses = [{{ R = [{R}], t = [{t}] }}]
                  "reflectance;", True),
         _comment(f"saturation: {len(sat)} photo(s) with whites flat (noise SD < half the dark's){clip}: "
                  f"output_clip_dn there, with the white before the clip their dark level x {ratio:.2f};", True),
-        _comment(f"noise: {noise}: shot-noise limited, a sensor of K = {k:.4f} DN/e-, {a.dark_noise_e:g} e- read "
-                 f"noise, the white's shot-noise SD before the output coding {white_sd:.2f} DN at {WHITE_REF_DN:g} "
-                 f"({white_why}; "
-                 "the twin study's Table 3 compares the photos' noise and the twin's).", True),
+        _comment(f"noise: {noise}: shot-noise limited, a sensor of K = {k:.4f} DN/e-, {read_e:g} e- read "
+                 + ("noise" if read_why in ("given", "assumed") else f"noise ({read_why})")
+                 + f", the white's shot-noise SD before the output coding {white_sd:.2f} DN at {WHITE_REF_DN:g} "
+                 f"({white_why}; the twin study's Table 3 compares the photos' noise and the twin's).", True),
         *([_comment("bend: each photo's board curled as the calibration's bend check fitted it (x^2, xy, y^2; "
                     "board_bend_mm, rescaled to the renderer's s; docs/board.md, 'A bent twin');", True)]
           if bend else []),
@@ -515,7 +527,7 @@ board_reflectance = {a.board_reflectance}
 output_gamma = {gamma}
 output_gain = {a.output_gain}
 k0_dn_per_e = {k:.5f}
-dark_noise_e = {a.dark_noise_e}
+dark_noise_e = {read_e}
 full_well_e = 100000.0
 
 """ + "\n".join(groups)

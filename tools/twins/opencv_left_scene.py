@@ -5,8 +5,8 @@
     python tools/twins/opencv_left_scene.py
 
 The derivation is the packaged one; what this adds is the shipped names and the noise a closed loop through the
-renders found for these photos (docs/board.md): the white's SD before their JPEG, 4.5 DN at a white of 220 (3 and
-6 gave SDs after the JPEG below and above the photos').  ``tests/tools/test_opencv_left_scene.py`` re-derives the
+renders found for these photos (docs/board.md): the white's shot-noise SD before their JPEG, 4.5 DN at a white of
+220 (3 and 6 gave SDs after the JPEG below and above the photos'), with the 15 e- of read noise it assumed.  ``tests/tools/test_opencv_left_scene.py`` re-derives the
 three files byte for byte.
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ def texts() -> tuple[str, str, str]:
 
     m = measure_chessboard(resolve_inputs(["opencv_left"]).photos, (9, 6))
     why = "a closed loop through the JPEG: 3 and 6 gave SDs after it below and above the photos'"
-    a = TwinAssumptions(white_noise_dn=4.5, white_noise_why=why)
+    a = TwinAssumptions(white_noise_dn=4.5, white_noise_why=why, dark_noise_e=15.0)
     cam, flat = twin_texts(m, "opencv_left_twin", f"digital twin of OpenCV's left01-14 chessboard photos: {WHAT}",
                            "opencv_left", SQUARE_M, SOURCE, a)
     _, bent = twin_texts(m, "opencv_left_twin_bent", "digital twin of OpenCV's left01-14 chessboard photos, each "

@@ -34,9 +34,9 @@ def register(sub) -> None:
                    help="assumed pixel pitch (default 6); with fx it sets the focal length, hence the defocus")
     p.add_argument("--f-number", type=float, default=4.0, metavar="N", help="assumed f-number (default 4)")
     p.add_argument("--white-noise-dn", type=float, default=None, metavar="DN",
-                   help="the white's shot-noise SD (8-bit DN, at a white of 220) before the output coding (the 15 "
-                        "e- read noise adds to it); default: the photos' own, scaled back through their JPEG, less "
-                        "the read noise (docs/board.md)")
+                   help="the white's shot-noise SD (8-bit DN, at a white of 220) before the output coding (15 e- "
+                        "of read noise add to it); default: from the photos (JPEG photos with a linear tone: shot "
+                        "and read noise through their JPEG; docs/board.md)")
     p.add_argument("--bend", action="store_true",
                    help="curl each photo's board as the calibration's bend check measures it (a quadratic height "
                         "per photo, board_bend_mm; docs/board.md, 'A bent twin'): prints curl, and a flat twin "
