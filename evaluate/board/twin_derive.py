@@ -328,6 +328,7 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     the spec), ``square_m`` the printed square's side (m; it scales the poses only), ``source`` the photos in words
     (for the headers); ``bend``: each board curled as its photo's (``bend_mm``)."""
     from edgetruth.evaluate.board.blur_inverse import aberration_sigma_px
+    from edgetruth.render.optics.camera import camera_from_dict
     from edgetruth.render.optics.mtf import diffraction_cutoff_cy_px
     from edgetruth.render.sensor.linear_model import SensorModel
 
@@ -376,13 +377,14 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     def lin(stored_8bit: float) -> float:
         return stored_8bit if gamma == 1.0 else full * (stored_8bit / full) ** gamma
 
-    sd_lin = white_sd * (1.0 if gamma == 1.0 else gamma * (WHITE_REF_DN / full) ** (gamma - 1.0))
+    slope = 1.0 if gamma == 1.0 else gamma * (WHITE_REF_DN / full) ** (gamma - 1.0)  # d linear / d stored at 220
+    sd_lin = white_sd * slope
     # the read noise in these units is r k 255 g / span = r s^2 / L (s the shot SD at L = lin(220)): a measured SD is
     # both, so the shot part solves s^2 + (r s^2 / L)^2 = sd^2
     c = (read_e / lin(WHITE_REF_DN)) ** 2
     if a.white_noise_dn is None and not derived_shot and c > 0:
         total, sd_lin = white_sd, math.sqrt((math.sqrt(1.0 + 4.0 * c * sd_lin ** 2) - 1.0) / (2.0 * c))
-        white_sd = sd_lin / (1.0 if gamma == 1.0 else gamma * (WHITE_REF_DN / full) ** (gamma - 1.0))
+        white_sd = sd_lin / slope
         white_why += f", {total:.2f} DN in all, less the read noise"
     k = sd_lin ** 2 * span / (255.0 * a.output_gain * lin(WHITE_REF_DN))  # DN per electron
     ppr = s0.photons_per_radiance(a.f_number, a.pitch_um)  # photons per W m^-2 sr^-1
@@ -392,12 +394,15 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         return electrons * math.pi / (s0.qe * ppr * a.board_reflectance)
 
     cutoff = diffraction_cutoff_cy_px(a.pitch_um, a.wavelength_nm, a.f_number)
-    aperture_m = K[0, 0] * a.pitch_um * 1e-6 / (2.0 * a.f_number)  # f = fx * pitch, the pupil's radius f / 2N
+    # the twin camera's thin lens (f = fx * pitch, focused at dist_m), for each photo's defocus
+    lens = camera_from_dict({"width_px": int(m["image_size"][0]), "height_px": int(m["image_size"][1]),
+                             "pitch_um": a.pitch_um, "fx_px": float(K[0, 0]), "f_number": a.f_number,
+                             "focus_distance_m": dist_m, "diffraction_wavelength_nm": a.wavelength_nm}, name)
 
     def defocus_px(p: dict) -> float:
-        """The thin-lens blur disk's radius (px) at the board's centre (render.optics.camera)."""
+        """The blur disk's radius (px) at the board's centre."""
         z = (np.asarray(p["R"]) @ [(cols - 1) / 2.0, (rows - 1) / 2.0, 0.0] + p["t_squares"])[2] * square_m
-        return float(K[0, 0] * aperture_m * abs(1.0 / dist_m - 1.0 / z))
+        return float(lens.defocus_radius_px(z))
 
     def jpeg_px(p: dict, axis: str) -> float:
         return 0.0 if p.get("jpeg_sigma_px") is None else float(p["jpeg_sigma_px"][axis])
