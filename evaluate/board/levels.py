@@ -28,10 +28,13 @@ class SquareLevels:
     white_sd: float
 
 
-def square_levels(image: np.ndarray, quads: np.ndarray) -> SquareLevels:
+def square_levels(image: np.ndarray, quads: np.ndarray, half_px: int = LEVEL_HALF_PX,
+                  plane: bool = False, clip: float | None = None) -> SquareLevels:
     """The levels of the dark squares (``quads`` (S, 4, 2), NaN rows skipped) and of the light squares between them,
-    from (2 ``LEVEL_HALF_PX`` + 1)² patches at their centres: the level is the median of the patches' medians, the
-    SD the patches' pooled SD about their own means (so shading across the board does not count).  A light square's
+    from (2 ``half_px`` + 1)² patches at their centres: the level is the median of the patches' medians, the SD the
+    patches' pooled SD about their own means (so shading across the board does not count), or with ``plane`` about
+    their own least-squares planes (so shading across a larger patch does not count either); ``clip``: patches that
+    reach it are left out (a clip truncates their noise).  A light square's
     centre is a dark centre mirrored through a side's midpoint (on a chessboard a light square lies across every
     side of a dark one); only those reached from two dark squares or more are used, which are the light squares
     among the dark ones, not those of the outer ring that a board's edge may cut."""
@@ -45,16 +48,22 @@ def square_levels(image: np.ndarray, quads: np.ndarray) -> SquareLevels:
     groups = cKDTree(light).query_ball_point(light, 0.3 * side) if len(light) else []
     light = np.array([light[i] for i, g in enumerate(groups) if len(g) >= 2 and min(g) == i]).reshape(-1, 2)
 
+    r = int(half_px)
+    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
+    basis = np.c_[np.ones(xx.size), xx.ravel(), yy.ravel()] if plane else np.ones((xx.size, 1))
+    keep = np.eye(xx.size) - basis @ np.linalg.pinv(basis)  # a patch's residual about its plane
+
     def level(points: np.ndarray) -> tuple[float, float]:
-        r = LEVEL_HALF_PX
         xy = np.round(points).astype(int)  # the pixel whose centre is nearest (centres at integers)
         inside = inside_image(xy[:, 0], xy[:, 1], image.shape, r)
         patches = np.array([image[y - r:y + r + 1, x - r:x + r + 1].astype(np.float64).ravel()
                             for x, y in xy[inside]]).reshape(-1, (2 * r + 1) ** 2)
+        if clip is not None:
+            patches = patches[patches.max(axis=1) < clip]
         if not len(patches):
             return float("nan"), float("nan")
-        resid = patches - patches.mean(axis=1, keepdims=True)
-        sd = np.sqrt((resid ** 2).sum() / (resid.size - len(patches)))
+        resid = patches @ keep if plane else patches - patches.mean(axis=1, keepdims=True)
+        sd = np.sqrt((resid ** 2).sum() / (resid.size - basis.shape[1] * len(patches)))
         return float(np.median(np.median(patches, axis=1))), float(sd)
 
     (dark, dark_sd), (white, white_sd) = level(centre), level(light)

@@ -28,7 +28,9 @@ Measured on the photos (``measure_chessboard``):
 - **Tone.**  ``tone_fit.estimate_power`` on the unsaturated photos: linear (``output_gamma = 1``) when its 95 %
   interval holds 1, else the power found.
 - **Output.**  JPEG photos: the quality whose IJG (Annex K) luminance table the file carries (``jpeg_quality``);
-  other photos: 8-bit PNG.
+  other 8-bit photos: 8-bit PNG.  16-bit photos: raw (the sensor's DN in a 16-bit PNG), taken as linear, the ADC's
+  bits from their largest value, the gain, read noise and black level from their noise (``photon_transfer``: the
+  squares' ``flat_noise``; one of read noise and black level assumed or given, ``dark_noise_e``, ``black_dn``).
 - **Bend** (``--bend``).  The calibration's quadratic bend check per photo (``evaluate.board_bend``), written as the
   group's ``board_bend_mm`` on the renderer's scale (``bend_mm``).
 
@@ -56,6 +58,8 @@ from edgetruth.errors import InputError
 WHITE_REF_DN = 220.0
 #: the read noise (e-) a twin assumes where its photos do not give it (not JPEG, or a tone curve)
 DARK_NOISE_E = 15.0
+#: 16-bit photos' photon transfer: the share of a square's side its centre patch spans (``flat_noise``)
+FLAT_PATCH_SHARE = 0.5
 #: IJG (JPEG Annex K) luminance quantisation table, natural (row-major) order
 IJG_LUMA = np.array([
     16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55, 14, 13, 16, 24, 40, 57, 69, 56,
@@ -86,6 +90,8 @@ class TwinAssumptions:
     #: the read noise (e-); ``None``: from JPEG photos' darks with their white (``jpeg_synthetic.noise_before_jpeg``)
     #: when the tone is linear, else ``DARK_NOISE_E``
     dark_noise_e: float | None = None
+    #: 16-bit (raw) photos' black level (DN); ``None``: from their noise with the read noise (``photon_transfer``)
+    black_dn: float | None = None
     light_position_m: tuple[float, float, float] = (0.0, -1.5, -2.0)
 
 
@@ -200,10 +206,17 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
                          "image per photo, so leave it out (or check --pattern)")
     K, dist = cal.K, cal.dist
     rows, images = [], []
+    scale, union = None, 0  # the photos' full scale, and every stored value OR-ed (its trailing zeros: the step)
     for p, grid in zip(photos if progress is None else progress(photos), grids):
         img = read_gray(p, channel=channel)
-        if full_scale(img.dtype) != 255.0:
-            raise InputError(f"{p}: {img.dtype} values; give 8-bit photos (a twin's renders are 8-bit)")
+        if full_scale(img.dtype) not in (255.0, 65535.0):
+            raise InputError(f"{p}: {img.dtype} values; give 8-bit or 16-bit photos (a twin renders 8-bit or raw "
+                             "16-bit images)")
+        if scale is not None and full_scale(img.dtype) != scale:
+            raise InputError(f"{p}: {img.dtype} values among {'8' if scale == 255 else '16'}-bit photos; give "
+                             "photos of one bit depth (one camera's output)")
+        scale = full_scale(img.dtype)
+        union |= int(np.bitwise_or.reduce(img, axis=None))
         view = cb.find_squares(img, model)
         if view is None:
             raise InputError(f"{p}: the board study's squares were not found on it; leave it out")
@@ -214,6 +227,15 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
         proj, _ = cv2.projectPoints(board[ok], rvec, tvec, K, dist)
         res = np.linalg.norm(proj.reshape(-1, 2) - mc.reshape(-1, 2)[ok], axis=1)
         lev = square_levels(img, view.squares.corners)
+        flat = None
+        if scale != 255.0:  # the photon transfer's levels: patches of half a square, about their planes
+            quads = view.squares.corners
+            side = float(np.nanmedian(np.linalg.norm(quads - np.roll(quads, -1, axis=1), axis=2)))
+            half = max(2, int(FLAT_PATCH_SHARE * side / 2))
+            top = int(img.max())  # a value ten pixels or more share is a clip
+            fl = square_levels(img, quads, half_px=half, plane=True,
+                               clip=top if np.count_nonzero(img == top) >= 10 else None)
+            flat = {"half_px": half, "dark": fl.dark, "white": fl.white, "dark_sd": fl.dark_sd, "white_sd": fl.white_sd}
         lines = board_lines(img, model)
         blur = {} if lines is None else edge_blur(img, lines)
         if lev.dark <= 0:
@@ -233,6 +255,7 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
             "white_saturated": bool(saturated(lev)),
             "sigma_x_px": sx, "sigma_y_px": sy, "jpeg_sigma_px": jpeg_px, "noise_before_jpeg": before,
             "jpeg_quality": None if q is None else {"quality": q[0], "exact": q[1]},
+            **({} if flat is None else {"flat_noise": flat}),
         })
         images.append(img)
     # each photo's quadratic bend (the calibration's bend check), in squares: the calibration's unit is one square
@@ -240,10 +263,16 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     if quad.get("views") == len(rows):
         for r, c, sc in zip(rows, quad["coefficients_mm"], quad["scale_mm"]):
             r["bend_squares"] = {"coefficients": [v / 1e3 for v in c], "scale": sc / 1e3}
+    if scale == 255.0:
+        tone = measure_tone(photos, images, rows, model)
+    else:  # a black level above 0 reads as a power (tone_fit): raw values are taken as linear
+        tone = {"power": None, "ci": None, "photos": [], "output_gamma": 1.0,
+                "note": "16-bit photos, taken as linear sensor values (raw) with a black level"}
     return {"pattern": list(pattern), "image_size": list(cal.image_size), "rms_px": cal.rms_px,
             "K": np.asarray(K).tolist(),
-            "dist": np.asarray(dist).ravel().tolist(), "tone": measure_tone(photos, images, rows, model),
-            "photos": rows}
+            "dist": np.asarray(dist).ravel().tolist(), "tone": tone, "photos": rows,
+            "full_scale": scale, "max_value": int(max(int(im.max()) for im in images)),
+            "value_step": (union & -union) if union else 1}
 
 
 def measure_tone(photos, images, rows, model) -> dict:
@@ -340,15 +369,25 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         raise InputError(f"{twice[0]}: two photos share this name; a twin names one group per photo, so rename one")
     cols, rows = m["pattern"]
     clean = [p for p in photos if not p["white_saturated"]] or photos
-    ratio = float(np.median([p["white"] / p["dark"] for p in clean]))
+    raw = float(m.get("full_scale", 255.0)) > 255.0
+    if raw and a.white_noise_dn is not None:
+        raise InputError("--white-noise-dn: for 8-bit photos; 16-bit photos give their sensor's gain and noise "
+                         "(photon transfer), so leave it out")
+    if not raw and a.black_dn is not None:
+        raise InputError("--black-dn: for 16-bit (raw) photos; an 8-bit photo's coding puts its black at 0, so "
+                         "leave it out")
+    rn = _raw_noise(m, a) if raw else None
+    black = rn.black_dn if raw else 0.0
+    ratio = float(np.median([(p["white"] - black) / (p["dark"] - black) for p in clean]))
     sig_x, sig_y = (_median([p[k] for p in clean]) for k in ("sigma_x_px", "sigma_y_px"))
     if not (math.isfinite(sig_x) and math.isfinite(sig_y)):
         raise InputError("the photos' edges gave no blur (the photo model found no sides); the twin needs it")
     # a full square at most (the crossing reads a half-step past its far side); no ring square in view: a full one
     ring = [round(min(_median([p["ring"][k] for p in photos], 1.0), 1.0), 3) for k in ("x", "y")]
     dist_m = float(np.median([p["t_squares"][2] for p in photos])) * square_m
-    output, quality, output_words = _output(photos)
+    output, quality, output_words = _output(photos) if not raw else ("raw", None, _raw_words(m))
     gamma = float(m["tone"]["output_gamma"])
+    # the 8-bit sensor (raw photos replace its gain and read noise by their photon transfer's, below)
     white_sd, white_why = a.white_noise_dn, a.white_noise_why
     read_e, read_why = a.dark_noise_e, "given" if a.dark_noise_e is not None else "assumed"
     # per photo before its JPEG: the shot SD scaled to the reference white (it goes as the square root of the level)
@@ -389,8 +428,11 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     k = sd_lin ** 2 * span / (255.0 * a.output_gain * lin(WHITE_REF_DN))  # DN per electron
     ppr = s0.photons_per_radiance(a.f_number, a.pitch_um)  # photons per W m^-2 sr^-1
 
-    def irradiance(white_8bit: float) -> float:
-        electrons = white_8bit * span / (255.0 * a.output_gain * k)
+    if raw:
+        k, read_e = rn.k_dn_per_e, rn.read_noise_e
+    def irradiance(white: float) -> float:
+        """The irradiance whose light squares read ``white`` (linear 8-bit units; raw: DN)."""
+        electrons = (white - black) / k if raw else white * span / (255.0 * a.output_gain * k)
         return electrons * math.pi / (s0.qe * ppr * a.board_reflectance)
 
     cutoff = diffraction_cutoff_cy_px(a.pitch_um, a.wavelength_nm, a.f_number)
@@ -455,7 +497,7 @@ k3 = {dist[4]:.6f}
     bends = bend_mm(m, ring, square_m) if bend else [None] * len(photos)
     for p, curl in zip(photos, bends):
         sat = p["white_saturated"]
-        white = p["dark"] * ratio if sat else p["white"]
+        white = black + (p["dark"] - black) * ratio if sat else p["white"]
         own_x, own_y = not sat and p["sigma_x_px"] is not None, not sat and p["sigma_y_px"] is not None
         sx, jx = (p["sigma_x_px"], jpeg_px(p, "x")) if own_x else (sig_x, jpeg_x)
         sy, jy = (p["sigma_y_px"], jpeg_px(p, "y")) if own_y else (sig_y, jpeg_y)
@@ -463,6 +505,9 @@ k3 = {dist[4]:.6f}
         R = ", ".join("[" + ", ".join(f"{v:.7f}" for v in row) + "]" for row in p["R"])
         t = ", ".join(f"{v:.5f}" for v in p["t_squares"])
         sensor = f"output_clip_dn = {p['white']:.1f}" if sat else ""
+        if raw:  # the well clips a white flat below the ADC's top
+            top = 2 ** _raw_bits(m) - 1
+            sensor = f"full_well_e = {(p['white'] - black) / k:.1f}" if sat and p["white"] < top - 0.5 else ""
         note = (f"white saturated at {p['white']:.0f} (SD {p['white_sd']:.2f}); before the clip dark x {ratio:.2f} = "
                 f"{white:.0f}; blur: the unsaturated photos' median" if sat else
                 f"white {p['white']:.1f}, dark {p['dark']:.1f}; blur: "
@@ -502,11 +547,17 @@ poses = [{{ R = [{R}], t = [{t}] }}]
                  f"print's contrast, white / dark = {ratio:.2f} (median of the unsaturated photos), sets the squares' "
                  "reflectance;", True),
         _comment(f"saturation: {len(sat)} photo(s) with whites flat (noise SD < half the dark's){clip}: "
-                 f"output_clip_dn there, with the white before the clip their dark level x {ratio:.2f};", True),
-        _comment(f"noise: {noise}: shot-noise limited, a sensor of K = {k:.4f} DN/e-, {read_e:g} e- read "
-                 + ("noise" if read_why in ("given", "assumed") else f"noise ({read_why})")
-                 + f", the white's shot-noise SD before the output coding {white_sd:.2f} DN at {WHITE_REF_DN:g} "
-                 f"({white_why}; the twin study's Table 3 compares the photos' noise and the twin's).", True),
+                 + ("the ADC's top or full_well_e there" if raw else "output_clip_dn there")
+                 + f", with the white before the clip their dark level x {ratio:.2f}"
+                 + (" (above the black level)" if raw else "") + ";", True),
+        _comment(f"noise: {noise}: " + (
+            f"photon transfer over {rn.points} levels (edgetruth.evaluate.board.photon_transfer), K = {k:.4f} DN/e- "
+            f"(its slope), read noise {read_e:.1f} e- ({rn.read_why}), black level {black:.1f} DN ({rn.black_why}) "
+            "(the twin study's Table 3 compares the photos' noise and the twin's)." if raw else
+            f"shot-noise limited, a sensor of K = {k:.4f} DN/e-, {read_e:g} e- read "
+            + ("noise" if read_why in ("given", "assumed") else f"noise ({read_why})")
+            + f", the white's shot-noise SD before the output coding {white_sd:.2f} DN at {WHITE_REF_DN:g} "
+            f"({white_why}; the twin study's Table 3 compares the photos' noise and the twin's)."), True),
         *([_comment("bend: each photo's board curled as the calibration's bend check fitted it (x^2, xy, y^2; "
                     "board_bend_mm, rescaled to the renderer's s; docs/board.md, 'A bent twin');", True)]
           if bend else []),
@@ -529,14 +580,46 @@ board_reflectance = {a.board_reflectance}
 
 [sensor]
 {chr(10).join(sensor_lines)}
-output_gamma = {gamma}
+""" + (f"""bits = {_raw_bits(m)}
+k0_dn_per_e = {k:.6f}
+dark_offset_dn = {black:.2f}
+dark_noise_e = {read_e:.2f}
+full_well_e = {1.05 * (2 ** _raw_bits(m) - 1 - black) / k:.1f}
+""" if raw else f"""output_gamma = {gamma}
 output_gain = {a.output_gain}
 k0_dn_per_e = {k:.5f}
 dark_noise_e = {read_e}
 full_well_e = 100000.0
-
-""" + "\n".join(groups)
+""") + "\n" + "\n".join(groups)
     return cam, scene
+
+
+def _raw_bits(m: dict) -> int:
+    """The ADC's bits for 16-bit photos: the fewest of 8, 10, ..., 16 that hold their largest value."""
+    return next(b for b in (8, 10, 12, 14, 16) if 2 ** b - 1 >= m["max_value"])
+
+
+def _raw_words(m: dict) -> str:
+    step = int(m.get("value_step", 1))
+    return (f"16-bit photos, taken as a linear sensor's values (raw), a {_raw_bits(m)}-bit ADC (the largest value "
+            f"{m['max_value']})" + (f"; the photos store steps of {step}, the twin's of 1" if step > 1 else ""))
+
+
+def _raw_noise(m: dict, a: TwinAssumptions):
+    """The 16-bit photos' gain, read noise and black level (``photon_transfer.sensor_from_noise``) from the dark and
+    light squares of the unsaturated photos (a flat white is clipped, and only the darks of the clipped ones)."""
+    from edgetruth.evaluate.board.photon_transfer import sensor_from_noise
+
+    levels, sds = [], []
+    for p in m["photos"]:
+        f = p.get("flat_noise") or p
+        levels.append(f["dark"])
+        sds.append(f["dark_sd"])
+        if not p["white_saturated"]:
+            levels.append(f["white"])
+            sds.append(f["white_sd"])
+    return sensor_from_noise(levels, sds, float(m.get("value_step", 1)), a.dark_noise_e, a.black_dn, DARK_NOISE_E,
+                             lowest_level_dn=min(p["dark"] for p in m["photos"]))
 
 
 def _toml_str(text: str) -> str:

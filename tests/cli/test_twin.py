@@ -26,8 +26,14 @@ def test_twin_of_four_views(tmp_path, capsys):
     assert spec.camera.fx_px == pytest.approx(600.0, rel=1e-3)
     m = json.loads((out / "measurements.json").read_text())
     assert m["pattern"] == [9, 6] and len(m["photos"]) == 4 and m["image_size"] == [640, 480]
+    assert m["full_scale"] == 255.0 and m["max_value"] <= 255 and "flat_noise" not in m["photos"][0]
     text = capsys.readouterr().out
     assert "twin: 4 photos" in text and "edgetruth render" in text
+    # a read noise given is the twin's, and its header says so
+    assert main(["twin", str(tmp_path / "photos"), "--pattern", "9x6", "--square-m", "0.03", "-o",
+                 str(tmp_path / "r"), "--read-noise-e", "7.5", "--no-progress"]) == 0
+    assert load_spec(tmp_path / "r" / "twin.toml").sensor.dark_noise_e == 7.5
+    assert "7.5 e- read noise," in " ".join((tmp_path / "r" / "twin.toml").read_text().replace("#", "").split())
 
 
 def test_twin_refuses_bad_input_before_writing(tmp_path, capsys):
@@ -44,6 +50,8 @@ def test_twin_refuses_bad_input_before_writing(tmp_path, capsys):
         ([str(tmp_path / "photos"), "-o", str(tmp_path / "u"), "--name", "a b"], "--name 'a b'"),
         ([str(tmp_path / "photos"), "-o", str(tmp_path / "u"), "--pitch-um", "0"], "--pitch-um 0"),
         ([str(tmp_path / "photos"), "-o", str(tmp_path / "u"), "--square-m", "-1"], "--square-m"),
+        ([str(tmp_path / "photos"), "-o", str(tmp_path / "u"), "--read-noise-e", "-2"], "--read-noise-e -2"),
+        ([str(tmp_path / "photos"), "-o", str(tmp_path / "u"), "--black-dn", "64"], "--black-dn: for 16-bit"),
     ]
     for extra, words in cases:
         capsys.readouterr()

@@ -36,7 +36,13 @@ def register(sub) -> None:
     p.add_argument("--white-noise-dn", type=float, default=None, metavar="DN",
                    help="the white's shot-noise SD (8-bit DN, at a white of 220) before the output coding (15 e- "
                         "of read noise add to it); default: from the photos (JPEG photos with a linear tone: shot "
-                        "and read noise through their JPEG; docs/board.md)")
+                        "and read noise through their JPEG; docs/board.md); 8-bit photos only")
+    p.add_argument("--read-noise-e", type=float, default=None, metavar="E",
+                   help="the sensor's read noise (e-); default: JPEG photos with a linear tone: from their darks; "
+                        "16-bit photos: from their noise at a given --black-dn; else 15 (assumed)")
+    p.add_argument("--black-dn", type=float, default=None, metavar="DN",
+                   help="16-bit (raw) photos: the camera's black level (DN); default: from the photos' noise with "
+                        "the read noise (photon transfer; docs/board.md)")
     p.add_argument("--bend", action="store_true",
                    help="curl each photo's board as the calibration's bend check measures it (a quadratic height "
                         "per photo, board_bend_mm; docs/board.md, 'A bent twin'): prints curl, and a flat twin "
@@ -60,7 +66,9 @@ def run(args: argparse.Namespace) -> int:
     pattern = parse_pattern(args.pattern)
     square_m = parse_square_m(args.square_m)
     for flag, v, lo, hi in (("--pitch-um", args.pitch_um, 0.5, 50.0), ("--f-number", args.f_number, 0.5, 64.0),
-                            ("--white-noise-dn", args.white_noise_dn, 0.01, 50.0)):
+                            ("--white-noise-dn", args.white_noise_dn, 0.01, 50.0),
+                            ("--read-noise-e", args.read_noise_e, 0.0, 1e4),
+                            ("--black-dn", args.black_dn, 0.0, 65535.0)):
         if v is not None and not (math.isfinite(v) and lo <= v <= hi):
             raise InputError(f"{flag} {v:g}: give a number from {lo:g} to {hi:g}")
     out = check_output_dir(args.output)
@@ -78,7 +86,8 @@ def run(args: argparse.Namespace) -> int:
     m = measure_chessboard([p for _, p in photos], pattern, channel=args.channel,
                            progress=lambda it: console.track(it, desc="twin", unit="photo",
                                                              enabled=not args.no_progress))
-    assumptions = TwinAssumptions(pitch_um=args.pitch_um, f_number=args.f_number, white_noise_dn=args.white_noise_dn)
+    assumptions = TwinAssumptions(pitch_um=args.pitch_um, f_number=args.f_number, white_noise_dn=args.white_noise_dn,
+                                  dark_noise_e=args.read_noise_e, black_dn=args.black_dn)
     source = f"{len(photos)} photos ({photos[0][0]} ... {photos[-1][0]})" if len(photos) > 2 else "the photos"
     cam, scene = twin_texts(m, name, f"digital twin of {source}", "camera.toml", square_m, source, assumptions,
                             bend=args.bend)
@@ -93,7 +102,10 @@ def run(args: argparse.Namespace) -> int:
     console.say(f"twin: {spec.n_images} photos; camera fx {m['K'][0][0]:.2f} fy {m['K'][1][1]:.2f} px, RMS "
                 f"{m['rms_px']:.4f} px; {spec.sensor.output}"
                 + (f" quality {spec.sensor.jpeg_quality}" if spec.sensor.output == "jpeg" else "")
-                + f", output_gamma {tone['output_gamma']:g}; {sum(p['white_saturated'] for p in m['photos'])} "
+                + (f" {spec.sensor.bits}-bit, K {spec.sensor.k0_dn_per_e:.4f} DN/e-, black "
+                   f"{spec.sensor.dark_offset_dn:.1f} DN" if spec.sensor.output == "raw" else
+                   f", output_gamma {tone['output_gamma']:g}")
+                + f"; {sum(p['white_saturated'] for p in m['photos'])} "
                 f"clipped" + ("; each board curled as its photo's" if args.bend else "") + f" -> {out / 'twin.toml'}")
     console.say(f"twin: render it with `edgetruth render {shlex.quote(str(out / 'twin.toml'))} -o RENDERS`")
     return 0

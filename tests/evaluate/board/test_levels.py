@@ -36,3 +36,21 @@ def test_a_noise_free_image_is_never_called_saturated():
     lv = square_levels(np.minimum(img, 200.0), apply_h(h, all_dark_squares((9, 6))))
     assert lv.dark_sd == 0 and lv.white_sd == 0 and not saturated(lv)
     assert not saturated(SquareLevels(40.0, 210.0, 0.0, 0.0)) and saturated(SquareLevels(40.0, 210.0, 2.0, 0.9))
+
+
+def test_larger_patches_about_their_planes_and_a_clip_left_out():
+    """Noise of SD 5 on a board lit with a ramp of 0.5 DN/px along x: 17 x 17 patches about their means read the
+    ramp too (sqrt(25 + 0.5² (17² - 1) / 12) = 5.57), about their planes the noise alone (to 3 %: ~10,000 values
+    a level); with a clip at 200 the light squares' patches that reach it are left out, and the rest read the
+    noise they kept (to 3 %)."""
+    img, h = render((9, 6), ROTATIONS[0])
+    quads = apply_h(h, all_dark_squares((9, 6)))
+    ramp = 0.5 * (np.arange(img.shape[1]) - img.shape[1] / 2)[None, :]
+    noisy = img + ramp + np.random.default_rng(3).normal(0.0, 5.0, img.shape)
+    mean, plane = (square_levels(noisy, quads, half_px=8, plane=p) for p in (False, True))
+    assert mean.white_sd == pytest.approx(np.sqrt(25 + 0.25 * 288 / 12), rel=0.03)
+    assert plane.white_sd == pytest.approx(5.0, rel=0.03) and plane.dark_sd == pytest.approx(5.0, rel=0.03)
+    clipped = np.minimum(noisy, 200.0)
+    kept = square_levels(clipped, quads, half_px=8, plane=True, clip=200.0)
+    assert kept.white_sd == pytest.approx(5.0, rel=0.03) and kept.white < plane.white
+    assert square_levels(clipped, quads, half_px=8, plane=True).white_sd < 4.5  # the clip truncates the noise

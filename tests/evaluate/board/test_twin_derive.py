@@ -2,6 +2,8 @@
 spec, and rendered, the twin's board where the photos' is."""
 from __future__ import annotations
 
+import re
+
 import cv2
 import numpy as np
 import pytest
@@ -142,3 +144,93 @@ def test_a_tone_curve_is_measured_and_rendered(fast_variant, tmp_path):
     d = np.abs(np.diff(np.array(diff).reshape(-1, 2, 2), axis=1)).reshape(-1, 2)
     print(f"twin vs views: dark within {d[:, 0].max():.1f}, white within {d[:, 1].max():.1f} DN")
     assert d.max() <= 4.0
+
+
+def raw_photos(tmp_path, fast_variant):
+    """16-bit 'photos' of a known raw sensor (12-bit, K 0.5 DN/e-, 15 e- read noise, black level 200 DN): the twin
+    of the 4 PNG views with that sensor, at exposures 0.7, 0.42, 0.98 and 0.56 of the views' (the third clips at
+    4095), rendered at 64 spp (at 4 spp Monte-Carlo noise adds ~6 % to the squares' SD).  -> their paths."""
+    import re
+
+    from edgetruth.render.dataset.driver import render_spec
+    from edgetruth.render.dataset.reader import open_dataset
+    from edgetruth.render.dataset.spec import load_spec
+
+    paths, _ = views(tmp_path, ".png")
+    cam, scene = td.twin_texts(td.measure_chessboard(paths, (9, 6)), "truth", "a raw camera", "camera.toml", 0.03,
+                               "four test views")
+    sensor = re.search(r"\[sensor\]\n.*?\n\n", scene, re.S).group(0)
+    scene = scene.replace(sensor, '[sensor]\noutput = "raw"\nbits = 12\nk0_dn_per_e = 0.5\ndark_offset_dn = 200\n'
+                                  'dark_noise_e = 15\nfull_well_e = 100000\n\n')
+    exposure = iter((0.7, 0.42, 0.98, 0.56))
+    scene = re.sub(r"irradiance_w_m2 = ([0-9.]+)", lambda m: f"irradiance_w_m2 = {float(m[1]) * next(exposure):.4f}",
+                   scene).replace("\nspp = 256\n", "\nspp = 64\n", 1)
+    (tmp_path / "camera.toml").write_text(cam)
+    (tmp_path / "truth.toml").write_text(scene)
+    render_spec(load_spec(tmp_path / "truth.toml"), tmp_path / "raw", progress=False, announce=lambda s: None)
+    return rendered_pngs(tmp_path / "raw")
+
+
+def rendered_pngs(root):
+    from edgetruth.render.dataset.reader import open_dataset
+
+    samples = sorted(open_dataset(root).square_boards(), key=lambda s: s.index)
+    return [s.dataset.path / s.dataset.manifest["images"][s.name]["files"]["png"]["path"] for s in samples]
+
+
+@pytest.mark.slow  # two renders of 4 frames at 64 spp: ~20 s on 2 cores
+def test_a_twin_of_raw_photos(fast_variant, tmp_path):
+    """16-bit photos of a known raw sensor (``raw_photos``): the twin renders raw at 12 bits with the sensor's gain
+    from the photon transfer (to 5 %: measured 0.5089 against 0.5) and its black level from the assumed 15 e- (to 40
+    DN: measured 188.5 against 200): half-square patches about their planes, none that reaches the clip (5x5 patches
+    at the squares' centres, as the 8-bit levels: K 0.4497; half squares with the patches near the clip: 0.4715,
+    black 115); given the black level, the read noise comes back (to 2 e-). Rendered at 64 spp, the twin reads the
+    photos' dark and white levels to 1.5 % (measured 0.8 %), their noise SDs in those patches to 8 % (measured 0-4
+    %) and their ERF σ to 0.02 px (measured 0.008), the clipped photo's white at 4095 too."""
+    from edgetruth.render.dataset.driver import render_spec
+    from edgetruth.render.dataset.spec import load_spec
+
+    photos = raw_photos(tmp_path, fast_variant)
+    m = td.measure_chessboard(photos, (9, 6))
+    assert m["full_scale"] == 65535.0 and m["max_value"] == 4095 and m["value_step"] == 1
+    assert [p["white_saturated"] for p in m["photos"]] == [False, False, True, False]
+    cam, scene = td.twin_texts(m, "rawtwin", "a raw twin", "camera.toml", 0.03, "four raw views")
+    (tmp_path / "t").mkdir()
+    (tmp_path / "t" / "camera.toml").write_text(cam)
+    (tmp_path / "t" / "twin.toml").write_text(scene.replace("\nspp = 256\n", "\nspp = 64\n", 1))
+    spec = load_spec(tmp_path / "t" / "twin.toml")
+    s = spec.sensor
+    print(f"raw twin: K {s.k0_dn_per_e:.4f} DN/e-, black {s.dark_offset_dn:.1f} DN, read {s.dark_noise_e} e-")
+    assert s.output == "raw" and s.bits == 12 and s.dark_noise_e == td.DARK_NOISE_E
+    assert abs(s.k0_dn_per_e / 0.5 - 1) < 0.05 and abs(s.dark_offset_dn - 200.0) < 40.0
+    _, given = td.twin_texts(m, "g", "a raw twin", "camera.toml", 0.03, "four raw views",
+                             td.TwinAssumptions(black_dn=200.0))
+    read = float(re.search(r"\ndark_noise_e = (\S+)\n", given)[1])
+    assert "dark_offset_dn = 200.00" in given and abs(read - 15.0) < 2.0
+    render_spec(spec, tmp_path / "t" / "r", progress=False, announce=lambda s: None)
+    twin = td.measure_chessboard(rendered_pngs(tmp_path / "t" / "r"), (9, 6))
+    level, sd, sigma = [], [], []
+    for p, q in zip(m["photos"], twin["photos"]):
+        level += [q[k] / p[k] - 1 for k in ("dark", "white")]
+        sd += [q["flat_noise"][k] / p["flat_noise"][k] - 1 for k in ("dark_sd", "white_sd")
+               if not (k == "white_sd" and p["white_saturated"])]
+        sigma += [q[k] - p[k] for k in ("sigma_x_px", "sigma_y_px")]
+    print(f"twin vs photos: levels {np.round(level, 4)}, SDs {np.round(sd, 3)}, sigma {np.round(sigma, 4)} px")
+    assert max(np.abs(level)) < 0.015 and max(np.abs(sd)) < 0.08 and max(np.abs(sigma)) < 0.02
+    assert twin["photos"][2]["white"] == 4095.0
+
+
+def test_raw_and_8_bit_options_are_refused_on_the_other(tmp_path):
+    """--black-dn on 8-bit photos and --white-noise-dn on 16-bit ones: one InputError naming the option; photos of
+    two bit depths: one naming the photo."""
+    paths, _ = views(tmp_path, ".png")
+    m = td.measure_chessboard(paths, (9, 6))
+    with pytest.raises(InputError, match="--black-dn: for 16-bit"):
+        td.twin_texts(m, "t", "x", "camera.toml", 0.03, "x", td.TwinAssumptions(black_dn=10.0))
+    with pytest.raises(InputError, match="--white-noise-dn: for 8-bit"):
+        td.twin_texts({**m, "full_scale": 65535.0, "max_value": 4095}, "t", "x", "camera.toml", 0.03, "x",
+                      td.TwinAssumptions(white_noise_dn=3.0))
+    img = cv2.imread(str(paths[0]), cv2.IMREAD_GRAYSCALE).astype(np.uint16) * 16
+    cv2.imwrite(str(tmp_path / "deep.png"), img)
+    with pytest.raises(InputError, match="deep.png: uint16 values among 8-bit photos"):
+        td.measure_chessboard([*paths, tmp_path / "deep.png"], (9, 6))
