@@ -326,7 +326,8 @@ def test_chessboard_squares_start_with_the_board_studys_model(tmp_path):
     ring = b.quads_model[len(model):].reshape(-1, 2)
     assert ring[:, 0].min() == pytest.approx(-0.015) and ring[:, 0].max() == pytest.approx(8.5 * 0.03)
     assert ring[:, 1].min() == pytest.approx(-0.024) and ring[:, 1].max() == pytest.approx(5.8 * 0.03)
-    area = np.abs(np.cross(b.quads_model[:, 1] - b.quads_model[:, 0], b.quads_model[:, 3] - b.quads_model[:, 0]))
+    u, v = b.quads_model[:, 1] - b.quads_model[:, 0], b.quads_model[:, 3] - b.quads_model[:, 0]
+    area = np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0])  # the 2-D cross product (np.cross of 2-vectors: deprecated)
     # 20 whole squares; the ring's dark ones: 4 + 4 in the top and bottom rows (0.8 high), 2 + 3 in the left and
     # right columns (0.5 wide), 2 corners (0.5 x 0.8)
     assert area.sum() == pytest.approx(0.03 ** 2 * (20 + 8 * 0.8 + 5 * 0.5 + 2 * 0.5 * 0.8))
