@@ -14,6 +14,8 @@ from edgetruth.conventions import inside_image
 
 #: half width (px) of the patch whose median is a square's level
 LEVEL_HALF_PX = 2
+#: ``square_levels(clip=...)`` leaves out the patches within this many noise SDs of the clip
+CLIP_MARGIN_SD = 4.0
 #: a white is flagged saturated where its noise SD is below this share of the dark squares' (and the dark's is > 0)
 SATURATED_SD_RATIO = 0.5
 
@@ -34,10 +36,10 @@ def square_levels(image: np.ndarray, quads: np.ndarray, half_px: int = LEVEL_HAL
     from (2 ``half_px`` + 1)² patches at their centres: the level is the median of the patches' medians, the SD the
     patches' pooled SD about their own means (so shading across the board does not count), or with ``plane`` about
     their own least-squares planes (so shading across a larger patch does not count either); ``clip``: patches that
-    reach it are left out (a clip truncates their noise).  A light square's
-    centre is a dark centre mirrored through a side's midpoint (on a chessboard a light square lies across every
-    side of a dark one); only those reached from two dark squares or more are used, which are the light squares
-    among the dark ones, not those of the outer ring that a board's edge may cut."""
+    reach it, or whose mean lies within ``CLIP_MARGIN_SD`` noise SDs of it, are left out (a clip cuts their noise).
+    A light square's centre is a dark centre mirrored through a side's midpoint (on a chessboard a light square lies
+    across every side of a dark one); only those reached from two dark squares or more are used, which are the light
+    squares among the dark ones, not those of the outer ring that a board's edge may cut."""
     from scipy.spatial import cKDTree
 
     q = np.asarray(quads, float)
@@ -58,12 +60,17 @@ def square_levels(image: np.ndarray, quads: np.ndarray, half_px: int = LEVEL_HAL
         inside = inside_image(xy[:, 0], xy[:, 1], image.shape, r)
         patches = np.array([image[y - r:y + r + 1, x - r:x + r + 1].astype(np.float64).ravel()
                             for x, y in xy[inside]]).reshape(-1, (2 * r + 1) ** 2)
-        if clip is not None:
+        def pooled(patches):
+            resid = patches @ keep if plane else patches - patches.mean(axis=1, keepdims=True)
+            return np.sqrt((resid ** 2).sum() / (resid.size - basis.shape[1] * len(patches)))
+
+        if clip is not None:  # those that reach it, and those within 4 SD of it (their noise's tail is cut)
             patches = patches[patches.max(axis=1) < clip]
+            if len(patches):
+                patches = patches[patches.mean(axis=1) + CLIP_MARGIN_SD * pooled(patches) < clip]
         if not len(patches):
             return float("nan"), float("nan")
-        resid = patches @ keep if plane else patches - patches.mean(axis=1, keepdims=True)
-        sd = np.sqrt((resid ** 2).sum() / (resid.size - basis.shape[1] * len(patches)))
+        sd = pooled(patches)
         return float(np.median(np.median(patches, axis=1))), float(sd)
 
     (dark, dark_sd), (white, white_sd) = level(centre), level(light)

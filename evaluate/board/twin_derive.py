@@ -27,6 +27,10 @@ Measured on the photos (``measure_chessboard``):
   medians (a clipped edge biases its σ).
 - **Tone.**  ``tone_fit.estimate_power`` on the unsaturated photos: linear (``output_gamma = 1``) when its 95 %
   interval holds 1, else the power found.
+- **Lens shading.**  Each photo's light squares (``shading.light_levels`` at the points the pose projects them to);
+  over the unsaturated photos the renderer's ``1 + a2 h² + a4 h⁴`` fitted to what they show beyond the twin's light
+  (``shading.fit_shading``; the camera's ``shading_a2``, ``shading_a4``), and each group's irradiance set so that
+  its light squares' median is the photo's (``_shading``).
 - **Output.**  JPEG photos: the quality whose IJG (Annex K) luminance table the file carries (``jpeg_quality``);
   other 8-bit photos: 8-bit PNG.  16-bit photos: raw (the sensor's DN in a 16-bit PNG), taken as linear, the ADC's
   bits from their largest value, the gain, read noise and black level from their noise (``photon_transfer``: the
@@ -187,11 +191,13 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     from edgetruth.evaluate.board.jpeg_synthetic import jpeg_blur_px, noise_before_jpeg
     from edgetruth.evaluate.board.photo_model import blur as edge_blur
     from edgetruth.evaluate.board.photo_model import board_lines
+    from edgetruth.evaluate.board.shading import light_levels, light_square_centres, project
     from edgetruth.evaluate.calibration import calibrate_photos
     from edgetruth.image_io import full_scale, read_gray
 
     photos = [Path(p) for p in photos]
     model = cb.chessboard_model(pattern, 1.0)
+    light_centres = light_square_centres(pattern)
     grids = []  # each photo's edge points, measured once: the calibration's refits and the poses use them
 
     def finder(image, pattern_size):
@@ -226,21 +232,22 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
         _, rvec, tvec = cv2.solvePnP(board[ok], mc.reshape(-1, 2)[ok], K, dist, flags=cv2.SOLVEPNP_ITERATIVE)
         proj, _ = cv2.projectPoints(board[ok], rvec, tvec, K, dist)
         res = np.linalg.norm(proj.reshape(-1, 2) - mc.reshape(-1, 2)[ok], axis=1)
+        top = int(img.max())  # 16-bit: a value ten pixels or more share is a clip; 8-bit: 255
+        clip = 255 if scale == 255.0 else (top if np.count_nonzero(img == top) >= 10 else None)
         lev = square_levels(img, view.squares.corners)
         flat = None
         if scale != 255.0:  # the photon transfer's levels: patches of half a square, about their planes
             quads = view.squares.corners
             side = float(np.nanmedian(np.linalg.norm(quads - np.roll(quads, -1, axis=1), axis=2)))
             half = max(2, int(FLAT_PATCH_SHARE * side / 2))
-            top = int(img.max())  # a value ten pixels or more share is a clip
-            fl = square_levels(img, quads, half_px=half, plane=True,
-                               clip=top if np.count_nonzero(img == top) >= 10 else None)
+            fl = square_levels(img, quads, half_px=half, plane=True, clip=clip)
             flat = {"half_px": half, "dark": fl.dark, "white": fl.white, "dark_sd": fl.dark_sd, "white_sd": fl.white_sd}
         lines = board_lines(img, model)
         blur = {} if lines is None else edge_blur(img, lines)
         if lev.dark <= 0:
             raise InputError(f"{p}: its dark squares read 0, so the print's contrast cannot be measured; leave it out "
                              "or give photos whose blacks are not clipped")
+        shade = light_levels(img, project(light_centres, cv2.Rodrigues(rvec)[0], tvec.ravel(), K, dist), clip)
         q = jpeg_quality(p)
         sx, sy = (blur.get(k, {}).get("sigma_px") for k in ("vertical", "horizontal"))
         synthetic = q is not None and sx is not None and sy is not None and math.isfinite(sx + sy)
@@ -255,6 +262,7 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
             "white_saturated": bool(saturated(lev)),
             "sigma_x_px": sx, "sigma_y_px": sy, "jpeg_sigma_px": jpeg_px, "noise_before_jpeg": before,
             "jpeg_quality": None if q is None else {"quality": q[0], "exact": q[1]},
+            "light_levels": shade,
             **({} if flat is None else {"flat_noise": flat}),
         })
         images.append(img)
@@ -430,16 +438,21 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
 
     if raw:
         k, read_e = rn.k_dn_per_e, rn.read_noise_e
-    def irradiance(white: float) -> float:
-        """The irradiance whose light squares read ``white`` (linear 8-bit units; raw: DN)."""
+
+    def irradiance(white: float, relative: float) -> float:
+        """The irradiance at the board's centre whose light squares read ``white`` (their median; linear 8-bit
+        units, raw: DN) where the light and the lens shading leave ``relative`` of it there (their median)."""
         electrons = (white - black) / k if raw else white * span / (255.0 * a.output_gain * k)
-        return electrons * math.pi / (s0.qe * ppr * a.board_reflectance)
+        return electrons / relative * math.pi / (s0.qe * ppr * a.board_reflectance)
 
     cutoff = diffraction_cutoff_cy_px(a.pitch_um, a.wavelength_nm, a.f_number)
     # the twin camera's thin lens (f = fx * pitch, focused at dist_m), for each photo's defocus
     lens = camera_from_dict({"width_px": int(m["image_size"][0]), "height_px": int(m["image_size"][1]),
                              "pitch_um": a.pitch_um, "fx_px": float(K[0, 0]), "f_number": a.f_number,
+                             "cx_px": float(K[0, 2]), "cy_px": float(K[1, 2]),
                              "focus_distance_m": dist_m, "diffraction_wavelength_nm": a.wavelength_nm}, name)
+
+    shading, relative = _shading(m, a, lens, square_m, lambda v: lin(v) - black)
 
     def defocus_px(p: dict) -> float:
         """The blur disk's radius (px) at the board's centre."""
@@ -468,7 +481,12 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         + (f", less what the JPEG adds ({jpeg_x:.3f} and {jpeg_y:.3f} px on a synthetic board)" if output == "jpeg"
            else "") + ", as the Gaussian aberration whose edge through the pixel and the diffraction reads that "
         "sigma (edgetruth.evaluate.board.blur_inverse; in focus); the twin scene sets it per photo, at the photo's "
-        "defocus, and with its own sigma only where that is unbiased.") + f"""
+        "defocus, and with its own sigma only where that is unbiased.  " + (
+            f"The lens shading (shading_a2, shading_a4: 1 + a2 h^2 + a4 h^4, h the field height) is what the "
+            f"unsaturated photos' light squares show beyond the twin's light (edgetruth.evaluate.board.shading; "
+            f"{shading['levels']} levels over {shading['photos']} photos): their RMS about the fit "
+            f"{100 * shading['rms_after']:.1f} % of the level, {100 * shading['rms_before']:.1f} % with the light "
+            "alone." if "note" not in shading else f"Lens shading: {shading['note']}.")) + f"""
 [camera]
 width_px = {m["image_size"][0]}
 height_px = {m["image_size"][1]}
@@ -483,6 +501,8 @@ diffraction_wavelength_nm = {a.wavelength_nm}
 aberration_sigma_um = {aberration_um(sig_x, jpeg_x, 0.0):.3f}
 aberration_sigma_y_um = {aberration_um(sig_y, jpeg_y, 0.0):.3f}
 aberration_sigma_growth = 0.0
+shading_a2 = {shading["a2"]:.4f}
+shading_a4 = {shading["a4"]:.4f}
 natural_vignetting = false
 
 [camera.distortion]
@@ -495,7 +515,7 @@ k3 = {dist[4]:.6f}
     groups = []
     light = "[" + ", ".join(f"{v}" for v in a.light_position_m) + "]"
     bends = bend_mm(m, ring, square_m) if bend else [None] * len(photos)
-    for p, curl in zip(photos, bends):
+    for p, curl, rel in zip(photos, bends, relative):
         sat = p["white_saturated"]
         white = black + (p["dark"] - black) * ratio if sat else p["white"]
         own_x, own_y = not sat and p["sigma_x_px"] is not None, not sat and p["sigma_y_px"] is not None
@@ -517,7 +537,7 @@ k3 = {dist[4]:.6f}
 name = "{group_name(p['photo'])}"
 kind = "squares"
 {"" if curl is None else f"board_bend_mm = {curl}"}
-irradiance_w_m2 = {irradiance(lin(white)):.4f}
+irradiance_w_m2 = {irradiance(lin(white), rel):.4f}
 light_position_m = {light}
 pose_unit_m = {square_m}
 camera = {{ aberration_sigma_um = {ab_x:.3f}, aberration_sigma_y_um = {ab_y:.3f} }}
@@ -562,7 +582,7 @@ poses = [{{ R = [{R}], t = [{t}] }}]
                     "board_bend_mm, rescaled to the renderer's s; docs/board.md, 'A bent twin');", True)]
           if bend else []),
         _comment("Not reproduced: the room behind the board (black here), the board's margin beyond the ring, uneven "
-                 "light.")]) + f"""
+                 "light beyond the twin's one lamp and the lens shading fitted to the photos (camera).")]) + f"""
 [spec]
 name = {_toml_str(name)}
 description = {_toml_str(description)}
@@ -592,6 +612,31 @@ dark_noise_e = {read_e}
 full_well_e = 100000.0
 """) + "\n" + "\n".join(groups)
     return cam, scene
+
+
+def _shading(m: dict, a: TwinAssumptions, lens, square_m: float, linear) -> tuple[dict, list[float]]:
+    """The lens shading the photos show beyond the twin's light (``shading.fit_shading`` on the unsaturated photos'
+    ``light_levels``, taken to the linear signal by ``linear``), and per photo the median over its light squares of
+    what the light and that shading leave of the level at the board's centre (it divides the group's
+    irradiance, so that the rendered light squares' median is the photo's)."""
+    from edgetruth.evaluate.board.shading import fit_shading, lens_shading, light_falloff, light_square_centres, project
+    from edgetruth.render.optics.prediction import field_height
+
+    cols, rows = m["pattern"]
+    K, dist = np.asarray(m["K"]), np.asarray(m["dist"])
+    centres = light_square_centres((cols, rows))
+    seen = []
+    for p in m["photos"]:
+        R, t = np.asarray(p["R"]), np.asarray(p["t_squares"])
+        points = (np.c_[centres, np.zeros(len(centres))] @ R.T + t) * square_m
+        centre = (R @ [(cols - 1) / 2.0, (rows - 1) / 2.0, 0.0] + t) * square_m
+        uv = project(centres, R, t, K, dist)
+        seen.append((light_falloff(points, centre, -R[:, 2], np.asarray(a.light_position_m, float)),
+                     field_height(lens, uv[:, 0], uv[:, 1])))
+    fit = fit_shading([{"level": np.array([np.nan if v is None else linear(v) for v in p["light_levels"]]),
+                        "light": light, "h": h} for p, (light, h) in zip(m["photos"], seen)
+                       if not p["white_saturated"] and p.get("light_levels")])
+    return fit, [float(np.median(light * lens_shading(h, fit["a2"], fit["a4"]))) for light, h in seen]
 
 
 def _raw_bits(m: dict) -> int:
