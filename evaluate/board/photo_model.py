@@ -340,7 +340,7 @@ def region_noise(image: np.ndarray, labels: np.ndarray) -> dict:
     """Noise of the labelled flat regions (module docstring)."""
     img = np.asarray(image, np.float64)
     resid = np.full(img.shape, np.nan)
-    means, counts = [], []
+    means, counts, centres = [], [], []
     ss, dof = 0.0, 0
     for s in np.unique(labels[labels > 0]):
         yy, xx = np.nonzero(labels == s)
@@ -356,9 +356,11 @@ def region_noise(image: np.ndarray, labels: np.ndarray) -> dict:
         dof += len(r) - 6
         means.append(float(v.mean()))
         counts.append(len(v))
+        centres.append((xx.mean(), yy.mean()))
     if dof <= 0:
         return {"mean": float("nan"), "sd": float("nan"), "rho_x": float("nan"), "rho_y": float("nan"),
-                "mean_abs_dx": float("nan"), "levels": 0, "pixels": 0, "regions": 0, "at_max_fraction": float("nan")}
+                "mean_abs_dx": float("nan"), "levels": 0, "pixels": 0, "regions": 0, "at_max_fraction": float("nan"),
+                "falloff_x_pct": float("nan"), "falloff_y_pct": float("nan")}
     same_x = (labels[:, 1:] == labels[:, :-1]) & (labels[:, 1:] > 0) & np.isfinite(resid[:, 1:]) & np.isfinite(resid[:, :-1])
     same_y = (labels[1:] == labels[:-1]) & (labels[1:] > 0) & np.isfinite(resid[1:]) & np.isfinite(resid[:-1])
 
@@ -371,7 +373,21 @@ def region_noise(image: np.ndarray, labels: np.ndarray) -> dict:
             "rho_y": corr(resid[1:][same_y], resid[:-1][same_y]),
             "mean_abs_dx": float(np.mean(np.abs(img[:, 1:][same_x] - img[:, :-1][same_x]))),
             "levels": int(len(np.unique(np.round(vals, 6)))), "pixels": int(vals.size), "regions": len(means),
-            "at_max_fraction": float(np.mean(vals >= float(np.percentile(vals, 99)) - 0.5))}
+            "at_max_fraction": float(np.mean(vals >= float(np.percentile(vals, 99)) - 0.5)),
+            **falloff(np.array(centres), np.array(means), np.array(counts))}
+
+
+def falloff(centres: np.ndarray, means: np.ndarray, counts: np.ndarray) -> dict:
+    """How the regions' level changes across them: a plane through their means over their centres (weighted by
+    their pixels), its change from the leftmost to the rightmost centre and from the top to the bottom one, in %
+    of the level at their mean centre (> 0: brighter to the right, or down).  NaN with fewer than 3 regions."""
+    if len(means) < 3:
+        return {"falloff_x_pct": float("nan"), "falloff_y_pct": float("nan")}
+    c = centres - np.average(centres, axis=0, weights=counts)
+    a = np.c_[np.ones(len(c)), c] * np.sqrt(counts)[:, None]
+    (c0, gx, gy), *_ = np.linalg.lstsq(a, means * np.sqrt(counts), rcond=None)
+    return {"falloff_x_pct": float(100.0 * gx * np.ptp(centres[:, 0]) / c0),
+            "falloff_y_pct": float(100.0 * gy * np.ptp(centres[:, 1]) / c0)}
 
 
 def srgb_slope(encoded_8bit: float) -> float:

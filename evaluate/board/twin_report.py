@@ -135,6 +135,7 @@ def photo_model_table(pm_real: list[dict], pm_twin: list[dict]) -> str:
             ("black mean", ("noise", "black", "mean"), 1), ("black SD", ("noise", "black", "sd"), 2),
             ("white mean", ("noise", "white", "mean"), 1), ("white SD", ("noise", "white", "sd"), 2),
             ("white at max (%)", ("noise", "white", "at_max_fraction"), 2),
+            ("white across x / y (%)", "falloff", 1),
             ("black ρx / ρy", None, 2), ("black mean |Δx|", ("noise", "black", "mean_abs_dx"), 2),
             ("distinct values", ("levels",), 0)]
     body = []
@@ -144,6 +145,8 @@ def photo_model_table(pm_real: list[dict], pm_twin: list[dict]) -> str:
             for name, path, nd in cols:
                 if path is None:
                     row.append(f"{_pm(m, ('noise', 'black', 'rho_x'))} / {_pm(m, ('noise', 'black', 'rho_y'))}")
+                elif path == "falloff":
+                    row.append(" / ".join(_pm(m, ("noise", "white", f"falloff_{k}_pct"), nd) for k in "xy"))
                 elif path == ("noise", "white", "at_max_fraction"):
                     v = m.get("noise", {}).get("white", {}).get("at_max_fraction")
                     row.append(num(100 * v, 0) if v is not None else "—")
@@ -275,8 +278,10 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
              "squares' horizontal sides (blur along y) and vertical sides (blur along x), median over sides; MTF50 "
              "of the pooled ESF; its over/undershoot in % of the step (sharpening); flat regions (inside the "
              "squares, a ring around them, 4 px from the sides): mean, residual SD about a quadratic surface, lag-1 "
-             "correlation along x and y, share at the region's top value (clipping), mean |difference| of "
-             "horizontal neighbours; distinct values in the image.", "",
+             "correlation along x and y, share at the region's top value (clipping), the white regions' change "
+             "across the board (a plane through their means: from the leftmost to the rightmost and the top to the "
+             "bottom one, % of the level; lens shading and light), mean |difference| of horizontal neighbours; "
+             "distinct values in the image.", "",
              photo_model_table(pm_real, pm_twin), "",
              "## Table 4 — the twin's settings: derived from the photos / used by the scene", "",
              *([] if "derived_by" in derived else [

@@ -142,3 +142,24 @@ def test_clipped_white_level():
     """Half the pixels at the clip: the level is at the clip; 84 % at it: one SD above."""
     assert pm.clipped_white({"at_max_fraction": 0.5}, 6.0) == pytest.approx(255.0)
     assert pm.clipped_white({"at_max_fraction": 0.8413}, 6.0) == pytest.approx(261.0, abs=0.01)
+
+
+def test_the_whites_falloff_across_the_board():
+    """A chessboard view lit by a ramp along x, 1 + 0.1 (x - 320) / 640: the white regions' plane through their
+    means changes by 0.1 x (the centres' x span) / 640 of the level at their mean centre along x (to 0.1 %
+    points: the regions' means carry the ramp exactly, their centres do not quite sit on the squares'), and by
+    nothing along y (to 0.1); an evenly lit view reads 0 both ways."""
+    from edgetruth.evaluate.board import chessboard as cb
+    from tests.evaluate.board.chessboard_images import ROTATIONS, render
+
+    img, _ = render((9, 6), ROTATIONS[0], sigma_px=0.8)
+    ramp = 1.0 + 0.1 * (np.arange(img.shape[1]) - 320.0) / 640.0
+    model = cb.chessboard_model((9, 6), 1.0)
+    flat, lit = (pm.measure_photo(im, model)["noise"]["white"] for im in (img, img * ramp[None, :]))
+    assert abs(flat["falloff_x_pct"]) < 0.05 and abs(flat["falloff_y_pct"]) < 0.05
+    labels = pm.flat_labels(img.shape, pm.board_lines(img, model), True)[1]
+    xs = [np.nonzero(labels == s)[1].mean() for s in np.unique(labels[labels > 0])
+          if np.count_nonzero(labels == s) >= 30]
+    expected = 100 * 0.1 * np.ptp(xs) / 640 / (1 + 0.1 * (np.mean(xs) - 320) / 640)
+    print(f"falloff x {lit['falloff_x_pct']:.3f} % (expected {expected:.3f}), y {lit['falloff_y_pct']:.3f} %")
+    assert lit["falloff_x_pct"] == pytest.approx(expected, abs=0.1) and abs(lit["falloff_y_pct"]) < 0.1
