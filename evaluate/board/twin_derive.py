@@ -572,7 +572,8 @@ poses = [{{ R = [{R}], t = [{t}] }}]
                  + (" (above the black level)" if raw else "") + ";", True),
         _comment(f"noise: {noise}: " + (
             f"photon transfer over {rn.points} levels (edgetruth.evaluate.board.photon_transfer), K = {k:.4f} DN/e- "
-            f"(its slope), read noise {read_e:.1f} e- ({rn.read_why}), black level {black:.1f} DN ({rn.black_why}) "
+            f"(with the level), read noise {read_e:.1f} e- ({rn.read_why}), black level {black:.1f} DN "
+            f"({rn.black_why}), PRNU {100 * rn.prnu:.2f} % ({rn.prnu_why}; the print's texture looks alike) "
             "(the twin study's Table 3 compares the photos' noise and the twin's)." if raw else
             f"shot-noise limited, a sensor of K = {k:.4f} DN/e-, {read_e:g} e- read "
             + ("noise" if read_why in ("given", "assumed") else f"noise ({read_why})")
@@ -605,7 +606,7 @@ k0_dn_per_e = {k:.6f}
 dark_offset_dn = {black:.2f}
 dark_noise_e = {read_e:.2f}
 full_well_e = {1.05 * (2 ** _raw_bits(m) - 1 - black) / k:.1f}
-""" if raw else f"""output_gamma = {gamma}
+""" + (f"prnu_pct = {100 * rn.prnu:.3f}\n" if raw and rn.prnu > 0 else "") if raw else f"""output_gamma = {gamma}
 output_gain = {a.output_gain}
 k0_dn_per_e = {k:.5f}
 dark_noise_e = {read_e}

@@ -72,3 +72,36 @@ def test_values_that_are_not_a_linear_sensors_are_refused():
         sensor_from_noise(x, sd, black_dn=float(x[0]), lowest_level_dn=float(x[0]))
     with pytest.raises(InputError, match="two distinct levels"):
         photon_transfer([500.0, 500.0], [10.0, 10.0])
+
+
+def levels_with_prnu(prnu: float, electrons=(600.0, 1000.0, 2000.0, 3000.0, 4000.0, 5000.0, 7000.0), seed: int = 0):
+    """(mean, SD) over N pixels at each electron level, each pixel's photo-electrons scaled by its own gain 1 + prnu z
+    (the renderer's PRNU): a single frame's spatial SD."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for e in electrons:
+        g = 1.0 + prnu * rng.standard_normal(N)
+        y = np.round(K * (rng.poisson(e * g) + rng.normal(0.0, READ_E, N)) + BLACK)
+        out.append((y.mean(), y.std(ddof=1)))
+    return np.array(out).T
+
+
+def test_prnu_is_fitted_from_enough_levels_and_the_line_alone_is_biased():
+    """PRNU of 1 % over 7 levels (600-7,000 e-): the fit with the PRNU term finds K to 3 %, p to 0.05 % points and
+    the black level to 15 DN (with the true read noise; measured 0.4983, 1.004 %, 199.1); the line alone reads K
+    40 % high or more (measured 0.8007, +60 %).  From 4 levels
+    (two exposures) the term is not fitted, and the words say why."""
+    from edgetruth.evaluate.board.photon_transfer import MIN_PRNU_LEVELS
+
+    x, sd = levels_with_prnu(0.01)
+    r = sensor_from_noise(x, sd, read_noise_e=READ_E)
+    print(f"K {r.k_dn_per_e:.4f}, p {100 * r.prnu:.3f} %, black {r.black_dn:.1f}; line alone K "
+          f"{photon_transfer(x, sd)[0]:.4f}")
+    assert r.k_dn_per_e == pytest.approx(K, rel=0.03) and r.prnu == pytest.approx(0.01, abs=5e-4)
+    assert r.black_dn == pytest.approx(BLACK, abs=15.0) and r.prnu_why.startswith("from 7 distinct")
+    assert photon_transfer(x, sd)[0] > 1.4 * K
+    four = sensor_from_noise(*levels_and_sds(), read_noise_e=READ_E)
+    assert four.prnu == 0.0 and four.prnu_why.startswith("not fitted: 4 distinct") and MIN_PRNU_LEVELS > 4
+    # no PRNU in the values: the term stays small (measured 0.10 %) and K within 2 % (measured 0.3 %)
+    r0 = sensor_from_noise(*levels_with_prnu(0.0), read_noise_e=READ_E)
+    assert r0.prnu < 0.002 and r0.k_dn_per_e == pytest.approx(K, rel=0.02)

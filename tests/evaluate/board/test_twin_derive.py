@@ -147,7 +147,7 @@ def test_a_tone_curve_is_measured_and_rendered(fast_variant, tmp_path):
 
 
 def raw_photos(tmp_path, fast_variant):
-    """16-bit 'photos' of a known raw sensor (12-bit, K 0.5 DN/e-, 15 e- read noise, black level 200 DN) behind a
+    """16-bit 'photos' of a known raw sensor (12-bit, K 0.5 DN/e-, 15 e- read noise, black 200 DN, PRNU 1 %) behind a
     lens of known shading (1 - 0.3 h² + 0.1 h⁴): the twin of the 4 PNG views with that camera, at exposures 0.7,
     0.42, 0.98 and 0.56 of the views' (the third clips at 4095), rendered at 256 spp (at 64 spp the Monte-Carlo
     noise in the darks moved the black level found by ~40 DN).  -> their paths."""
@@ -162,7 +162,7 @@ def raw_photos(tmp_path, fast_variant):
                                "four test views")
     sensor = re.search(r"\[sensor\]\n.*?\n\n", scene, re.S).group(0)
     scene = scene.replace(sensor, '[sensor]\noutput = "raw"\nbits = 12\nk0_dn_per_e = 0.5\ndark_offset_dn = 200\n'
-                                  'dark_noise_e = 15\nfull_well_e = 100000\n\n')
+                                  'dark_noise_e = 15\nfull_well_e = 100000\nprnu_pct = 1.0\n\n')
     exposure = iter((0.7, 0.42, 0.98, 0.56))
     scene = re.sub(r"irradiance_w_m2 = ([0-9.]+)", lambda m: f"irradiance_w_m2 = {float(m[1]) * next(exposure):.4f}",
                    scene).replace("\nspp = 256\n", "\nspp = 256\n", 1)
@@ -184,14 +184,15 @@ def rendered_pngs(root):
 @pytest.mark.slow  # two renders of 4 frames at 64 spp: ~20 s on 2 cores
 def test_a_twin_of_raw_photos(fast_variant, tmp_path):
     """16-bit photos of a known raw sensor behind a shaded lens (``raw_photos``): the twin renders raw at 12 bits with
-    the sensor's gain from the photon transfer (to 5 %: measured 0.4950 against 0.5) and its black level from the
-    assumed 15 e- (to 40 DN: measured 182.4 against 200; the darks' Monte-Carlo noise lowers it): half-square
-    patches about their planes, none within 4 SD of the clip (5x5 patches at the squares' centres, as the 8-bit
-    levels: K 0.4497; half squares with the patches near the clip: 0.4715, black 115); given the black level, the
-    read noise comes back (to 2 e-); the lens shading to 0.01 over the light squares' field heights (measured
-    0.0005).  Rendered at 64 spp, the twin reads the photos' dark and white levels to 1.5 % (measured 1.1 %), their
-    noise SDs in those patches to 8 % (measured -0.5 to +3.6 %) and their ERF σ to 0.02 px (measured 0.007), the
-    clipped photo's white at 4095 too."""
+    the sensor's gain, black level and PRNU from the photon transfer with the PRNU term (K to 5 %: measured 0.4813
+    against 0.5; the black level from the assumed 15 e- to 40 DN: measured 179.8 against 200, the darks' Monte-Carlo
+    noise lowers it; PRNU to 0.3 % points: measured 1.025 against 1 %), in half-square patches about their planes,
+    none within 4 SD of the clip (before the PRNU term and the PRNU in these photos: K 0.4996; 5x5 patches at the
+    squares' centres, as the 8-bit levels, 0.4497; half squares with the patches near the clip, 0.4715); given the
+    black level, the read noise comes back (to 2 e-); the lens shading to 0.01 over the light squares' field heights
+    (measured 0.004).  Rendered at 64 spp, the twin reads the photos' dark and white levels to 1.5 % (measured 0.9
+    %), their noise SDs in those patches to 8 % (measured -1.8 to +2.5 %) and their ERF σ to 0.02 px (measured
+    0.009), the clipped photo's white at 4095 too."""
     from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.dataset.spec import load_spec
 
@@ -205,8 +206,9 @@ def test_a_twin_of_raw_photos(fast_variant, tmp_path):
     (tmp_path / "t" / "twin.toml").write_text(scene.replace("\nspp = 256\n", "\nspp = 64\n", 1))
     spec = load_spec(tmp_path / "t" / "twin.toml")
     s, c = spec.sensor, spec.camera
-    print(f"raw twin: K {s.k0_dn_per_e:.4f} DN/e-, black {s.dark_offset_dn:.1f} DN, read {s.dark_noise_e} e-; "
-          f"shading {c.shading_a2:.4f}, {c.shading_a4:.4f}")
+    print(f"raw twin: K {s.k0_dn_per_e:.4f} DN/e-, black {s.dark_offset_dn:.1f} DN, read {s.dark_noise_e} e-, PRNU "
+          f"{s.prnu_pct:.3f} %; shading {c.shading_a2:.4f}, {c.shading_a4:.4f}")
+    assert abs(s.prnu_pct - 1.0) < 0.3
     # the lens shading, over the field heights the light squares span (0 to ~0.4)
     from edgetruth.evaluate.board.shading import lens_shading
 
