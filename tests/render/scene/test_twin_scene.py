@@ -246,7 +246,7 @@ def test_twin_spec_renders_image_0_with_documented_truth(fast_variant, tmp_path)
     assert img.dtype == np.uint8 and img.shape == (480, 640) and gt["kind"] == "squares"
     expect = squares_ground_truth(spec.jobs[0].camera, spec.jobs[0].pose, spec.squares)["squares"]
     np.testing.assert_array_equal(gt["squares"]["corners_distorted_px"], expect["corners_distorted_px"])
-    assert gt["pose"]["explicit"] and gt["illumination"]["position_m"] == [0.0, -0.6, -0.4]
+    assert gt["pose"]["explicit"] and gt["illumination"]["position_m"] == [0.0, -1.5, -2.0]
     assert gt["camera"]["K"] == load_camera("zhang1998").K.tolist()
     assert gt["squares"]["polyline_chord_error_px"] < 1e-3 and gt["saturation"]["fraction_lit"] == 0.0
     # levels like the photos: inner half of each square, and the white gaps between squares in a row
