@@ -606,7 +606,7 @@ k0_dn_per_e = {k:.6f}
 dark_offset_dn = {black:.2f}
 dark_noise_e = {read_e:.2f}
 full_well_e = {1.05 * (2 ** _raw_bits(m) - 1 - black) / k:.1f}
-""" + (f"prnu_pct = {100 * rn.prnu:.3f}\n" if raw and rn.prnu > 0 else "") if raw else f"""output_gamma = {gamma}
+""" + (f"prnu_pct = {100 * rn.prnu:.3f}\n" if raw and round(100 * rn.prnu, 3) > 0 else "") if raw else f"""output_gamma = {gamma}
 output_gain = {a.output_gain}
 k0_dn_per_e = {k:.5f}
 dark_noise_e = {read_e}
