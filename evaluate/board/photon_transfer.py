@@ -107,7 +107,9 @@ def sensor_from_noise(levels_dn, sds_dn, step_dn: float = 1.0, read_noise_e: flo
     def fit(free_black: bool, black: float, free_read: bool):
         """least_squares over (K, b or σd², p) as free; -> (K, b, σd, p)."""
         start = [k0, (k0 ** 2 * read ** 2 - a0) / k0 if free_black else max((a0 + k0 * black) / k0 ** 2, 0.0), 0.0]
-        lo, hi = [1e-9, -1e6 if free_black else 0.0, 0.0], [1e6, top, MAX_PRNU if with_prnu else 1e-12]
+        # the second parameter: the black level (DN, below the darkest level) or the read noise's variance (e-²)
+        lo, hi = [1e-9, -1e6 if free_black else 0.0, 0.0], [1e6, top if free_black else 1e8,
+                                                           MAX_PRNU if with_prnu else 1e-12]
         if not (free_black or free_read):
             lo[1], hi[1], start[1] = 0.0, 1e-12, 0.0
 

@@ -105,3 +105,16 @@ def test_prnu_is_fitted_from_enough_levels_and_the_line_alone_is_biased():
     # no PRNU in the values: the term stays small (measured 0.10 %) and K within 2 % (measured 0.3 %)
     r0 = sensor_from_noise(*levels_with_prnu(0.0), read_noise_e=READ_E)
     assert r0.prnu < 0.002 and r0.k_dn_per_e == pytest.approx(K, rel=0.02)
+
+
+def test_a_large_read_noise_comes_back_from_a_given_black_level():
+    """A read noise of 60 e- (3,600 e-², more than the darkest level in DN) comes back from the true black level
+    to 2 e-: the fit's bound on σd² is not the levels' range."""
+    rng = np.random.default_rng(5)
+    out = []
+    for e in ELECTRONS:
+        y = np.round(K * (rng.poisson(e, N) + rng.normal(0.0, 60.0, N)) + BLACK)
+        out.append((y.mean(), y.std(ddof=1)))
+    x, sd = np.array(out).T
+    r = sensor_from_noise(x, sd, black_dn=BLACK)
+    assert r.read_noise_e == pytest.approx(60.0, abs=2.0) and x.min() < 3600
