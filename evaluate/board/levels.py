@@ -30,6 +30,32 @@ class SquareLevels:
     white_sd: float
 
 
+def light_centres(quads: np.ndarray) -> np.ndarray:
+    """(L, 2) the light squares' centres among the dark squares ``quads`` (S, 4, 2; finite): each dark centre
+    mirrored through its sides' midpoints (on a chessboard a light square lies across every side of a dark one),
+    kept where two dark squares or more reach it (the light squares among the dark ones, not those of the outer
+    ring that a board's edge may cut), in the order first reached."""
+    from scipy.spatial import cKDTree
+
+    q = np.asarray(quads, float)
+    centre = q.mean(axis=1)
+    light = (q + np.roll(q, -1, axis=1) - centre[:, None]).reshape(-1, 2)  # centre mirrored through each side's mid
+    side = float(np.median(np.linalg.norm(q - np.roll(q, -1, axis=1), axis=2))) if len(q) else 1.0
+    groups = cKDTree(light).query_ball_point(light, 0.3 * side) if len(light) else []
+    return np.array([light[i] for i, g in enumerate(groups) if len(g) >= 2 and min(g) == i]).reshape(-1, 2)
+
+
+def patches_at(image: np.ndarray, points: np.ndarray, half_px: int) -> tuple[np.ndarray, np.ndarray]:
+    """The (2 ``half_px`` + 1)² patches of ``image`` centred on the pixels nearest ``points`` (N, 2; pixel centres
+    at integers), as (M, (2 half_px + 1)²) float rows, and which of the points they are (the (N,) mask of those
+    whose patch lies inside the image)."""
+    r = int(half_px)
+    xy = np.round(np.asarray(points, float)).reshape(-1, 2).astype(int)
+    inside = inside_image(xy[:, 0], xy[:, 1], image.shape[:2], r)
+    rows = [image[y - r:y + r + 1, x - r:x + r + 1].astype(np.float64).ravel() for x, y in xy[inside]]
+    return np.array(rows).reshape(-1, (2 * r + 1) ** 2), inside
+
+
 def square_levels(image: np.ndarray, quads: np.ndarray, half_px: int = LEVEL_HALF_PX,
                   plane: bool = False, clip: float | None = None) -> SquareLevels:
     """The levels of the dark squares (``quads`` (S, 4, 2), NaN rows skipped) and of the light squares between them,
@@ -37,29 +63,18 @@ def square_levels(image: np.ndarray, quads: np.ndarray, half_px: int = LEVEL_HAL
     patches' pooled SD about their own means (so shading across the board does not count), or with ``plane`` about
     their own least-squares planes (so shading across a larger patch does not count either); ``clip``: patches that
     reach it, or whose mean lies within ``CLIP_MARGIN_SD`` noise SDs of it, are left out (a clip cuts their noise).
-    A light square's centre is a dark centre mirrored through a side's midpoint (on a chessboard a light square lies
-    across every side of a dark one); only those reached from two dark squares or more are used, which are the light
-    squares among the dark ones, not those of the outer ring that a board's edge may cut."""
-    from scipy.spatial import cKDTree
-
+    The light squares are ``light_centres``'s."""
     q = np.asarray(quads, float)
     q = q[np.all(np.isfinite(q), axis=(1, 2))]
-    centre = q.mean(axis=1)
-    light = (q + np.roll(q, -1, axis=1) - centre[:, None]).reshape(-1, 2)  # centre mirrored through each side's mid
-    side = float(np.median(np.linalg.norm(q - np.roll(q, -1, axis=1), axis=2))) if len(q) else 1.0
-    groups = cKDTree(light).query_ball_point(light, 0.3 * side) if len(light) else []
-    light = np.array([light[i] for i, g in enumerate(groups) if len(g) >= 2 and min(g) == i]).reshape(-1, 2)
-
+    centre, light = q.mean(axis=1), light_centres(q)
     r = int(half_px)
     yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
     basis = np.c_[np.ones(xx.size), xx.ravel(), yy.ravel()] if plane else np.ones((xx.size, 1))
     keep = np.eye(xx.size) - basis @ np.linalg.pinv(basis)  # a patch's residual about its plane
 
     def level(points: np.ndarray) -> tuple[float, float]:
-        xy = np.round(points).astype(int)  # the pixel whose centre is nearest (centres at integers)
-        inside = inside_image(xy[:, 0], xy[:, 1], image.shape, r)
-        patches = np.array([image[y - r:y + r + 1, x - r:x + r + 1].astype(np.float64).ravel()
-                            for x, y in xy[inside]]).reshape(-1, (2 * r + 1) ** 2)
+        patches, _ = patches_at(image, points, r)
+
         def pooled(patches):
             resid = patches @ keep if plane else patches - patches.mean(axis=1, keepdims=True)
             return np.sqrt((resid ** 2).sum() / (resid.size - basis.shape[1] * len(patches)))

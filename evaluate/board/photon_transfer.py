@@ -57,13 +57,18 @@ class RawNoise:
     points: int
 
 
-def photon_transfer(levels_dn, sds_dn, step_dn: float = 1.0) -> tuple[float, float]:
-    """(slope K, intercept a) of Var - step²/12 = a + K · level over the points, each weighted by 1 / its variance
-    (a sample variance's SD is proportional to it)."""
+def noise_points(levels_dn, sds_dn) -> tuple[np.ndarray, np.ndarray]:
+    """(levels, variances) of the points with a finite level and a finite SD above 0."""
     x = np.asarray(levels_dn, float)
     v = np.asarray(sds_dn, float) ** 2
     ok = np.isfinite(x) & np.isfinite(v) & (v > 0)
-    x, v = x[ok], v[ok]
+    return x[ok], v[ok]
+
+
+def photon_transfer(levels_dn, sds_dn, step_dn: float = 1.0) -> tuple[float, float]:
+    """(slope K, intercept a) of Var - step²/12 = a + K · level over the points, each weighted by 1 / its variance
+    (a sample variance's SD is proportional to it)."""
+    x, v = noise_points(levels_dn, sds_dn)
     if len(x) < 2 or np.ptp(x) <= 0:
         raise InputError(f"{len(x)} noise level(s): the photon transfer needs two distinct levels (dark and light "
                          "squares) with noise")
@@ -92,10 +97,8 @@ def sensor_from_noise(levels_dn, sds_dn, step_dn: float = 1.0, read_noise_e: flo
     from scipy.optimize import least_squares
 
     k0, a0 = photon_transfer(levels_dn, sds_dn, step_dn)
-    x = np.asarray(levels_dn, float)
-    v = np.asarray(sds_dn, float) ** 2
-    ok = np.isfinite(x) & np.isfinite(v) & (v > 0)
-    x, v = x[ok], v[ok] - step_dn ** 2 / 12.0
+    x, v = noise_points(levels_dn, sds_dn)
+    v = v - step_dn ** 2 / 12.0
     n, levels = int(len(x)), distinct_levels(x)
     if not k0 > 0:
         raise InputError(f"the photos' noise does not grow with their level (photon-transfer slope {k0:.3g} DN/e-): "

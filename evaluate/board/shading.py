@@ -28,16 +28,11 @@ MIN_PHOTOS, MIN_LEVELS = 2, 20
 
 def light_square_centres(pattern: tuple[int, int]) -> np.ndarray:
     """(L, 2) the light squares' centres among the dark ones, in the board study's chessboard model (squares; inner
-    corner (0, 0) at the origin), in a fixed order: each dark square's centre mirrored through its sides' midpoints,
-    kept where two dark squares reach it (``levels.square_levels``'s rule)."""
+    corner (0, 0) at the origin), in a fixed order: ``levels.light_centres`` of the model's dark squares."""
     from edgetruth.evaluate.board import chessboard as cb
+    from edgetruth.evaluate.board.levels import light_centres
 
-    q = cb.chessboard_model(tuple(pattern), 1.0).corners
-    centre = q.mean(axis=1)
-    light = (q + np.roll(q, -1, axis=1) - centre[:, None]).reshape(-1, 2)
-    key = np.round(light * 2).astype(int)
-    uniq, counts = np.unique(key, axis=0, return_counts=True)
-    return uniq[counts >= 2] / 2.0
+    return light_centres(cb.chessboard_model(tuple(pattern), 1.0).corners)
 
 
 def project(points_model: np.ndarray, R, t, K, dist) -> np.ndarray:
@@ -51,15 +46,14 @@ def project(points_model: np.ndarray, R, t, K, dist) -> np.ndarray:
 def light_levels(image: np.ndarray, uv: np.ndarray, clip: float | None = None) -> list[float | None]:
     """The median of a (2 ``PATCH_HALF_PX`` + 1)² patch at each of ``uv`` (the nearest pixel centre); None where the
     patch leaves the image or reaches ``clip`` (a clip flattens the shading it measures)."""
-    r = PATCH_HALF_PX
-    h, w = image.shape[:2]
-    out = []
-    for x, y in np.round(np.asarray(uv, float)).astype(int):
-        if not (r <= x < w - r and r <= y < h - r):
-            out.append(None)
-            continue
-        patch = image[y - r:y + r + 1, x - r:x + r + 1]
-        out.append(None if clip is not None and patch.max() >= clip else float(np.median(patch)))
+    from edgetruth.evaluate.board.levels import patches_at
+
+    patches, inside = patches_at(image, uv, PATCH_HALF_PX)
+    level = np.median(patches, axis=1)
+    ok = np.ones(len(patches), bool) if clip is None else patches.max(axis=1) < clip
+    out: list[float | None] = [None] * len(inside)
+    for i, v, good in zip(np.flatnonzero(inside), level, ok):
+        out[i] = float(v) if good else None
     return out
 
 

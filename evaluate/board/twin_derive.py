@@ -456,7 +456,7 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
 
     def defocus_px(p: dict) -> float:
         """The blur disk's radius (px) at the board's centre."""
-        z = (np.asarray(p["R"]) @ [(cols - 1) / 2.0, (rows - 1) / 2.0, 0.0] + p["t_squares"])[2] * square_m
+        z = board_centre_m(p, (cols, rows), square_m)[2]
         return float(lens.defocus_radius_px(z))
 
     def jpeg_px(p: dict, axis: str) -> float:
@@ -615,6 +615,14 @@ full_well_e = 100000.0
     return cam, scene
 
 
+def board_centre_m(photo: dict, pattern, square_m: float) -> np.ndarray:
+    """The board's centre in the camera frame (m) at a photo's pose (``R``, ``t_squares``): the middle of the
+    inner corners, which is the renderer's board centre (``SquareBoard.centre_model_m``, where the lamp aims) for
+    a ring cut alike on both sides."""
+    cols, rows = pattern
+    return (np.asarray(photo["R"]) @ [(cols - 1) / 2.0, (rows - 1) / 2.0, 0.0] + photo["t_squares"]) * square_m
+
+
 def _shading(m: dict, a: TwinAssumptions, lens, square_m: float, linear) -> tuple[dict, list[float]]:
     """The lens shading the photos show beyond the twin's light (``shading.fit_shading`` on the unsaturated photos'
     ``light_levels``, taken to the linear signal by ``linear``), and per photo the median over its light squares of
@@ -630,7 +638,7 @@ def _shading(m: dict, a: TwinAssumptions, lens, square_m: float, linear) -> tupl
     for p in m["photos"]:
         R, t = np.asarray(p["R"]), np.asarray(p["t_squares"])
         points = (np.c_[centres, np.zeros(len(centres))] @ R.T + t) * square_m
-        centre = (R @ [(cols - 1) / 2.0, (rows - 1) / 2.0, 0.0] + t) * square_m
+        centre = board_centre_m(p, (cols, rows), square_m)
         uv = project(centres, R, t, K, dist)
         seen.append((light_falloff(points, centre, -R[:, 2], np.asarray(a.light_position_m, float)),
                      field_height(lens, uv[:, 0], uv[:, 1])))

@@ -74,3 +74,14 @@ def test_a_twin_reads_the_views_shading(tmp_path, a2, a4):
     err = np.abs(sh.lens_shading(hs, c.shading_a2, c.shading_a4) - sh.lens_shading(hs, a2, a4)).max()
     print(f"shading a2 {c.shading_a2:.4f} a4 {c.shading_a4:.4f}: within {err:.4f} of the views' to h {hs[-1]:.2f}")
     assert 0.3 < hs[-1] < 0.5 and err < 0.005
+
+
+def test_the_board_centre_is_the_renderers():
+    """The twin's board centre (where its lamp aims and its irradiance is set) is the renderer's: the middle of the
+    inner corners is ``SquareBoard.centre_model_m`` for any ring cut alike on both sides."""
+    from edgetruth.render.scene.targets import SquareBoard
+
+    for cols, rows, ring in ((9, 6, (0.49, 0.955)), (7, 5, (1.0, 1.0)), (8, 6, (0.3, 0.7))):
+        centre = SquareBoard.chessboard(cols, rows, 0.03, ring).centre_model_m
+        photo = {"R": np.eye(3).tolist(), "t_squares": [0.0, 0.0, 0.0]}
+        assert np.allclose(td.board_centre_m(photo, (cols, rows), 0.03), centre, atol=1e-15)
