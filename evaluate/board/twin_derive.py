@@ -545,6 +545,7 @@ camera = {{ aberration_sigma_um = {ab_x:.3f}, aberration_sigma_y_um = {ab_y:.3f}
 poses = [{{ R = [{R}], t = [{t}] }}]
 """.replace("\n\n", "\n"))
     sat = [p for p in photos if p["white_saturated"]]
+    prnu_line = f"prnu_pct = {100 * rn.prnu:.3f}\n" if raw and round(100 * rn.prnu, 3) > 0 else ""
     tone = m["tone"]
     tone_words = (f"the unsaturated photos' power {tone['power']:.2f} (95 % {tone['ci'][0]:.2f}-{tone['ci'][1]:.2f}; "
                   f"--tone auto)" if tone.get("power") is not None else tone.get("note", "not measured"))
@@ -606,7 +607,7 @@ k0_dn_per_e = {k:.6f}
 dark_offset_dn = {black:.2f}
 dark_noise_e = {read_e:.2f}
 full_well_e = {1.05 * (2 ** _raw_bits(m) - 1 - black) / k:.1f}
-""" + (f"prnu_pct = {100 * rn.prnu:.3f}\n" if raw and round(100 * rn.prnu, 3) > 0 else "") if raw else f"""output_gamma = {gamma}
+""" + prnu_line if raw else f"""output_gamma = {gamma}
 output_gain = {a.output_gain}
 k0_dn_per_e = {k:.5f}
 dark_noise_e = {read_e}
