@@ -1,1 +1,1 @@
-"""The board study on real photographs (and on renders of boards): see ``study.py``."""
+"""The board study on real photographs (and on renders of boards): see ``study.py``; their digital twin: ``twin/``."""

@@ -67,7 +67,7 @@ def test_twin_bend_curls_each_board(tmp_path):
     the spec's board has (``render.scene.bend.BoardBend``)."""
     import numpy as np
 
-    from edgetruth.evaluate.board.twin_derive import bend_mm
+    from edgetruth.evaluate.board.twin.derive import bend_mm
     from edgetruth.render.dataset.spec import load_spec
     from edgetruth.render.scene.bend import BoardBend
 

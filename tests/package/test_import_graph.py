@@ -157,3 +157,13 @@ def test_render_stages_import_one_way(graph):
            if m.startswith("edgetruth.render") for t in sorted(ts)
            if t.startswith("edgetruth.render") and _render_stage(t) not in RENDER_ALLOWED[_render_stage(m)]]
     assert not bad, "\n".join(bad)
+
+
+def test_the_twin_sits_over_the_board_study(graph):
+    """``evaluate.board.twin`` (derive, study, report and their measurements) builds on the board study; nothing
+    of the board study, and nothing outside the CLI, imports the twin."""
+    twin = "edgetruth.evaluate.board.twin"
+    assert {f"{twin}.derive", f"{twin}.study", f"{twin}.report"} <= set(graph)
+    bad = [f"{m} imports {t}" for m, ts in graph.items() for t in sorted(ts)
+           if t.startswith(twin) and not (m.startswith(twin) or m.startswith("edgetruth.cli"))]
+    assert not bad, "\n".join(bad)

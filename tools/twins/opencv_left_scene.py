@@ -1,6 +1,6 @@
 """Write OpenCV's shipped twins: ``assets/cameras/opencv_left.toml``, ``scenes/opencv_left_twin.toml`` and
 ``scenes/opencv_left_twin_bent.toml`` -- OpenCV's left01-14 photos through ``edgetruth twin``'s derivation
-(``edgetruth.evaluate.board.twin_derive``; the bent twin with ``--bend``), under the shipped names (not packaged).
+(``edgetruth.evaluate.board.twin.derive``; the bent twin with ``--bend``), under the shipped names (not packaged).
 
     python tools/twins/opencv_left_scene.py
 
@@ -25,7 +25,7 @@ SOURCE = "OpenCV's left01-14 sample photos (assets/real/opencv_left)"
 def texts() -> tuple[str, str, str]:
     """(camera TOML, flat twin TOML, bent twin TOML) derived now from the shipped photos."""
     from edgetruth.evaluate.board.inputs import resolve_inputs
-    from edgetruth.evaluate.board.twin_derive import TwinAssumptions, measure_chessboard, twin_texts
+    from edgetruth.evaluate.board.twin.derive import TwinAssumptions, measure_chessboard, twin_texts
 
     m = measure_chessboard(resolve_inputs(["opencv_left"]).photos, (9, 6))
     why = "a closed loop through the JPEG: 3 and 6 gave SDs after it below and above the photos'"

@@ -101,7 +101,7 @@ def run(args) -> int:
     out = Path(args.output) if args.output else default_runs_dir() / (
         _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d-%H%M%S") + f"-{args.kind}")
     if args.kind == "twin":
-        from edgetruth.evaluate.board.twin import run_twin_study
+        from edgetruth.evaluate.board.twin.study import run_twin_study
 
         # one name that is not a path: a shipped set; else your own photos, with their twin scene (--twin)
         shipped = len(args.inputs) == 1 and not Path(args.inputs[0]).exists()

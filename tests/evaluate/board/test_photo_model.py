@@ -66,7 +66,7 @@ def test_noise_levels_and_palette(measured):
 
 def test_derived_settings_are_the_shipped_twins(measured):
     """derive_twin on CalibIm1 and CalibIm2 gives the optics, levels and noise scenes/zhang1998_twin.toml uses."""
-    from edgetruth.evaluate.board.twin import BASE_LEVELS
+    from edgetruth.evaluate.board.twin.study import BASE_LEVELS
     from edgetruth.render.dataset.spec import load_spec
 
     spec = load_spec("zhang1998_twin")

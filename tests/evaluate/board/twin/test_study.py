@@ -10,7 +10,7 @@ import pytest
 
 from edgetruth.cli import main
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board import twin
+from edgetruth.evaluate.board.twin import study as twin
 
 
 # --- parts ----------------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""A twin derived from chessboard photos (``twin_derive``): the JPEG quality read from the file, the scene a valid
+"""A twin derived from chessboard photos (``twin.derive``): the JPEG quality read from the file, the scene a valid
 spec, and rendered, the twin's board where the photos' is."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 from edgetruth.errors import InputError
 from edgetruth.evaluate.board import chessboard as cb
-from edgetruth.evaluate.board import twin_derive as td
+from edgetruth.evaluate.board.twin import derive as td
 from tests.evaluate.board.chessboard_images import write_views as views
 
 
@@ -210,7 +210,7 @@ def test_a_twin_of_raw_photos(fast_variant, tmp_path):
           f"{s.prnu_pct:.3f} %; shading {c.shading_a2:.4f}, {c.shading_a4:.4f}")
     assert abs(s.prnu_pct - 1.0) < 0.3
     # the lens shading, over the field heights the light squares span (0 to ~0.4)
-    from edgetruth.evaluate.board.shading import lens_shading
+    from edgetruth.evaluate.board.twin.shading import lens_shading
 
     hs = np.linspace(0.0, 0.4, 9)
     assert np.abs(lens_shading(hs, c.shading_a2, c.shading_a4) - lens_shading(hs, -0.3, 0.1)).max() < 0.01

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from edgetruth.evaluate.board import blur_inverse as bi
+from edgetruth.evaluate.board.twin import blur_inverse as bi
 
 #: f/4, 6 µm pixels, 550 nm (``TwinAssumptions``' defaults): the diffraction cutoff p / (λN) in cy/px
 CUTOFF = 6.0 / (0.55 * 4.0)

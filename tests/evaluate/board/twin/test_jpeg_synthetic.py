@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from edgetruth.evaluate.board import chessboard as cb
-from edgetruth.evaluate.board import jpeg_synthetic as js
+from edgetruth.evaluate.board.twin import jpeg_synthetic as js
 from edgetruth.evaluate.board.photo_model import blur, board_lines
 from tests.evaluate.board.chessboard_images import ROTATIONS, render
 

@@ -1,4 +1,4 @@
-"""The twin report's flatness check (``board.flatness``): a chessboard's shared junctions count once, and a board
+"""The twin report's flatness check (``twin.flatness``): a chessboard's shared junctions count once, and a board
 of squares curled per view reads as bent where a flat one does not."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 
 from edgetruth.evaluate.board import chessboard as cb
-from edgetruth.evaluate.board.flatness import board_flatness, unique_corners
+from edgetruth.evaluate.board.twin.flatness import board_flatness, unique_corners
 from tests.evaluate.bent_views import DIST_TRUE, K_TRUE, view_poses
 
 

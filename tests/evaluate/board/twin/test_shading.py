@@ -1,4 +1,4 @@
-"""A photo set's lens shading (``evaluate/board/shading.py``): the light squares' levels, the twin's light at them,
+"""A photo set's lens shading (``evaluate/board/twin/shading.py``): the light squares' levels, the twin's light at them,
 and the fit of the renderer's 1 + a2 h² + a4 h⁴ on what is left."""
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from edgetruth.evaluate.board import shading as sh
-from edgetruth.evaluate.board import twin_derive as td
+from edgetruth.evaluate.board.twin import shading as sh
+from edgetruth.evaluate.board.twin import derive as td
 from tests.evaluate.board.chessboard_images import write_views
 
 H = np.linspace(0.0, 1.0, 11)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board.photon_transfer import photon_transfer, sensor_from_noise
+from edgetruth.evaluate.board.twin.photon_transfer import photon_transfer, sensor_from_noise
 
 K, READ_E, BLACK = 0.5, 12.0, 200.0
 ELECTRONS = (600.0, 1500.0, 3000.0, 6000.0)
@@ -91,7 +91,7 @@ def test_prnu_is_fitted_from_enough_levels_and_the_line_alone_is_biased():
     the black level to 15 DN (with the true read noise; measured 0.4983, 1.004 %, 199.1); the line alone reads K
     40 % high or more (measured 0.8007, +60 %).  From 4 levels
     (two exposures) the term is not fitted, and the words say why."""
-    from edgetruth.evaluate.board.photon_transfer import MIN_PRNU_LEVELS
+    from edgetruth.evaluate.board.twin.photon_transfer import MIN_PRNU_LEVELS
 
     x, sd = levels_with_prnu(0.01)
     r = sensor_from_noise(x, sd, read_noise_e=READ_E)

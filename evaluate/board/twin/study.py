@@ -5,7 +5,7 @@
 
 1. **Render** the set's twin scene (``scenes/zhang1998_twin.toml``: Zhang's camera, board and poses;
    optics, noise and output measured on his photos, ``photo_model``; ``scenes/opencv_left_twin.toml``:
-   ``twin_derive``'s, written by ``tools/twins/opencv_left_scene.py``) into ``DIR/renders`` with the render
+   ``twin.derive``'s, written by ``tools/twins/opencv_left_scene.py``) into ``DIR/renders`` with the render
    driver (resumable: a run that stops picks up where it was).  A chessboard twin renders the model's squares
    first, then the outer ring's.
 2. **The same board study** (``study.compute_board_study``) on the twin's PNGs, read like photos
@@ -44,14 +44,14 @@ from edgetruth.locate.registry import camera_free
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, resolve_inputs
-from edgetruth.evaluate.board.twin_report import PAE_DEFAULT, ranks, spearman, write_twin_report  # noqa: F401
+from edgetruth.evaluate.board.twin.report import PAE_DEFAULT, ranks, spearman, write_twin_report  # noqa: F401
 
 KIND = "study twin"
 #: shipped photo sets with a twin scene: set name -> shipped spec name
 TWINS = {"zhang1998": "zhang1998_twin", "opencv_left": "opencv_left_twin"}
 #: sets whose twin settings were derived outside ``photo_model.derive_twin`` (a chessboard in JPEG, stored close to
 #: linear): where they come from, for the report's settings table
-DERIVED_ELSEWHERE = {"opencv_left": "`edgetruth twin` (evaluate/board/twin_derive.py, through "
+DERIVED_ELSEWHERE = {"opencv_left": "`edgetruth twin` (evaluate/board/twin/derive.py, through "
                                     "tools/twins/opencv_left_scene.py; docs/board.md)"}
 EXACT_OUTLINE = "exact_outline"
 OUTLINE_STEP_PX = 0.5
@@ -412,7 +412,7 @@ MODEL_UNIT_M = {"zhang1998": 0.0254, "opencv_left": 0.025}
 def flatness_rows(unit_m: float, real_run, twin_run, floor_row, method: str) -> dict:
     """Table 5: the bent-board check (``flatness.board_flatness``) on ``method``'s corners of the photos and of the
     twin, and on the twin's exact outline; {label: result}, empty results left out."""
-    from edgetruth.evaluate.board.flatness import board_flatness
+    from edgetruth.evaluate.board.twin.flatness import board_flatness
 
     out = {}
     for label, run, row in (("photos", real_run, None), ("twin", twin_run, None),

@@ -188,10 +188,10 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     from edgetruth.evaluate.board import chessboard as cb
     from edgetruth.evaluate.board.grid_corners import grid_points
     from edgetruth.evaluate.board.levels import saturated, square_levels
-    from edgetruth.evaluate.board.jpeg_synthetic import jpeg_blur_px, noise_before_jpeg
     from edgetruth.evaluate.board.photo_model import blur as edge_blur
     from edgetruth.evaluate.board.photo_model import board_lines
-    from edgetruth.evaluate.board.shading import light_levels, light_square_centres, project
+    from edgetruth.evaluate.board.twin.jpeg_synthetic import jpeg_blur_px, noise_before_jpeg
+    from edgetruth.evaluate.board.twin.shading import light_levels, light_square_centres, project
     from edgetruth.evaluate.calibration import calibrate_photos
     from edgetruth.image_io import full_scale, read_gray
 
@@ -364,7 +364,7 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     ``description`` the spec's, ``camera_ref`` how the spec names the camera (a shipped name or a path relative to
     the spec), ``square_m`` the printed square's side (m; it scales the poses only), ``source`` the photos in words
     (for the headers); ``bend``: each board curled as its photo's (``bend_mm``)."""
-    from edgetruth.evaluate.board.blur_inverse import aberration_sigma_px
+    from edgetruth.evaluate.board.twin.blur_inverse import aberration_sigma_px
     from edgetruth.render.optics.camera import camera_from_dict
     from edgetruth.render.optics.mtf import diffraction_cutoff_cy_px
     from edgetruth.render.sensor.linear_model import SensorModel
@@ -473,17 +473,17 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
                  f"lines`), RMS {m['rms_px']:.4f} px")
     cam = _comment(
         f"The camera of {source}, as edgetruth measured it: {cal_words}.  Written by `edgetruth twin` "
-        f"(edgetruth.evaluate.board.twin_derive).  Assumed (nothing published): the pixel pitch ({a.pitch_um} um), "
+        f"(edgetruth.evaluate.board.twin.derive).  Assumed (nothing published): the pixel pitch ({a.pitch_um} um), "
         f"the f-number (f/{a.f_number:g}) and the focus (the median board distance, with a square of "
         f"{square_m * 1000:g} mm); they set f = fx * pitch and the defocus, which is small here.  The lens blur is "
         f"the median of the unsaturated photos' ERF sigma per axis (edgetruth.evaluate.board.photo_model: "
         f"{sig_x:.3f} px along x, {sig_y:.3f} px along y)"
         + (f", less what the JPEG adds ({jpeg_x:.3f} and {jpeg_y:.3f} px on a synthetic board)" if output == "jpeg"
            else "") + ", as the Gaussian aberration whose edge through the pixel and the diffraction reads that "
-        "sigma (edgetruth.evaluate.board.blur_inverse; in focus); the twin scene sets it per photo, at the photo's "
+        "sigma (edgetruth.evaluate.board.twin.blur_inverse; in focus); the twin scene sets it per photo, at the photo's "
         "defocus, and with its own sigma only where that is unbiased.  " + (
             f"The lens shading (shading_a2, shading_a4: 1 + a2 h^2 + a4 h^4, h the field height) is what the "
-            f"unsaturated photos' light squares show beyond the twin's light (edgetruth.evaluate.board.shading; "
+            f"unsaturated photos' light squares show beyond the twin's light (edgetruth.evaluate.board.twin.shading; "
             f"{shading['levels']} levels over {shading['photos']} photos): their RMS about the fit "
             f"{100 * shading['rms_after']:.1f} % of the level, {100 * shading['rms_before']:.1f} % with the light "
             "alone." if "note" not in shading else f"Lens shading: {shading['note']}.")) + f"""
@@ -559,7 +559,7 @@ poses = [{{ R = [{R}], t = [{t}] }}]
         _comment(f"A digital twin of {source}: a {cols}x{rows} chessboard, the camera edgetruth calibrated on them "
                  f"({camera_ref}), one group per photo at the pose its line corners give (cv2.solvePnP on the board "
                  "study's chessboard model; t in squares).  Written by `edgetruth twin` "
-                 "(edgetruth.evaluate.board.twin_derive); docs/board.md.  Measured on the photos:"),
+                 "(edgetruth.evaluate.board.twin.derive); docs/board.md.  Measured on the photos:"),
         _comment(f"the board: {cols + 1} x {rows + 1} squares, the outer ring cut at {ring[0]:.3f} (x) and "
                  f"{ring[1]:.3f} (y) of a square beyond the outermost inner corners (median over the photos);", True),
         _comment(f"tone: {tone_words}: output_gamma = {gamma:g};", True),
@@ -572,7 +572,7 @@ poses = [{{ R = [{R}], t = [{t}] }}]
                  + f", with the white before the clip their dark level x {ratio:.2f}"
                  + (" (above the black level)" if raw else "") + ";", True),
         _comment(f"noise: {noise}: " + (
-            f"photon transfer over {rn.points} levels (edgetruth.evaluate.board.photon_transfer), K = {k:.4f} DN/e- "
+            f"photon transfer over {rn.points} levels (edgetruth.evaluate.board.twin.photon_transfer), K = {k:.4f} DN/e- "
             f"(with the level), read noise {read_e:.1f} e- ({rn.read_why}), black level {black:.1f} DN "
             f"({rn.black_why}), PRNU {100 * rn.prnu:.2f} % ({rn.prnu_why}; the print's texture looks alike) "
             "(the twin study's Table 3 compares the photos' noise and the twin's)." if raw else
@@ -629,7 +629,8 @@ def _shading(m: dict, a: TwinAssumptions, lens, square_m: float, linear) -> tupl
     ``light_levels``, taken to the linear signal by ``linear``), and per photo the median over its light squares of
     what the light and that shading leave of the level at the board's centre (it divides the group's
     irradiance, so that the rendered light squares' median is the photo's)."""
-    from edgetruth.evaluate.board.shading import fit_shading, lens_shading, light_falloff, light_square_centres, project
+    from edgetruth.evaluate.board.twin.shading import (fit_shading, lens_shading, light_falloff,
+                                                       light_square_centres, project)
     from edgetruth.render.optics.prediction import field_height
 
     cols, rows = m["pattern"]
@@ -663,7 +664,7 @@ def _raw_words(m: dict) -> str:
 def _raw_noise(m: dict, a: TwinAssumptions):
     """The 16-bit photos' gain, read noise and black level (``photon_transfer.sensor_from_noise``) from the dark and
     light squares of the unsaturated photos (a flat white is clipped, and only the darks of the clipped ones)."""
-    from edgetruth.evaluate.board.photon_transfer import sensor_from_noise
+    from edgetruth.evaluate.board.twin.photon_transfer import sensor_from_noise
 
     levels, sds = [], []
     for p in m["photos"]:
