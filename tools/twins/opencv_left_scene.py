@@ -25,7 +25,8 @@ SOURCE = "OpenCV's left01-14 sample photos (assets/real/opencv_left)"
 def texts() -> tuple[str, str, str]:
     """(camera TOML, flat twin TOML, bent twin TOML) derived now from the shipped photos."""
     from edgetruth.evaluate.board.inputs import resolve_inputs
-    from edgetruth.evaluate.board.twin.derive import TwinAssumptions, measure_chessboard, twin_texts
+    from edgetruth.evaluate.board.twin.derive import TwinAssumptions, twin_texts
+    from edgetruth.evaluate.board.twin.measure import measure_chessboard
 
     m = measure_chessboard(resolve_inputs(["opencv_left"]).photos, (9, 6))
     why = "a closed loop through the JPEG: 3 and 6 gave SDs after it below and above the photos'"

@@ -1,6 +1,6 @@
 """``edgetruth twin PHOTOS... --pattern 9x6 --square-m 0.025 -o DIR``: a digital twin of your own chessboard photos.
 
-Measures on the photos what a twin needs (``edgetruth.evaluate.board.twin.derive``: camera, poses, board, levels,
+Measures on the photos what a twin needs (``edgetruth.evaluate.board.twin.measure``: camera, poses, board, levels,
 clip, blur, tone, JPEG quality) and writes ``DIR/twin.toml`` (one group per photo), ``DIR/camera.toml`` and
 ``DIR/measurements.json``; ``edgetruth render DIR/twin.toml -o RENDERS`` renders it with exact truth.
 """
@@ -59,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
     from edgetruth import console
     from edgetruth.cli import parse_square_m
     from edgetruth.errors import InputError
-    from edgetruth.evaluate.board.twin.derive import TwinAssumptions, measure_chessboard, safe_name, twin_texts
+    from edgetruth.evaluate.board.twin.derive import TwinAssumptions, safe_name, twin_texts
+    from edgetruth.evaluate.board.twin.measure import measure_chessboard
     from edgetruth.evaluate.calibration import find_photos, parse_pattern
     from edgetruth.fileio import atomic_write_text, check_output_dir, make_output_dir, write_json
 

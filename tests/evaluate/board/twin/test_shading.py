@@ -8,6 +8,7 @@ import pytest
 
 from edgetruth.evaluate.board.twin import shading as sh
 from edgetruth.evaluate.board.twin import derive as td
+from edgetruth.evaluate.board.twin import measure as tm
 from tests.evaluate.board.chessboard_images import write_views
 
 H = np.linspace(0.0, 1.0, 11)
@@ -61,7 +62,7 @@ def test_a_twin_reads_the_views_shading(tmp_path, a2, a4):
     for p in paths:
         img = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE).astype(float)
         cv2.imwrite(str(p), np.clip(np.round(img * sh.lens_shading(h, a2, a4)), 0, 255).astype(np.uint8))
-    m = td.measure_chessboard(paths, (9, 6))
+    m = tm.measure_chessboard(paths, (9, 6))
     assert all(len(p["light_levels"]) == 20 for p in m["photos"])
     far = td.TwinAssumptions(light_position_m=(0.0, 0.0, -100.0))
     cam, scene = td.twin_texts(m, "s", "shaded views", "camera.toml", 0.03, "four views", far)
