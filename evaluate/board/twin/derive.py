@@ -26,7 +26,8 @@ Measured on the photos (``measure.measure_chessboard``):
   (``blur_inverse.aberration_sigma_px``; ``aberration_sigma_um``).  A saturated photo takes the unsaturated ones'
   medians (a clipped edge biases its σ).
 - **Tone.**  ``tone_fit.estimate_power`` on the unsaturated photos: linear (``output_gamma = 1``) when its 95 %
-  interval holds 1, else the power found.
+  interval holds 1, else the power found.  16-bit photos are rendered linear (raw), and refused where their power
+  is a tone curve's (``measure.raw_tone``).
 - **Lens shading.**  Each photo's light squares (``shading.light_levels`` at the points the pose projects them to);
   over the unsaturated photos the renderer's ``1 + a2 h² + a4 h⁴`` fitted to what they show beyond the twin's light
   (``shading.fit_shading``; the camera's ``shading_a2``, ``shading_a4``), and each group's irradiance set so that
@@ -324,7 +325,7 @@ poses = [{{ R = [{R}], t = [{t}] }}]
     prnu_line = f"prnu_pct = {100 * rn.prnu:.3f}\n" if raw and round(100 * rn.prnu, 3) > 0 else ""
     tone = m["tone"]
     tone_words = (f"the unsaturated photos' power {tone['power']:.2f} (95 % {tone['ci'][0]:.2f}-{tone['ci'][1]:.2f}; "
-                  f"--tone auto)" if tone.get("power") is not None else tone.get("note", "not measured"))
+                  f"--tone auto)" if tone.get("power") is not None and not raw else tone.get("note", "not measured"))
     unsat = [p for p in photos if not p["white_saturated"]]
     noise = (f"dark SD {_range([p['dark_sd'] for p in unsat])} at {_range([p['dark'] for p in unsat], '.0f')}, "
              f"white SD {_range([p['white_sd'] for p in unsat])} at {_range([p['white'] for p in unsat], '.0f')}"

@@ -19,6 +19,8 @@ import numpy as np
 
 from edgetruth.errors import InputError
 
+#: 16-bit photos whose edges read a tone power outside this band (``raw_tone``) are not a linear sensor's values
+RAW_POWER_BAND = (0.8, 1.25)
 #: 16-bit photos' photon transfer: the share of a square's side its centre patch spans (``flat_noise``)
 FLAT_PATCH_SHARE = 0.5
 #: IJG (JPEG Annex K) luminance quantisation table, natural (row-major) order
@@ -205,11 +207,7 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     if quad.get("views") == len(rows):
         for r, c, sc in zip(rows, quad["coefficients_mm"], quad["scale_mm"]):
             r["bend_squares"] = {"coefficients": [v / 1e3 for v in c], "scale": sc / 1e3}
-    if scale == 255.0:
-        tone = measure_tone(photos, images, rows, model)
-    else:  # a black level above 0 reads as a power (tone_fit): raw values are taken as linear
-        tone = {"power": None, "ci": None, "photos": [], "output_gamma": 1.0,
-                "note": "16-bit photos, taken as linear sensor values (raw) with a black level"}
+    tone = measure_tone(photos, images, rows, model) if scale == 255.0 else raw_tone(photos, images, rows, model)
     return {"pattern": list(pattern), "image_size": list(cal.image_size), "rms_px": cal.rms_px,
             "K": np.asarray(K).tolist(),
             "dist": np.asarray(dist).ravel().tolist(), "tone": tone, "photos": rows,
@@ -217,7 +215,28 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
             "value_step": (union & -union) if union else 1}
 
 
-def measure_tone(photos, images, rows, model) -> dict:
+def raw_tone(photos, images, rows, model) -> dict:
+    """16-bit photos are taken as a linear sensor's values (raw); ``measure_tone`` checks it on their stored values.
+    A linear sensor's edges are symmetric steps whatever its black level (an ERF fit does not see an offset), so
+    they read a power of 1; a 16-bit export through a tone curve reads its curve's (1.8 at ProPhoto's, ~2.2 at
+    sRGB's: ``test_measure``).  An ``InputError`` when the power lies outside ``RAW_POWER_BAND`` and its 95 %
+    interval leaves out 1; else the tone as measured, with ``output_gamma`` 1 and the reading in ``note``."""
+    tone = measure_tone(photos, images, rows, model, full_scale=65535.0)
+    words = "16-bit photos, taken as a linear sensor's values (raw) with a black level"
+    if tone["power"] is None:
+        return {**tone, "output_gamma": 1.0, "note": f"{words}; not checked: {tone['note']}"}
+    power, (lo, hi) = tone["power"], tone["ci"]
+    if not RAW_POWER_BAND[0] <= power <= RAW_POWER_BAND[1] and not lo <= 1.0 <= hi:
+        raise InputError(f"{Path(photos[0]).name} ... ({len(photos)} 16-bit photos): their edges read a tone power of "
+                         f"{power:.2f} (95 % {lo:.2f}-{hi:.2f}, at the chessboard's junctions) where a linear sensor's "
+                         "read 1, so the values carry a tone curve (a 16-bit export?); give the camera's linear raw "
+                         "values (e.g. dcraw -4 -T), or 8-bit photos, whose tone the twin renders")
+    return {**tone, "output_gamma": 1.0,
+            "note": f"{words}; their edges read a power of {power:.3f} (95 % {lo:.3f}-{hi:.3f}; a linear sensor's "
+                    f"read 1)"}
+
+
+def measure_tone(photos, images, rows, model, full_scale: float = 255.0) -> dict:
     """``tone_fit.estimate_power`` (ERF4P-fixed11) on the unsaturated photos -> {power, ci, photos, output_gamma}:
     ``output_gamma`` 1 (linear) when the 95 % interval holds 1, else the power.  Too few unsaturated photos (or no
     power found): linear, and ``note`` says why."""
@@ -233,7 +252,8 @@ def measure_tone(photos, images, rows, model) -> dict:
     method, options = mo.resolve(DEFAULT_METHOD, mo.study_options())
     inp = BoardInputs([photos[i] for i in keep], model)
     try:
-        fit = estimate_power(inp, [images[i] for i in keep], [255.0] * len(keep), "ERF4P-fixed11", method, options)
+        fit = estimate_power(inp, [images[i] for i in keep], [full_scale] * len(keep), "ERF4P-fixed11", method,
+                             options)
     except InputError as exc:
         return {"power": None, "ci": None, "photos": [rows[i]["photo"] for i in keep], "output_gamma": 1.0,
                 "note": f"no tone measured ({exc}); linear assumed"}

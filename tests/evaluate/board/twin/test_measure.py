@@ -1,5 +1,5 @@
 """What a twin needs, measured on chessboard photos (``twin.measure``): the JPEG quality read from the file, a photo
-without the board or of another bit depth named."""
+without the board or of another bit depth named, 16-bit values with a tone curve refused."""
 from __future__ import annotations
 
 import cv2
@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.board import chessboard as cb
 from edgetruth.evaluate.board.twin import measure as tm
+from tests.evaluate.board.chessboard_images import ROTATIONS, render
 from tests.evaluate.board.chessboard_images import write_views as views
 
 
@@ -46,3 +48,48 @@ def test_photos_of_two_bit_depths_are_refused(tmp_path):
     cv2.imwrite(str(tmp_path / "deep.png"), img)
     with pytest.raises(InputError, match="deep.png: uint16 values among 8-bit photos"):
         tm.measure_chessboard([*paths, tmp_path / "deep.png"], (9, 6))
+
+
+def raw_views(power: float, black_dn: float = 0.0, seed: int = 1) -> list[np.ndarray]:
+    """``ROTATIONS``' views of a 12-bit linear sensor (15,000 e- at white, 10 e- read noise, K 0.25 DN/e-) at four
+    exposures, stored as 16-bit: as they are plus ``black_dn`` (``power`` 1), or through the curve
+    65535 (x / 4095)^(1/power) from that black (a 16-bit export with a tone curve)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for r, k in zip(ROTATIONS, (1.0, 0.6, 0.8, 0.4)):
+        img, _ = render((9, 6), r, sigma_px=0.7)
+        dn = 0.25 * (rng.poisson(k * img / 255.0 * 15000.0) + rng.normal(0.0, 10.0, img.shape))
+        v = dn + black_dn if power == 1.0 else black_dn + (65535.0 - black_dn) * np.clip(dn / 4095.0, 0, 1) ** (
+            1.0 / power)
+        out.append(np.clip(np.round(v), 0, 65535).astype(np.uint16))
+    return out
+
+
+@pytest.mark.parametrize("power, black_dn", [(1.0, 200.0), (1.0, 0.0), (1.8, 0.0), (2.2, 0.0)])
+def test_raw_tone_reads_a_linear_sensor_as_1_and_refuses_a_tone_curve(tmp_path, power, black_dn):
+    """16-bit values read at the junctions: a linear sensor's a power of 1 whatever its black level (to 0.01:
+    measured 0.999 at black 0 and 200), rendered linear; ProPhoto's 1.8 and sRGB's 2.2 their own (to 0.01:
+    measured 1.801, 2.204), refused with one InputError naming the photos, the power and the fix."""
+    model = cb.chessboard_model((9, 6), 1.0)
+    images = raw_views(power, black_dn)
+    paths = [tmp_path / f"v{i}.png" for i in range(len(images))]
+    rows = [{"photo": p.name, "white_saturated": False} for p in paths]
+    assert abs(tm.measure_tone(paths, images, rows, model, full_scale=65535.0)["power"] - power) < 0.01
+    if power == 1.0:
+        tone = tm.raw_tone(paths, images, rows, model)
+        assert tone["output_gamma"] == 1.0 and "read a power of 0.99" in tone["note"]
+    else:
+        with pytest.raises(InputError, match=rf"v0.png \.\.\. \(4 16-bit photos\): their edges read a tone power of "
+                                             rf"{power:.1f}.*dcraw -4 -T"):
+            tm.raw_tone(paths, images, rows, model)
+
+
+def test_16_bit_photos_with_a_tone_curve_are_refused_before_a_twin(tmp_path):
+    """The whole measurement on 16-bit PNGs through ProPhoto's curve (1.8): refused, one line (their noise alone
+    would have passed: a photon-transfer slope of 2 DN/e- and a print contrast of 2.5 for 5.6)."""
+    paths = []
+    for i, img in enumerate(raw_views(1.8)):
+        paths.append(tmp_path / f"v{i}.png")
+        cv2.imwrite(str(paths[-1]), img)
+    with pytest.raises(InputError, match="tone power of 1.80"):
+        tm.measure_chessboard(paths, (9, 6))
