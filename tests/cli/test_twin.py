@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import json
+import re
+import shlex
 
 import pytest
 
@@ -29,6 +31,10 @@ def test_twin_of_four_views(tmp_path, capsys):
     assert m["full_scale"] == 255.0 and m["max_value"] <= 255 and "flat_noise" not in m["photos"][0]
     text = capsys.readouterr().out
     assert "twin: 4 photos" in text and "edgetruth render" in text
+    # the study that compares twin and photos, as a command to paste: the photos and pattern as given
+    study = shlex.split(re.search(r"compare: `(.*)`", text).group(1))
+    assert study == ["edgetruth", "study", "twin", str(tmp_path / "photos"), "--pattern", "9x6", "--twin",
+                     str(out / "twin.toml"), "-o", "RUN"]
     # a read noise given is the twin's, and its header says so
     assert main(["twin", str(tmp_path / "photos"), "--pattern", "9x6", "--square-m", "0.03", "-o",
                  str(tmp_path / "r"), "--read-noise-e", "7.5", "--no-progress"]) == 0

@@ -109,4 +109,7 @@ def run(args: argparse.Namespace) -> int:
                 + f"; {sum(p['white_saturated'] for p in m['photos'])} "
                 f"clipped" + ("; each board curled as its photo's" if args.bend else "") + f" -> {out / 'twin.toml'}")
     console.say(f"twin: render it with `edgetruth render {shlex.quote(str(out / 'twin.toml'))} -o RENDERS`")
+    study = ["edgetruth", "study", "twin", *args.photos, "--pattern", args.pattern, "--twin", str(out / "twin.toml"),
+             *(["--channel", args.channel] if args.channel != "luma" else []), "-o", "RUN"]
+    console.say(f"twin: or render it beside the photos and compare: `{shlex.join(study)}`")
     return 0
