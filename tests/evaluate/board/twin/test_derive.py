@@ -165,7 +165,7 @@ def test_a_twin_of_raw_photos(fast_variant, tmp_path):
     black level, the read noise comes back (to 2 e-); the lens shading to 0.01 over the light squares' field heights
     (measured 0.004).  Rendered at 64 spp, the twin reads the photos' dark and white levels to 1.5 % (measured 0.9
     %), their noise SDs in those patches to 8 % (measured -1.8 to +2.5 %) and their ERF σ to 0.02 px (measured
-    0.009), the clipped photo's white at 4095 too."""
+    0.009), the clipped photo's white at 4095 too.  The photos' tone reads linear (power to 0.02: measured 0.997)."""
     from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.dataset.spec import load_spec
 
@@ -173,6 +173,8 @@ def test_a_twin_of_raw_photos(fast_variant, tmp_path):
     m = tm.measure_chessboard(photos, (9, 6))
     assert m["full_scale"] == 65535.0 and m["max_value"] == 4095 and m["value_step"] == 1
     assert [p["white_saturated"] for p in m["photos"]] == [False, False, True, False]
+    print(f"raw photos' tone power {m['tone']['power']:.4f} (95 % {m['tone']['ci'][0]:.4f}-{m['tone']['ci'][1]:.4f})")
+    assert abs(m["tone"]["power"] - 1.0) < 0.02 and m["tone"]["output_gamma"] == 1.0  # rendered raw: linear
     cam, scene = td.twin_texts(m, "rawtwin", "a raw twin", "camera.toml", 0.03, "four raw views")
     (tmp_path / "t").mkdir()
     (tmp_path / "t" / "camera.toml").write_text(cam)
