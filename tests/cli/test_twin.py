@@ -67,6 +67,28 @@ def test_twin_refuses_bad_input_before_writing(tmp_path, capsys):
     assert (out / "twin.toml").read_text() == "# mine\n" and not (tmp_path / "u").exists()
 
 
+def test_a_photo_without_the_board_is_left_out_with_a_warning(tmp_path, capsys):
+    """A folder with one photo that shows no board: the twin of the other four, one warning line naming it, and the
+    study command printed with the four photos measured, in order (the study pairs photos and twin images so)."""
+    import cv2
+    import numpy as np
+
+    from edgetruth.render.dataset.spec import load_spec
+
+    (tmp_path / "photos").mkdir()
+    paths, _ = write_views(tmp_path / "photos", ".png")
+    cv2.imwrite(str(tmp_path / "photos" / "blank.png"), np.full((480, 640), 128, np.uint8))
+    out = tmp_path / "t"
+    assert main(["twin", str(tmp_path / "photos"), "--pattern", "9x6", "--square-m", "0.03", "-o", str(out),
+                 "--no-progress"]) == 0
+    cap = capsys.readouterr()
+    assert cap.err.strip().splitlines() == ["warning: twin: blank.png: the 9x6 board was not found on it; left out "
+                                            "(the twin has one image per photo it measured)"]
+    assert load_spec(out / "twin.toml").n_images == 4
+    study = shlex.split(re.search(r"compare: `(.*)`", cap.out).group(1))
+    assert study[3:7] == [str(p) for p in sorted(paths)] and study[7:9] == ["--pattern", "9x6"]
+
+
 def test_twin_bend_curls_each_board(tmp_path):
     """`--bend`: every group carries its photo's quadratic curl (flat analytic views: noise, each term within
     0.05 mm; measured ≤ 0.02), the header says so, and the renderer's scale the curls were converted to is the one

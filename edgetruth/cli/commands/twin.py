@@ -89,7 +89,11 @@ def run(args: argparse.Namespace) -> int:
                                                              enabled=not args.no_progress))
     assumptions = TwinAssumptions(pitch_um=args.pitch_um, f_number=args.f_number, white_noise_dn=args.white_noise_dn,
                                   dark_noise_e=args.read_noise_e, black_dn=args.black_dn)
-    source = f"{len(photos)} photos ({photos[0][0]} ... {photos[-1][0]})" if len(photos) > 2 else "the photos"
+    for o in m["left_out"]:
+        console.warn(f"twin: {o['photo']}: {o['why']}; left out (the twin has one image per photo it measured)")
+    gone = {o["photo"] for o in m["left_out"]}
+    kept = [(name, path) for name, path in photos if path.name not in gone]
+    source = f"{len(kept)} photos ({kept[0][0]} ... {kept[-1][0]})"
     cam, scene = twin_texts(m, name, f"digital twin of {source}", "camera.toml", square_m, source, assumptions,
                             bend=args.bend)
     make_output_dir(out)
@@ -109,7 +113,9 @@ def run(args: argparse.Namespace) -> int:
                 + f"; {sum(p['white_saturated'] for p in m['photos'])} "
                 f"clipped" + ("; each board curled as its photo's" if args.bend else "") + f" -> {out / 'twin.toml'}")
     console.say(f"twin: render it with `edgetruth render {shlex.quote(str(out / 'twin.toml'))} -o RENDERS`")
-    study = ["edgetruth", "study", "twin", *args.photos, "--pattern", args.pattern, "--twin", str(out / "twin.toml"),
+    # the photos as given, or where some were left out, those measured (the study pairs them with the twin in order)
+    study = ["edgetruth", "study", "twin", *(args.photos if not gone else [str(path) for _, path in kept]),
+             "--pattern", args.pattern, "--twin", str(out / "twin.toml"),
              *(["--channel", args.channel] if args.channel != "luma" else []), "-o", "RUN"]
     console.say(f"twin: or render it beside the photos and compare: `{shlex.join(study)}`")
     return 0

@@ -119,7 +119,8 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
                        progress=None) -> dict:
     """Every measurement a twin of these chessboard photos needs (module docstring), as JSON-ready data:
     ``rms_px``, ``K``, ``dist``, ``tone`` and one record per photo (pose with t in squares, ring, levels, blur,
-    JPEG quality, bend).  Every photo must show the board (an ``InputError`` names one that does not).
+    JPEG quality, bend) on which the board is found; ``left_out`` names the others and why (fewer than 3 left: an
+    ``InputError``).
     ``progress``: wraps an iterable of photos in a progress bar (the calibration's pass, then the measurements')."""
     from edgetruth.evaluate.board import chessboard as cb
     from edgetruth.evaluate.board.grid_corners import grid_points
@@ -142,14 +143,15 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
 
     cal, results = calibrate_photos([(p.name, p) for p in photos], pattern, 1.0, channel=channel,
                                     corner_finder=finder, undistort_lines=True, progress=progress)
-    lost = [r.photo for r in results if not r.found]
-    if lost:
-        raise InputError(f"{lost[0]}: the {pattern[0]}x{pattern[1]} board was not found on it; a twin renders one "
-                         "image per photo, so leave it out (or check --pattern)")
+    # a photo without the board is left out, as calibrate leaves it out (the calibration needs 3 boards found)
+    left_out = [{"photo": p.name, "why": f"the {pattern[0]}x{pattern[1]} board was not found on it"}
+                for p, r in zip(photos, results) if not r.found]
     K, dist = cal.K, cal.dist
-    rows, images = [], []
+    rows, images, used = [], [], []
     scale, union = None, 0  # the photos' full scale, and every stored value OR-ed (its trailing zeros: the step)
-    for p, grid in zip(photos if progress is None else progress(photos), grids):
+    for i, (p, grid) in enumerate(zip(photos if progress is None else progress(photos), grids)):
+        if not results[i].found:
+            continue
         img = read_gray(p, channel=channel)
         if full_scale(img.dtype) not in (255.0, 65535.0):
             raise InputError(f"{p}: {img.dtype} values; give 8-bit or 16-bit photos (a twin renders 8-bit or raw "
@@ -160,8 +162,9 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
         scale = full_scale(img.dtype)
         union |= int(np.bitwise_or.reduce(img, axis=None))
         view = cb.find_squares(img, model)
-        if view is None:
-            raise InputError(f"{p}: the board study's squares were not found on it; leave it out")
+        if view is None:  # OpenCV's corners without the board study's squares: the study could not pair it
+            left_out.append({"photo": p.name, "why": "the board study's squares were not found on it"})
+            continue
         mc = model_order(view, grid.corners((K, dist)))
         board = np.c_[model.corners.reshape(-1, 2), np.zeros(mc.size // 2)]
         ok = np.all(np.isfinite(mc.reshape(-1, 2)), axis=1)
@@ -202,17 +205,26 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
             **({} if flat is None else {"flat_noise": flat}),
         })
         images.append(img)
-    # each photo's quadratic bend (the calibration's bend check), in squares: the calibration's unit is one square
+        used.append(i)
+    if len(rows) < 3:
+        raise InputError(f"the board study's squares were found on {len(rows)} of {len(photos)} photos (left out: "
+                         f"{', '.join(o['photo'] for o in left_out)}); a twin study compares 3 or more")
+    # each photo's quadratic bend (the calibration's bend check, one per photo it calibrated on), in squares: the
+    # calibration's unit is one square
     quad = (cal.board_bend or {}).get("quadratic") or {}
-    if quad.get("views") == len(rows):
-        for r, c, sc in zip(rows, quad["coefficients_mm"], quad["scale_mm"]):
+    views = [i for i, r in enumerate(results) if r.found]
+    if quad.get("views") == len(views):
+        bends = dict(zip(views, zip(quad["coefficients_mm"], quad["scale_mm"])))
+        for r, i in zip(rows, used):
+            c, sc = bends[i]
             r["bend_squares"] = {"coefficients": [v / 1e3 for v in c], "scale": sc / 1e3}
+    photos = [photos[i] for i in used]
     tone = measure_tone(photos, images, rows, model) if scale == 255.0 else raw_tone(photos, images, rows, model)
     return {"pattern": list(pattern), "image_size": list(cal.image_size), "rms_px": cal.rms_px,
             "K": np.asarray(K).tolist(),
             "dist": np.asarray(dist).ravel().tolist(), "tone": tone, "photos": rows,
             "full_scale": scale, "max_value": int(max(int(im.max()) for im in images)),
-            "value_step": (union & -union) if union else 1}
+            "value_step": (union & -union) if union else 1, "left_out": left_out}
 
 
 def raw_tone(photos, images, rows, model) -> dict:

@@ -1,5 +1,5 @@
 """What a twin needs, measured on chessboard photos (``twin.measure``): the JPEG quality read from the file, a photo
-without the board or of another bit depth named, 16-bit values with a tone curve refused."""
+without the board left out and named, photos of another bit depth and 16-bit values with a tone curve refused."""
 from __future__ import annotations
 
 import cv2
@@ -32,13 +32,21 @@ def test_ijg_tables():
     assert sorted(tm.ZIGZAG) == list(range(64))
 
 
-def test_a_photo_without_the_board_is_named(tmp_path):
-    """A photo where the board is not found: one InputError naming it (a twin renders one image per photo)."""
+def test_a_photo_without_the_board_is_left_out_and_named(tmp_path):
+    """A photo where the board is not found is left out, named with why (as calibrate leaves it out); the others are
+    measured in the order given, each with its own bend.  Fewer than 3 boards: one InputError naming the photos."""
     paths, _ = views(tmp_path, ".png")
     blank = tmp_path / "blank.png"
     cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
-    with pytest.raises(InputError, match="blank.png: the 9x6 board was not found"):
-        tm.measure_chessboard([*paths, blank], (9, 6))
+    m = tm.measure_chessboard([paths[0], blank, *paths[1:]], (9, 6))
+    assert m["left_out"] == [{"photo": "blank.png", "why": "the 9x6 board was not found on it"}]
+    assert [p["photo"] for p in m["photos"]] == [p.name for p in paths]
+    assert all(len(p["bend_squares"]["coefficients"]) == 3 for p in m["photos"])
+    whole = tm.measure_chessboard(paths, (9, 6))
+    assert whole["left_out"] == [] and np.allclose(whole["K"], m["K"], rtol=1e-12)
+    assert [p["bend_squares"] for p in whole["photos"]] == [p["bend_squares"] for p in m["photos"]]
+    with pytest.raises(InputError, match=r"found in only 2 of 3 photos \(need >= 3; not found: blank.png\)"):
+        tm.measure_chessboard([*paths[:2], blank], (9, 6))
 
 
 def test_photos_of_two_bit_depths_are_refused(tmp_path):
