@@ -246,13 +246,17 @@ def _paired_tables(comparisons, labels: dict) -> list[str]:
         out += [f"### {c['label']}", "",
                 f"{c['n_units']} units every row has; Friedman over {len(c['rows'])} rows: "
                 f"χ² = {num(f['statistic'], 1)}, p = {f['p_value']:.2g}, Kendall's W = {num(f['kendall_w'])}. "
-                f"Baseline: {labels.get(c['baseline'], c['baseline'])}.",
+                f"Baseline: {labels.get(c['baseline'], c['baseline'])}.  By photo: the units come from "
+                f"{c['tests'][0]['n_photos']} photos and are not independent within one; the last three columns "
+                "resample photos, count the photos whose own mean Δ has the overall sign, and test the photos' "
+                "mean Δ (Wilcoxon, Holm).",
                 ""]
         body = [[labels.get(t["row"], t["row"]), num(t["mean_row"], 4), num(t["mean_baseline"], 4),
                  num(t["median_difference"], 4), ci(t["mean_difference_ci"], 4), num(t["rank_biserial"], 2),
-                 f"{t['p_holm']:.2g}", "yes" if t["significant"] else "no"] for t in c["tests"]]
+                 f"{t['p_holm']:.2g}", "yes" if t["significant"] else "no", ci(t["mean_difference_ci_photos"], 4),
+                 f"{t['photos_same_sign']}/{t['n_photos']}", f"{t['p_holm_photos']:.2g}"] for t in c["tests"]]
         out += [table(["row", "mean", "baseline mean", "median Δ", "mean Δ 95 % CI", "rank-biserial", "p (Holm)",
-                       "significant"], body), ""]
+                       "significant", "by photo: mean Δ 95 % CI", "same sign", "p (Holm)"], body), ""]
     return out
 
 
@@ -357,11 +361,14 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
                      "white_saturated": "white saturated"}
     tests = [{"family": c["family"], "baseline": c["baseline"], "n_units": c["n_units"],
               "friedman_p": c["friedman"]["p_value"], "kendall_w": c["friedman"]["kendall_w"], **t,
-              "mean_difference_ci_lo": t["mean_difference_ci"][0], "mean_difference_ci_hi": t["mean_difference_ci"][1]}
+              "mean_difference_ci_lo": t["mean_difference_ci"][0], "mean_difference_ci_hi": t["mean_difference_ci"][1],
+              "mean_difference_ci_photos_lo": t["mean_difference_ci_photos"][0],
+              "mean_difference_ci_photos_hi": t["mean_difference_ci_photos"][1]}
              for c in comparisons for t in c["tests"]]
     cols = ("family", "baseline", "row", "n_units", "n_pairs", "mean_row", "mean_baseline", "median_difference",
             "mean_difference_ci_lo", "mean_difference_ci_hi", "rank_biserial", "p_value", "p_holm", "significant",
-            "friedman_p", "kendall_w")
+            "n_photos", "photos_same_sign", "mean_difference_ci_photos_lo", "mean_difference_ci_photos_hi",
+            "p_value_photos", "p_holm_photos", "significant_photos", "friedman_p", "kendall_w")
     atomic_write_text(out / "paired_tests.csv", _csv_text(cols, tests))
     if locator:
         write_json(out / "locator.json", _json_safe(locator))
