@@ -222,6 +222,29 @@ def own_inputs(photos: list[str], twin: str | None, model_path=None, pattern=Non
     return real.set_name, real, twin
 
 
+def photos_by_group(real: BoardInputs, spec, spec_name) -> BoardInputs:
+    """The photos a twin with fewer images renders (``edgetruth twin`` leaves out a photo without the board): those
+    whose names its one-image groups carry (``derive.group_name``), in the twin's order, one line naming the others.
+    An ``InputError`` where the groups do not name the photos each once."""
+    from edgetruth.evaluate.board.twin.derive import group_name
+
+    groups = [g.name for g in spec.groups]
+    where: dict[str, list[int]] = {}
+    for i, photo in enumerate(real.photos):
+        where.setdefault(group_name(photo.name), []).append(i)
+    if spec.n_images != len(groups) or any(len(where.get(g, [])) != 1 for g in groups):
+        raise InputError(f"{spec_name}: {spec.n_images} images for {len(real.photos)} photos, and its groups do not "
+                         "name the photos one each; the twin must render one image per photo (give the photos "
+                         "`edgetruth twin` measured, in its order)")
+    idx = [where[g][0] for g in groups]
+    rest = [p.name for i, p in enumerate(real.photos) if i not in set(idx)]
+    console.say(f"study twin: {spec_name} has no image of {', '.join(rest)}; comparing the {len(idx)} photos it "
+                "renders, paired by name")
+    return replace(real, photos=[real.photos[i] for i in idx],
+                   reference_corners=None if real.reference_corners is None else
+                   [real.reference_corners[i] for i in idx])
+
+
 def paired(real_names: list, real_used: list, twin_names: list, twin_used: list) -> list[int]:
     """The positions where the board study found the board on both the photo and its twin image; when some are
     missing, one line says which (an ``InputError`` when fewer than ``MIN_PHOTOS`` pairs remain)."""
@@ -276,12 +299,11 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
         real_all = resolve_inputs([set_name])
     else:
         set_name, real_all, spec_name = own_inputs(set_name, twin, model_path, pattern, square)
-    keep = check_images(images, len(real_all.photos))
     spec = twin_spec(spec_name, spp)
     set_name = set_name or spec.name  # your own photos: named by their twin
     if spec.n_images != len(real_all.photos):
-        raise InputError(f"{spec_name}: {spec.n_images} images for {len(real_all.photos)} photos; the twin must "
-                         "render one image per photo")
+        real_all = photos_by_group(real_all, spec, spec_name)
+    keep = check_images(images, len(real_all.photos))
     # all methods but those that need a camera model (patch_esf_fit's PSF tables): there is none here
     methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:

@@ -192,20 +192,26 @@ def test_twin_study_of_your_own_photos(tmp_path, fast_variant, capsys):
     """Your own photos (4 analytic PNG views of a 9x6 board) -> `edgetruth twin` -> `study twin PHOTOS --pattern 9x6
     --twin DIR/twin.toml` (4 spp): the report names the twin, Table 5 is there, and against its exact outline the
     twin's points are unbiased on every photo (|mean| < 0.03 px; measured ≤ 0.007), as on an unclipped, linear
-    photo they should be."""
+    photo they should be.  A photo in the folder without the board: `edgetruth twin` leaves it out, and the study
+    of the whole folder pairs the twin's images with their photos by name, with one line naming the one left."""
     import json
+
+    import cv2
 
     from tests.evaluate.board.chessboard_images import write_views
 
     photos = tmp_path / "photos"
     photos.mkdir()
     write_views(photos, ".png")
+    cv2.imwrite(str(photos / "blank.png"), np.full((480, 640), 128, np.uint8))
     assert main(["twin", str(photos), "--pattern", "9x6", "--square-m", "0.03", "-o", str(tmp_path / "mine"),
                  "--no-progress"]) == 0
     out = tmp_path / "study"
     argv = ["study", "twin", str(photos), "--pattern", "9x6", "--twin", str(tmp_path / "mine" / "twin.toml"),
             "--spp", "4", "--methods", "erf4p_fixed11,canny_devernay", "-o", str(out), "--no-progress"]
+    capsys.readouterr()
     assert main(argv) == 0
+    assert "has no image of blank.png; comparing the 4 photos it renders, paired by name" in capsys.readouterr().out
     report = (out / "report.md").read_text()
     assert report.startswith("# Digital twin — mine:") and "Table 5" in report
     assert "derived by `edgetruth twin` (" in report  # its measurements.json, beside the twin
