@@ -69,7 +69,7 @@ def test_twin_refuses_bad_input_before_writing(tmp_path, capsys):
 
 def test_a_photo_without_the_board_is_left_out_with_a_warning(tmp_path, capsys):
     """A folder with one photo that shows no board: the twin of the other four, one warning line naming it, and the
-    study command printed with the four photos measured, in order (the study pairs photos and twin images so)."""
+    study command printed with the folder as given (the study pairs the twin's images with the photos by name)."""
     import cv2
     import numpy as np
 
@@ -86,7 +86,7 @@ def test_a_photo_without_the_board_is_left_out_with_a_warning(tmp_path, capsys):
                                             "(the twin has one image per photo it measured)"]
     assert load_spec(out / "twin.toml").n_images == 4
     study = shlex.split(re.search(r"compare: `(.*)`", cap.out).group(1))
-    assert study[3:7] == [str(p) for p in sorted(paths)] and study[7:9] == ["--pattern", "9x6"]
+    assert study[3:6] == [str(tmp_path / "photos"), "--pattern", "9x6"]
 
 
 def test_twin_bend_curls_each_board(tmp_path):

@@ -113,9 +113,8 @@ def run(args: argparse.Namespace) -> int:
                 + f"; {sum(p['white_saturated'] for p in m['photos'])} "
                 f"clipped" + ("; each board curled as its photo's" if args.bend else "") + f" -> {out / 'twin.toml'}")
     console.say(f"twin: render it with `edgetruth render {shlex.quote(str(out / 'twin.toml'))} -o RENDERS`")
-    # the photos as given, or where some were left out, those measured (the study pairs them with the twin in order)
-    study = ["edgetruth", "study", "twin", *(args.photos if not gone else [str(path) for _, path in kept]),
-             "--pattern", args.pattern, "--twin", str(out / "twin.toml"),
+    # the photos as given: the study pairs the twin's images with the photos its groups name
+    study = ["edgetruth", "study", "twin", *args.photos, "--pattern", args.pattern, "--twin", str(out / "twin.toml"),
              *(["--channel", args.channel] if args.channel != "luma" else []), "-o", "RUN"]
     console.say(f"twin: or render it beside the photos and compare: `{shlex.join(study)}`")
     return 0
