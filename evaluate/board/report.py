@@ -338,7 +338,11 @@ def reading(sums, comparisons, reference, tone: dict | None = None, photos: list
                       f"{len(better)} method(s) significantly straighter "
                       f"({', '.join(lab.get(t['row'], t['row']) for t in better) or 'none'}), "
                       f"{len(worse)} significantly "
-                      "less straight."]
+                      f"less straight; by photo (n = {sig['tests'][0]['n_photos']}; Wilcoxon over the photos' means, "
+                      f"Holm) {sum(t['significant_photos'] for t in better)} and "
+                      f"{sum(t['significant_photos'] for t in worse)} of them, and "
+                      f"{sum(t['photos_same_sign'] == t['n_photos'] for t in better + worse)} of the "
+                      f"{len(better) + len(worse)} differ the same way on every photo."]
     return lines
 
 

@@ -64,6 +64,10 @@ def test_files_figures_and_report(zhang_run):
     for s in ("Table 1", "Table 2", "Table 3", "Table 4", "Paired tests", "Reading", "Zhang's corners",
               "figures/straightness.png", "CalibIm5.png", "options"):
         assert s in text
+    # every paired test also reads by photo: Zhang's 5 photos, whose Wilcoxon cannot go below p = 0.0625
+    tests = _rows(out / "paired_tests.csv")
+    assert {r["n_photos"] for r in tests} == {"5"} and all(float(r["p_value_photos"]) >= 0.0625 for r in tests)
+    assert "by photo (n = 5; Wilcoxon over the photos' means, Holm) 0 and 0 of them" in text
     per_side = _rows(out / "per_side.csv")
     assert len(per_side) == 5 * 64 * 4 * 4
     assert set(per_side[0]) >= {"image", "square", "side", "method", "n_points", "rms_px", "length_model", "length_err"}
