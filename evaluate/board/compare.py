@@ -64,23 +64,26 @@ def family_photos(row: Row, family: str) -> np.ndarray | None:
     return None if per is None else np.concatenate([np.full(np.size(v), k) for k, v in enumerate(per)])
 
 
+def photo_sums(values: np.ndarray, photo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(sums, counts) of ``values`` per photo, over the photos that have units, in photo order."""
+    _, inv = np.unique(np.asarray(photo), return_inverse=True)
+    return np.bincount(inv, weights=np.asarray(values, float)), np.bincount(inv).astype(float)
+
+
 def by_photo(d: np.ndarray, photo: np.ndarray, n_boot: int = N_BOOT, seed: int = SEED) -> dict:
     """The paired differences ``d`` (units) read by photo (module docstring): ``photo_means`` (per photo with units,
     in photo order), ``n_photos``, ``same_sign`` (photos whose mean has the sign of the overall mean; 0 when that is
     0), and ``mean_difference_ci_photos``, the 95 % percentile CI of the mean over units when photos are resampled
     (each resample's mean is Σ its photos' sums / Σ their counts)."""
-    d, photo = np.asarray(d, float), np.asarray(photo)
-    ids, inv = np.unique(photo, return_inverse=True)
-    n = np.bincount(inv, minlength=ids.size).astype(float)
-    s = np.bincount(inv, weights=d, minlength=ids.size)
-    means = s / np.where(n > 0, n, 1.0)
+    s, n = photo_sums(d, photo)
+    means = s / n
     overall = float(s.sum() / n.sum()) if n.sum() else float("nan")
-    out = {"photo_means": means.tolist(), "n_photos": int(ids.size),
+    out = {"photo_means": means.tolist(), "n_photos": int(s.size),
            "same_sign": int(np.sum(np.sign(means) == np.sign(overall))) if overall != 0 else 0,
            "mean_difference_ci_photos": (float("nan"), float("nan"))}
-    if ids.size >= 2:
-        draws = np.random.Generator(np.random.PCG64(seed)).integers(0, ids.size, size=(n_boot, ids.size))
-        counts = np.zeros((n_boot, ids.size))
+    if s.size >= 2:
+        draws = np.random.Generator(np.random.PCG64(seed)).integers(0, s.size, size=(n_boot, s.size))
+        counts = np.zeros((n_boot, s.size))
         np.add.at(counts, (np.arange(n_boot)[:, None], draws), 1.0)
         boot = (counts @ s) / (counts @ n)
         lo, hi = np.percentile(boot, [2.5, 97.5])
@@ -122,8 +125,7 @@ def compare_family(rows: list[Row], family: str, baseline: str, alpha: float = 0
             continue
         w = stats.wilcoxon_paired(m[:, j], b, alpha)
         bp = by_photo(m[:, j] - b, photo)
-        means_row = by_photo(m[:, j], photo)["photo_means"]
-        means_base = by_photo(b, photo)["photo_means"]
+        (s_row, n_ph), (s_base, _) = photo_sums(m[:, j], photo), photo_sums(b, photo)
         tests.append({"row": lab, "n_pairs": w["n_pairs"], "mean_row": float(m[:, j].mean()) if m.size else np.nan,
                       "mean_baseline": float(b.mean()) if m.size else np.nan,
                       "median_difference": w["median_difference"],
@@ -131,7 +133,7 @@ def compare_family(rows: list[Row], family: str, baseline: str, alpha: float = 0
                       "rank_biserial": stats.rank_biserial(m[:, j], b),
                       "n_photos": bp["n_photos"], "photos_same_sign": bp["same_sign"],
                       "mean_difference_ci_photos": bp["mean_difference_ci_photos"],
-                      "p_value_photos": stats.wilcoxon_paired(means_row, means_base, alpha)["p_value"]})
+                      "p_value_photos": stats.wilcoxon_paired(s_row / n_ph, s_base / n_ph, alpha)["p_value"]})
     for t, p in zip(tests, stats.holm([t["p_value"] for t in tests]) if tests else []):
         t["p_holm"] = float(p)
         t["significant"] = bool(p < alpha)
