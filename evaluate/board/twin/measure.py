@@ -251,7 +251,7 @@ def raw_tone(photos, images, rows, model) -> dict:
 def measure_tone(photos, images, rows, model, full_scale: float = 255.0) -> dict:
     """``tone_fit.estimate_power`` (ERF4P-fixed11) on the unsaturated photos -> {power, ci, photos, output_gamma}:
     ``output_gamma`` 1 (linear) when the 95 % interval holds 1, else the power.  Too few unsaturated photos (or no
-    power found): linear, and ``note`` says why."""
+    power found): linear, and ``note`` says why.  ``full_scale``: the stored values' (65535 for 16-bit photos)."""
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD
     from edgetruth.evaluate.board.inputs import BoardInputs
