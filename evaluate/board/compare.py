@@ -28,7 +28,7 @@ import numpy as np
 
 from edgetruth.evaluate import stats
 from edgetruth.evaluate.board.measure import Row
-from edgetruth.evaluate.board.summary import N_BOOT, SEED, bootstrap_indices
+from edgetruth.evaluate.board.summary import N_BOOT, SEED, bootstrap_indices, photo_draws
 
 FAMILIES = ("straightness", "reprojection", "loo", "side_length")
 FAMILY_LABELS = {"straightness": "straightness per side (px)",
@@ -82,9 +82,7 @@ def by_photo(d: np.ndarray, photo: np.ndarray, n_boot: int = N_BOOT, seed: int =
            "same_sign": int(np.sum(np.sign(means) == np.sign(overall))) if overall != 0 else 0,
            "mean_difference_ci_photos": (float("nan"), float("nan"))}
     if s.size >= 2:
-        draws = np.random.Generator(np.random.PCG64(seed)).integers(0, s.size, size=(n_boot, s.size))
-        counts = np.zeros((n_boot, s.size))
-        np.add.at(counts, (np.arange(n_boot)[:, None], draws), 1.0)
+        counts = photo_draws(s.size, n_boot, seed)
         boot = (counts @ s) / (counts @ n)
         lo, hi = np.percentile(boot, [2.5, 97.5])
         out["mean_difference_ci_photos"] = (float(lo), float(hi))

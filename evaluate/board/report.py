@@ -16,10 +16,12 @@ from edgetruth.evaluate.report_format import ci, num, table
 from edgetruth.fileio import atomic_write_text, write_json
 
 SUMMARY_COLUMNS = (
-    "row", "label", "straightness_px", "straightness_ci_lo", "straightness_ci_hi", "straightness_median_px",
+    "row", "label", "straightness_px", "straightness_ci_lo", "straightness_ci_hi", "straightness_ci_photos_lo",
+    "straightness_ci_photos_hi", "straightness_median_px",
     "sides_covered", "sides_total", "side_coverage", "points_per_side", "converged_fraction", "corners_used",
-    "corners_total", "calib_rms_px", "calib_rms_ci_lo", "calib_rms_ci_hi", "loo_rms_px", "loo_rms_ci_lo",
-    "loo_rms_ci_hi", *INTRINSICS, *(f"d_{k}" for k in INTRINSICS), "length_bias_model", "length_rmse_model",
+    "corners_total", "calib_rms_px", "calib_rms_ci_lo", "calib_rms_ci_hi", "calib_rms_ci_photos_lo",
+    "calib_rms_ci_photos_hi", "loo_rms_px", "loo_rms_ci_lo", "loo_rms_ci_hi", "loo_rms_ci_photos_lo",
+    "loo_rms_ci_photos_hi", *INTRINSICS, *(f"d_{k}" for k in INTRINSICS), "length_bias_model", "length_rmse_model",
     "length_bias_px", "length_rmse_px", "length_sides", "corner_vs_reference_px", "junction_split_px",
     "own_corner_outward_px", "refine_s", "failure")
 
@@ -46,7 +48,8 @@ def _v(v):
 
 def _flat_summary(s: dict) -> dict:
     out = dict(s)
-    for k in ("straightness_ci", "calib_rms_ci", "loo_rms_ci"):
+    for k in ("straightness_ci", "calib_rms_ci", "loo_rms_ci", "straightness_ci_photos", "calib_rms_ci_photos",
+              "loo_rms_ci_photos"):
         out[f"{k}_lo"], out[f"{k}_hi"] = s.get(k, (float("nan"), float("nan")))
     return out
 
@@ -181,10 +184,12 @@ def tone_agreement(fit: dict) -> str:
 
 
 def _straightness_table(sums) -> str:
-    body = [[s["label"], num(s["straightness_px"]), ci(s["straightness_ci"]), num(s["straightness_median_px"]),
+    body = [[s["label"], num(s["straightness_px"]), ci(s["straightness_ci"]), ci(s["straightness_ci_photos"]),
+             num(s["straightness_median_px"]),
              f"{s['sides_covered']}/{s['sides_total']}", num(s["points_per_side"], 1),
              num(100 * s["converged_fraction"], 1)] for s in sums if s["row"] not in REFERENCE_ROWS]
-    return table(["method", "straightness RMS (px)", "95 % CI", "median side RMS (px)", "sides covered",
+    return table(["method", "straightness RMS (px)", "95 % CI (sides)", "95 % CI (photos)", "median side RMS (px)",
+                  "sides covered",
                   "points / side", "converged (%)"], body)
 
 
@@ -192,17 +197,17 @@ def _calibration_table(sums, reference) -> str:
     body = []
     for s in sums:
         if "calib_rms_px" not in s:
-            body.append([s["label"], "—", "—", "—", "—", *("—",) * 6, s.get("failure") or "—"])
+            body.append([s["label"], "—", "—", "—", "—", "—", "—", *("—",) * 6, s.get("failure") or "—"])
             continue
-        body.append([s["label"], num(s["calib_rms_px"]), ci(s["calib_rms_ci"]), num(s["loo_rms_px"]),
-                     ci(s["loo_rms_ci"]), num(s["fx"], 2), num(s["fy"], 2), num(s["cx"], 2), num(s["cy"], 2),
+        body.append([s["label"], num(s["calib_rms_px"]), ci(s["calib_rms_ci"]), ci(s["calib_rms_ci_photos"]),
+                     num(s["loo_rms_px"]), ci(s["loo_rms_ci"]), ci(s["loo_rms_ci_photos"]), num(s["fx"], 2), num(s["fy"], 2), num(s["cx"], 2), num(s["cy"], 2),
                      num(s["k1"], 4), num(s["k2"], 4), f"{s['corners_used']}/{s['corners_total']}"])
     if reference:
-        body.append([f"published ({reference.get('source', 'reference')})", "—", "—", "—", "—",
+        body.append([f"published ({reference.get('source', 'reference')})", "—", "—", "—", "—", "—", "—",
                      *(num(reference[k], 2) for k in ("fx", "fy", "cx", "cy")), num(reference["k1"], 4),
                      num(reference["k2"], 4), "—"])
-    return table(["row", "calib RMS (px)", "95 % CI", "LOO RMS (px)", "95 % CI", "fx", "fy", "cx", "cy", "k1", "k2",
-                  "corners"], body)
+    return table(["row", "calib RMS (px)", "95 % CI (corners)", "95 % CI (photos)", "LOO RMS (px)",
+                  "95 % CI (corners)", "95 % CI (photos)", "fx", "fy", "cx", "cy", "k1", "k2", "corners"], body)
 
 
 def _difference_table(sums) -> str:
@@ -391,14 +396,15 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
                                              for v in p.values()] for p in photos_table]), "",
              "## Table 1 — straightness and coverage (per method)", "",
              "RMS of each side's refined points about its total-least-squares line, pooled over every covered side "
-             "of every photo (95 % percentile bootstrap CI resampling sides); a side is covered with at least 5 "
+             "of every photo (95 % percentile bootstrap CIs resampling sides, and resampling photos with all their "
+             "sides: a photo's sides are not independent of each other); a side is covered with at least 5 "
              "points; converged: share of the Canny candidates within 5 px of a detected square's side that the "
              "method refined.", "",
              _straightness_table(summaries), "",
              "## Table 2 — calibration (k1, k2; skew 0) of each row's corners", "",
              "Calibration RMS: OpenCV's reprojection RMS over all corners of all photos; LOO: each photo's corners "
              "reprojected with intrinsics calibrated on the other photos and the pose found by solvePnP; CIs resample "
-             "corners (calibration held fixed).", "",
+             "corners, and photos with all their corners (calibration held fixed).", "",
              _calibration_table(summaries, reference), ""]
     if reference:
         lines += ["## Table 3 — differences from the published calibration", "",

@@ -4,6 +4,8 @@
   side of every photo, with a percentile bootstrap CI resampling sides; also the median side RMS;
 - calibration RMS (OpenCV's) and the LOO RMS, each with a bootstrap CI resampling corners (the
   calibration held fixed: the spread of the corners' residuals, not of a re-calibration);
+- each of those three CIs also resampling photos (``_ci_photos``: a cluster bootstrap, a resample draws photos
+  and pools all their sides or corners), since a photo's sides and corners are not independent of each other;
 - intrinsics and their differences from the set's published calibration;
 - side lengths in the board plane: bias (mean error) and RMSE, in board units and in px;
 - coverage: sides with at least ``sides.MIN_POINTS`` points, and the share of the candidates the
@@ -33,6 +35,36 @@ def bootstrap_indices(n: int, n_boot: int = N_BOOT, seed: int = SEED) -> np.ndar
     idx = np.random.Generator(np.random.PCG64(seed)).integers(0, n, size=(n_boot, n)).astype(np.int32)
     idx.flags.writeable = False
     return idx
+
+
+@lru_cache(maxsize=4)
+def photo_draws(n_photos: int, n_boot: int = N_BOOT, seed: int = SEED) -> np.ndarray:
+    """(n_boot, n_photos): how often each photo is drawn in each resample of the photos (cached and shared, so
+    that the rows' intervals by photo are paired like their values)."""
+    draws = np.random.Generator(np.random.PCG64(seed)).integers(0, n_photos, size=(n_boot, n_photos))
+    counts = np.zeros((n_boot, n_photos))
+    np.add.at(counts, (np.arange(n_boot)[:, None], draws), 1.0)
+    counts.flags.writeable = False
+    return counts
+
+
+def rms_ci_by_photo(sq_sums, counts, alpha: float = 0.05) -> tuple[float, float]:
+    """The percentile CI of sqrt(Σ squares / Σ count) resampling photos, from each photo's sum of squares and count
+    (photos with no count left out); NaN with fewer than 2 photos."""
+    s, n = np.asarray(sq_sums, float), np.asarray(counts, float)
+    s, n = s[n > 0], n[n > 0]
+    if n.size < 2:
+        return float("nan"), float("nan")
+    c = photo_draws(n.size)
+    lo, hi = np.percentile(np.sqrt((c @ s) / (c @ n)), [100 * alpha / 2, 100 * (1 - alpha / 2)])
+    return float(lo), float(hi)
+
+
+def _photo_squares(arrs) -> tuple[np.ndarray, np.ndarray]:
+    """Each photo's sum of squared finite values and their count."""
+    a = [np.asarray(x, float).ravel() for x in arrs]
+    return (np.array([np.sum(v[np.isfinite(v)] ** 2) for v in a]),
+            np.array([np.count_nonzero(np.isfinite(v)) for v in a], float))
 
 
 def pooled_rms(rms: np.ndarray, n: np.ndarray) -> float:
@@ -82,7 +114,11 @@ def row_summary(row: Row, model: BoardModel, reference: dict | None, reference_c
         s, ci = pooled_rms_ci(rms, n)
         covered = np.isfinite(rms)
         out["per_photo_straightness_px"] = [pooled_rms(f.rms_px.ravel(), f.n_points.ravel()) for f in row.sides]
-        out.update(straightness_px=s, straightness_ci=ci, straightness_median_px=float(np.nanmedian(rms))
+        ok = [np.isfinite(f.rms_px) & (f.n_points > 0) for f in row.sides]
+        ci_photos = rms_ci_by_photo([np.sum(f.rms_px[k] ** 2 * f.n_points[k]) for f, k in zip(row.sides, ok)],
+                                    [np.sum(f.n_points[k]) for f, k in zip(row.sides, ok)])
+        out.update(straightness_px=s, straightness_ci=ci, straightness_ci_photos=ci_photos,
+                   straightness_median_px=float(np.nanmedian(rms))
                    if covered.any() else float("nan"), sides_covered=int(covered.sum()), sides_total=int(rms.size),
                    side_coverage=float(covered.mean()) if rms.size else float("nan"),
                    converged_fraction=row.converged / row.candidates if row.candidates else float("nan"),
@@ -97,6 +133,7 @@ def row_summary(row: Row, model: BoardModel, reference: dict | None, reference_c
             out["own_corner_outward_px"] = _outward_offset(row, jn)
     else:
         out.update(straightness_px=float("nan"), straightness_ci=(float("nan"),) * 2,
+                   straightness_ci_photos=(float("nan"),) * 2,
                    straightness_median_px=float("nan"), sides_covered=0, sides_total=0, side_coverage=float("nan"),
                    converged_fraction=float("nan"), points_per_side=float("nan"), refine_s=float("nan"))
     corners = _flat([np.all(np.isfinite(c), axis=2) for c in row.corners])
@@ -111,7 +148,10 @@ def row_summary(row: Row, model: BoardModel, reference: dict | None, reference_c
     _, calib_ci = rms_ci(_flat(row.cal.residual_px))
     loo, loo_ci = rms_ci(_flat(row.loo["residual_px"]))
     out.update(calib_rms_px=row.cal.rms_px, calib_rms_ci=calib_ci,
-               loo_rms_px=loo, loo_rms_ci=loo_ci, loo_per_photo_px=list(row.loo["per_view_rms_px"]),
+               calib_rms_ci_photos=rms_ci_by_photo(*_photo_squares(row.cal.residual_px)),
+               loo_rms_px=loo, loo_rms_ci=loo_ci,
+               loo_rms_ci_photos=rms_ci_by_photo(*_photo_squares(row.loo["residual_px"])),
+               loo_per_photo_px=list(row.loo["per_view_rms_px"]),
                calib_per_photo_px=[float(np.sqrt(np.nanmean(r ** 2))) for r in row.cal.residual_px])
     out.update(row.cal.intrinsics())
     if reference:
