@@ -200,7 +200,8 @@ def _calibration_table(sums, reference) -> str:
             body.append([s["label"], "—", "—", "—", "—", "—", "—", *("—",) * 6, s.get("failure") or "—"])
             continue
         body.append([s["label"], num(s["calib_rms_px"]), ci(s["calib_rms_ci"]), ci(s["calib_rms_ci_photos"]),
-                     num(s["loo_rms_px"]), ci(s["loo_rms_ci"]), ci(s["loo_rms_ci_photos"]), num(s["fx"], 2), num(s["fy"], 2), num(s["cx"], 2), num(s["cy"], 2),
+                     num(s["loo_rms_px"]), ci(s["loo_rms_ci"]), ci(s["loo_rms_ci_photos"]), num(s["fx"], 2),
+                     num(s["fy"], 2), num(s["cx"], 2), num(s["cy"], 2),
                      num(s["k1"], 4), num(s["k2"], 4), f"{s['corners_used']}/{s['corners_total']}"])
     if reference:
         body.append([f"published ({reference.get('source', 'reference')})", "—", "—", "—", "—", "—", "—",
