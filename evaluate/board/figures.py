@@ -23,7 +23,11 @@ def _save(fig, path: Path) -> str:
     return path.name
 
 
-def _errbar(ax, y, value, ci, **kw):
+def _errbar(ax, y, value, ci, photos=None, **kw):
+    """The value with its CI over units as error bars, and ``photos`` (the CI resampling photos) as a light band
+    behind them."""
+    if photos is not None and np.all(np.isfinite(photos)):
+        ax.hlines(y, *photos, color=kw.get("color", "C0"), alpha=0.25, linewidth=6)
     lo, hi = ci
     err = None
     if np.isfinite(lo) and np.isfinite(hi):
@@ -37,12 +41,13 @@ def straightness(summaries: list[dict], out: Path) -> str:
     rows = [s for s in summaries if np.isfinite(s["straightness_px"])]
     fig, ax = plt.subplots(figsize=(6.5, 0.32 * len(rows) + 1.4))
     for y, s in enumerate(rows):
-        _errbar(ax, y, s["straightness_px"], s["straightness_ci"], color="C0")
+        _errbar(ax, y, s["straightness_px"], s["straightness_ci"], s.get("straightness_ci_photos"), color="C0")
         ax.plot([s["straightness_median_px"]], [y], "|", color="C3", markersize=10)
     ax.set_yticks(range(len(rows)), [s["label"] for s in rows], fontsize=8)
     ax.invert_yaxis()
     ax.set_xlabel("RMS of side points about their TLS line (px)")
-    ax.set_title("Straightness: pooled RMS, 95 % bootstrap CI over sides (| median side)", fontsize=9)
+    ax.set_title("Straightness: pooled RMS, 95 % bootstrap CI over sides (band: over photos; | median side)",
+                 fontsize=9)
     ax.grid(axis="x", alpha=0.3)
     return _save(fig, out / "straightness.png")
 
@@ -51,13 +56,13 @@ def calibration_rms(summaries: list[dict], out: Path) -> str:
     rows = [s for s in summaries if np.isfinite(s.get("calib_rms_px", np.nan))]
     fig, ax = plt.subplots(figsize=(6.5, 0.32 * len(rows) + 1.4))
     for y, s in enumerate(rows):
-        _errbar(ax, y - 0.15, s["calib_rms_px"], s["calib_rms_ci"], color="C0",
+        _errbar(ax, y - 0.15, s["calib_rms_px"], s["calib_rms_ci"], s.get("calib_rms_ci_photos"), color="C0",
                 label="calibration RMS" if y == 0 else None)
-        _errbar(ax, y + 0.15, s["loo_rms_px"], s["loo_rms_ci"], color="C1",
+        _errbar(ax, y + 0.15, s["loo_rms_px"], s["loo_rms_ci"], s.get("loo_rms_ci_photos"), color="C1",
                 label="leave-one-image-out RMS" if y == 0 else None)
     ax.set_yticks(range(len(rows)), [s["label"] for s in rows], fontsize=8)
     ax.invert_yaxis()
-    ax.set_xlabel("reprojection RMS (px); 95 % bootstrap CI over corners")
+    ax.set_xlabel("reprojection RMS (px); 95 % bootstrap CI over corners (band: over photos)")
     ax.set_title("Zhang calibration (k1, k2) of each row's corners", fontsize=9)
     ax.grid(axis="x", alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
