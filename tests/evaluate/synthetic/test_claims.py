@@ -17,7 +17,8 @@ def table(rmse: dict, us: dict | None = None, significant: bool = True, sens_bes
             for m, v in rmse.items()]
     shares = shares or {"ideal": (0.1, 0.1, 0.3, 0.5), "slope": (0.1, 0.2, 0.3, 0.4),
                         "texture": (0.1, 0.2, 0.3, 0.4), "asymmetric": (0.1, 0.4, 0.4, 0.1)}
-    windows = [{"model": "4p", "scenario": s, "w5": a, "w7": b, "w9": c, "w11": d} for s, (a, b, c, d) in shares.items()]
+    windows = [{"model": "4p", "scenario": s, "w5": a, "w7": b, "w9": c, "w11": d}
+               for s, (a, b, c, d) in shares.items()]
     wilcoxon = [{"method": m, "significant": significant, "median_difference": 0.01, "p_value": 1e-4}
                 for m in cl.SEED_RMSE if m not in ("dynamic_erf_2p", "dynamic_erf_4p")]
     deltas = [-0.10, -0.05, 0.0, 0.05, 0.10]
