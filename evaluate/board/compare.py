@@ -28,7 +28,7 @@ import numpy as np
 
 from edgetruth.evaluate import stats
 from edgetruth.evaluate.board.measure import Row
-from edgetruth.evaluate.board.summary import N_BOOT, SEED, bootstrap_indices, photo_draws
+from edgetruth.evaluate.board.summary import N_BOOT, SEED, bootstrap_indices, photo_resamples
 
 FAMILIES = ("straightness", "reprojection", "loo", "side_length")
 FAMILY_LABELS = {"straightness": "straightness per side (px)",
@@ -81,9 +81,8 @@ def by_photo(d: np.ndarray, photo: np.ndarray, n_boot: int = N_BOOT, seed: int =
     out = {"photo_means": means.tolist(), "n_photos": int(s.size),
            "same_sign": int(np.sum(np.sign(means) == np.sign(overall))) if overall != 0 else 0,
            "mean_difference_ci_photos": (float("nan"), float("nan"))}
-    if s.size >= 2:
-        counts = photo_draws(s.size, n_boot, seed)
-        boot = (counts @ s) / (counts @ n)
+    boot = photo_resamples(s, n, n_boot, seed)
+    if boot is not None:
         lo, hi = np.percentile(boot, [2.5, 97.5])
         out["mean_difference_ci_photos"] = (float(lo), float(hi))
     return out

@@ -48,15 +48,24 @@ def photo_draws(n_photos: int, n_boot: int = N_BOOT, seed: int = SEED) -> np.nda
     return counts
 
 
-def rms_ci_by_photo(sq_sums, counts, alpha: float = 0.05) -> tuple[float, float]:
-    """The percentile CI of sqrt(Σ squares / Σ count) resampling photos, from each photo's sum of squares and count
-    (photos with no count left out); NaN with fewer than 2 photos."""
-    s, n = np.asarray(sq_sums, float), np.asarray(counts, float)
+def photo_resamples(sums, counts, n_boot: int = N_BOOT, seed: int = SEED) -> np.ndarray | None:
+    """Σ sums / Σ counts over the photos drawn, one per resample of the photos (``photo_draws``), from each photo's
+    sum and count (photos with no count left out); None with fewer than 2 photos."""
+    s, n = np.asarray(sums, float), np.asarray(counts, float)
     s, n = s[n > 0], n[n > 0]
     if n.size < 2:
+        return None
+    c = photo_draws(n.size, n_boot, seed)
+    return (c @ s) / (c @ n)
+
+
+def rms_ci_by_photo(sq_sums, counts, alpha: float = 0.05) -> tuple[float, float]:
+    """The percentile CI of sqrt(Σ squares / Σ count) resampling photos (``photo_resamples``); NaN with fewer than 2
+    photos."""
+    boot = photo_resamples(sq_sums, counts)
+    if boot is None:
         return float("nan"), float("nan")
-    c = photo_draws(n.size)
-    lo, hi = np.percentile(np.sqrt((c @ s) / (c @ n)), [100 * alpha / 2, 100 * (1 - alpha / 2)])
+    lo, hi = np.percentile(np.sqrt(boot), [100 * alpha / 2, 100 * (1 - alpha / 2)])
     return float(lo), float(hi)
 
 
