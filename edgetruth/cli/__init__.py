@@ -60,10 +60,10 @@ def add_pattern_option(p: argparse.ArgumentParser, what: str, required: bool = F
                         f"10 x 7 squares is 9x6); {what}")
 
 
-def add_square_m_option(p: argparse.ArgumentParser, what: str) -> None:
+def add_square_m_option(p: argparse.ArgumentParser, what: str, required: bool = True) -> None:
     """``--square-m METRES``: a chessboard's printed square, as every command that reads one takes it
     (``parse_square_m``); ``what`` says what the side sets."""
-    p.add_argument("--square-m", required=True, metavar="METRES",
+    p.add_argument("--square-m", required=required, metavar="METRES",
                    help=f"side of one printed square in metres (e.g. 0.025); {what}")
 
 

@@ -114,3 +114,70 @@ def test_twin_bend_curls_each_board(tmp_path):
     assert s_render == pytest.approx(150.0, abs=1e-9)
     assert np.allclose(bend_mm(m, [1.0, 1.0], 0.03), curls, atol=1e-5)
     print(f"flat views' curls: max |term| {np.abs(curls).max():.4f} mm")
+
+
+def _zhang_folder(tmp_path):
+    """A folder of Zhang's 5 photos alone, and his model file."""
+    from edgetruth.evaluate.board.reference import shipped_set
+
+    s = shipped_set("zhang1998")
+    photos = tmp_path / "zhang"
+    photos.mkdir()
+    for p in s["photos"]:
+        (photos / p.name).write_bytes(p.read_bytes())
+    return photos, s["model"]
+
+
+def test_twin_of_a_board_of_separate_squares(tmp_path, capsys):
+    """Zhang's 5 photos with `--model Model.txt --model-unit-m 0.0254`: DIR holds the model (its bytes), the spec
+    renders from it (5 groups, poses in inches), the tone is the assumed power (2.2, or --tone-power's) and says so,
+    and the study command to paste names the twin's model."""
+    from edgetruth.render.dataset.spec import load_spec
+
+    photos, model = _zhang_folder(tmp_path)
+    out = tmp_path / "zt"
+    assert main(["twin", str(photos), "--model", str(model), "--model-unit-m", "0.0254", "-o", str(out),
+                 "--no-progress"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["camera.toml", "measurements.json", "model.txt", "twin.toml"]
+    assert (out / "model.txt").read_bytes() == model.read_bytes()
+    spec = load_spec(out / "twin.toml")
+    assert spec.n_images == 5 and spec.sensor.output == "srgb8" and spec.sensor.output_gamma == 2.2
+    assert spec.squares.model_unit_m == 0.0254 and spec.squares.n_squares == 64
+    text = " ".join((out / "twin.toml").read_text().replace("#", "").split())
+    assert "not measurable on separate squares (no junctions); a power of 2.2 assumed (--tone-power)" in text
+    m = json.loads((out / "measurements.json").read_text())
+    assert m["board"]["kind"] == "model" and m["board"]["squares"] == 64 and "t_model" in m["photos"][0]
+    cap = capsys.readouterr().out
+    assert "output_gamma 2.2 (assumed, --tone-power)" in cap
+    study = shlex.split(re.search(r"compare: `(.*)`", cap).group(1))
+    assert study == ["edgetruth", "study", "twin", str(photos), "--model", str(out / "model.txt"), "--twin",
+                     str(out / "twin.toml"), "-o", "RUN"]
+    assert main(["twin", str(photos), "--model", str(model), "--model-unit-m", "0.0254", "--tone-power", "1", "-o",
+                 str(tmp_path / "lin"), "--no-progress"]) == 0
+    assert load_spec(tmp_path / "lin" / "twin.toml").sensor.output_gamma == 1.0
+
+
+def test_twin_board_options_are_checked(tmp_path, capsys):
+    """A chessboard's options with a model's, or either's half: exit 2, one line naming the option and the fix;
+    nothing written."""
+    photos, model = _zhang_folder(tmp_path)
+    o = ["-o", str(tmp_path / "u"), "--no-progress"]
+    cases = [
+        (["--pattern", "9x6", "--square-m", "0.03", "--model", str(model)], "either --pattern"),
+        ([], "either --pattern"),
+        (["--pattern", "9x6"], "--pattern needs --square-m"),
+        (["--pattern", "9x6", "--square-m", "0.03", "--tone-power", "2"], "--tone-power: for --model"),
+        (["--pattern", "9x6", "--square-m", "0.03", "--model-unit-m", "1"], "--model-unit-m: for --model"),
+        (["--model", str(model)], "--model needs --model-unit-m"),
+        (["--model", str(model), "--model-unit-m", "0"], "--model-unit-m '0'"),
+        (["--model", str(model), "--model-unit-m", "1", "--square-m", "0.03"], "--square-m: for --pattern"),
+        (["--model", str(model), "--model-unit-m", "1", "--bend"], "--bend: for chessboards only"),
+        (["--model", str(model), "--model-unit-m", "1", "--tone-power", "9"], "--tone-power 9"),
+        (["--model", str(tmp_path / "none.txt"), "--model-unit-m", "1"], "none.txt"),
+    ]
+    for extra, words in cases:
+        capsys.readouterr()
+        assert main(["twin", str(photos), *extra, *o]) == 2, extra
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0], (extra, err)
+    assert not (tmp_path / "u").exists()

@@ -1,4 +1,8 @@
-"""A digital twin of your own chessboard photos: measure what a twin needs on them, write its camera and scene.
+"""A digital twin of your own board photos: measure what a twin needs on them, write its camera and scene.
+
+A board of separate squares (``edgetruth twin PHOTOS --model Model.txt --model-unit-m 0.0254 -o DIR``) is measured
+by ``measure_squares.measure_squares`` (its docstring says how each measurement differs from a chessboard's) and
+written here alike, its model file named by the spec (``model_ref``).  The chessboard's path:
 
 ``edgetruth twin PHOTOS --pattern 9x6 --square-m 0.025 -o DIR`` (``measure.measure_chessboard``, then ``twin_texts``
 here) writes ``DIR/camera.toml``, ``DIR/twin.toml`` (one group per photo: ``edgetruth render DIR/twin.toml``
@@ -45,7 +49,9 @@ light's direction, and the sensor's noise: shot noise with its SD before the out
 white of ``WHITE_REF_DN``, and ``dark_noise_e`` of read noise on top.  A photo's noise is measured after its JPEG; by
 default a twin of JPEG photos with a linear tone takes both from their white and dark SDs before their JPEG
 (``jpeg_synthetic.noise_before_jpeg``, ``noise_before_jpeg``: medians), other photos their white SD less
-``DARK_NOISE_E`` of read noise.  The twin study's Table 3 compares the noise of photos and twin.
+``DARK_NOISE_E`` of read noise.  Through a tone curve (8-bit photos, ``output_gamma`` != 1) the darks' SD tells noise
+before the curve from noise after it: ``curve_noise`` fits both to the unsaturated photos' dark and white SDs and the
+twin adds the latter as ``output_noise_dn``.  The twin study's Table 3 compares the noise of photos and twin.
 """
 from __future__ import annotations
 
@@ -136,11 +142,15 @@ def bend_mm(m: dict, ring: list[float], square_m: float) -> list[list[float]]:
 
 
 def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: float, source: str,
-               assumptions: TwinAssumptions = TwinAssumptions(), bend: bool = False) -> tuple[str, str]:
-    """(camera TOML, scene TOML) of the twin of the photos ``m`` (``measure.measure_chessboard``): ``name`` and
-    ``description`` the spec's, ``camera_ref`` how the spec names the camera (a shipped name or a path relative to
-    the spec), ``square_m`` the printed square's side (m; it scales the poses only), ``source`` the photos in words
-    (for the headers); ``bend``: each board curled as its photo's (``bend_mm``)."""
+               assumptions: TwinAssumptions = TwinAssumptions(), bend: bool = False,
+               model_ref: str | None = None) -> tuple[str, str]:
+    """(camera TOML, scene TOML) of the twin of the photos ``m`` (``measure.measure_chessboard``, or for a board of
+    separate squares ``measure_squares.measure_squares``): ``name`` and ``description`` the spec's, ``camera_ref``
+    how the spec names the camera (a shipped name or a path relative to the spec), ``square_m`` the printed
+    square's side (m), or for a board of separate squares the model file's unit (m) (it scales the poses only),
+    ``source`` the photos in words (for the headers); ``bend``: each board curled as its photo's (``bend_mm``;
+    chessboards only); ``model_ref``: how the spec names a board of separate squares' model file (required
+    for one)."""
     from edgetruth.evaluate.board.twin.blur_inverse import aberration_sigma_px
     from edgetruth.render.optics.camera import camera_from_dict
     from edgetruth.render.optics.mtf import diffraction_cutoff_cy_px
@@ -152,7 +162,11 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise InputError(f"{twice[0]}: two photos share this name; a twin names one group per photo, so rename one")
-    cols, rows = m["pattern"]
+    chess = "pattern" in m
+    if not chess and (bend or model_ref is None):
+        raise InputError("--bend: for chessboards only (a board of separate squares has no bend check); drop it"
+                         if bend else "a board of separate squares' twin names its model file (model_ref)")
+    cols, rows = m["pattern"] if chess else (0, 0)
     clean = [p for p in photos if not p["white_saturated"]] or photos
     raw = float(m.get("full_scale", 255.0)) > 255.0
     if raw and a.white_noise_dn is not None:
@@ -168,8 +182,8 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     if not (math.isfinite(sig_x) and math.isfinite(sig_y)):
         raise InputError("the photos' edges gave no blur (the photo model found no sides); the twin needs it")
     # a full square at most (the crossing reads a half-step past its far side); no ring square in view: a full one
-    ring = [round(min(_median([p["ring"][k] for p in photos], 1.0), 1.0), 3) for k in ("x", "y")]
-    dist_m = float(np.median([p["t_squares"][2] for p in photos])) * square_m
+    ring = [round(min(_median([p["ring"][k] for p in photos], 1.0), 1.0), 3) for k in ("x", "y")] if chess else None
+    dist_m = float(np.median([translation(p)[2] for p in photos])) * square_m
     output, quality, output_words = _output(photos) if not raw else ("raw", None, _raw_words(m))
     gamma = float(m["tone"]["output_gamma"])
     # the 8-bit sensor (raw photos replace its gain and read noise by their photon transfer's, below)
@@ -201,12 +215,30 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     def lin(stored_8bit: float) -> float:
         return stored_8bit if gamma == 1.0 else full * (stored_8bit / full) ** gamma
 
-    slope = 1.0 if gamma == 1.0 else gamma * (WHITE_REF_DN / full) ** (gamma - 1.0)  # d linear / d stored at 220
+    def dlin(stored_8bit: float) -> float:
+        return 1.0 if gamma == 1.0 else gamma * (stored_8bit / full) ** (gamma - 1.0)
+
+    slope = dlin(WHITE_REF_DN)  # d linear / d stored at 220
     sd_lin = white_sd * slope
     # the read noise in these units is r k 255 g / span = r s^2 / L (s the shot SD at L = lin(220)): a measured SD is
     # both, so the shot part solves s^2 + (r s^2 / L)^2 = sd^2
     c = (read_e / lin(WHITE_REF_DN)) ** 2
-    if a.white_noise_dn is None and not derived_shot and c > 0:
+    # through a tone curve the darks' SD tells noise before it (stretched there by the curve) from noise after it
+    unsat = [p for p in photos if not p["white_saturated"]]
+    curve = None
+    if not raw and gamma != 1.0 and a.white_noise_dn is None and len(unsat) >= 2:
+        # q (linear units per electron) sets K = q span / full: at least 1e-4 DN/e-, whose ADC range (span / K e-)
+        # a full well (at most 1e8 e-) still holds
+        curve = curve_noise(unsat, lin, dlin, read_e, lin(WHITE_REF_DN), q_min=1e-4 * full / span)
+        sd_lin = curve["shot_lin"]
+        white_sd = sd_lin / slope
+        own_noise = [photo_output_noise(p, curve["q"], lin, dlin, read_e) for p in photos]
+        white_why = (f"with a constant noise after the curve, output_noise_dn {curve['output_dn']:.2f} DN, fitted to "
+                     f"the {len(unsat)} unsaturated photos' dark and white SDs less the 8-bit rounding (their SDs "
+                     f"within {100 * curve['rms_rel']:.0f} % RMS; {read_e:g} e- of read noise held); each group adds "
+                     f"its photo's own ({_range(own_noise, '.2f')} DN: what its dark and white SDs hold beyond the "
+                     "shot noise)")
+    if a.white_noise_dn is None and not derived_shot and curve is None and c > 0:
         total, sd_lin = white_sd, math.sqrt((math.sqrt(1.0 + 4.0 * c * sd_lin ** 2) - 1.0) / (2.0 * c))
         white_sd = sd_lin / slope
         white_why += f", {total:.2f} DN in all, less the read noise"
@@ -233,7 +265,7 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
 
     def defocus_px(p: dict) -> float:
         """The blur disk's radius (px) at the board's centre."""
-        z = board_centre_m(p, (cols, rows), square_m)[2]
+        z = board_centre_m(p, centre_model(m), square_m)[2]
         return float(lens.defocus_radius_px(z))
 
     def jpeg_px(p: dict, axis: str) -> float:
@@ -247,12 +279,16 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
 
     cal_words = (f"Zhang's calibration on the {cols * rows} line corners of every photo (ERF4P-fixed11, the grid "
                  f"lines fitted in the undistorted image; `edgetruth calibrate --pattern {cols}x{rows} --corners "
-                 f"lines`), RMS {m['rms_px']:.4f} px")
+                 f"lines`), RMS {m['rms_px']:.4f} px" if chess else
+                 f"Zhang's calibration (k1, k2, as his) on the corners of the {4 * m['board']['squares']} squares' "
+                 "side lines (Canny-Devernay points, edgetruth.evaluate.board.photo_model.board_lines) of every "
+                 f"photo, RMS {m['rms_px']:.4f} px")
     cam = _comment(
         f"The camera of {source}, as edgetruth measured it: {cal_words}.  Written by `edgetruth twin` "
         f"(edgetruth.evaluate.board.twin.derive).  Assumed (nothing published): the pixel pitch ({a.pitch_um} um), "
-        f"the f-number (f/{a.f_number:g}) and the focus (the median board distance, with a square of "
-        f"{square_m * 1000:g} mm); they set f = fx * pitch and the defocus, which is small here.  The lens blur is "
+        f"the f-number (f/{a.f_number:g}) and the focus (the median board distance, with "
+        + (f"a square of {square_m * 1000:g} mm" if chess else f"a model unit of {square_m * 1000:g} mm")
+        + "); they set f = fx * pitch and the defocus, which is small here.  The lens blur is "
         f"the median of the unsaturated photos' ERF sigma per axis (edgetruth.evaluate.board.photo_model: "
         f"{sig_x:.3f} px along x, {sig_y:.3f} px along y)"
         + (f", less what the JPEG adds ({jpeg_x:.3f} and {jpeg_y:.3f} px on a synthetic board)" if output == "jpeg"
@@ -260,7 +296,8 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         "sigma (edgetruth.evaluate.board.twin.blur_inverse; in focus); the twin scene sets it per photo, at the "
         "photo's defocus, and with its own sigma only where that is unbiased.  " + (
             f"The lens shading (shading_a2, shading_a4: 1 + a2 h^2 + a4 h^4, h the field height) is what the "
-            f"unsaturated photos' light squares show beyond the twin's light (edgetruth.evaluate.board.twin.shading; "
+            f"unsaturated photos' {'light squares' if chess else 'white gaps between the squares'} show beyond "
+            "the twin's light (edgetruth.evaluate.board.twin.shading; "
             f"{shading['levels']} levels over {shading['photos']} photos): their RMS about the fit "
             f"{100 * shading['rms_after']:.1f} % of the level, {100 * shading['rms_before']:.1f} % with the light "
             "alone." if "note" not in shading else f"Lens shading: {shading['note']}.")) + f"""
@@ -295,18 +332,31 @@ k3 = {dist[4]:.6f}
     for p, curl, rel in zip(photos, bends, relative):
         sat = p["white_saturated"]
         white = black + (p["dark"] - black) * ratio if sat else p["white"]
+        own = photo_output_noise(p, curve["q"], lin, dlin, read_e) if curve is not None else None
+        # a model's ring is clipped at its top, not at its mean (which holds the blurred edges): the level before the
+        # clip from the share of the ring there and the photo's noise (``photo_model.clipped_white``)
+        clip_at = p["white"] if "white_top" not in p or raw else p["white_top"]
+        if sat and clip_at != p["white"]:
+            from edgetruth.evaluate.board.photo_model import clipped_white
+
+            white = clipped_white({"at_max_fraction": p["white_at_max"]}, p["dark_sd"] if own is None else own,
+                                  clip_at)
         own_x, own_y = not sat and p["sigma_x_px"] is not None, not sat and p["sigma_y_px"] is not None
         sx, jx = (p["sigma_x_px"], jpeg_px(p, "x")) if own_x else (sig_x, jpeg_x)
         sy, jy = (p["sigma_y_px"], jpeg_px(p, "y")) if own_y else (sig_y, jpeg_y)
         ab_x, ab_y = aberration_um(sx, jx, defocus_px(p)), aberration_um(sy, jy, defocus_px(p))
         R = ", ".join("[" + ", ".join(f"{v:.7f}" for v in row) + "]" for row in p["R"])
-        t = ", ".join(f"{v:.5f}" for v in p["t_squares"])
-        sensor = f"output_clip_dn = {p['white']:.1f}" if sat else ""
+        t = ", ".join(f"{v:.5f}" for v in translation(p))
+        sensor = f"output_clip_dn = {clip_at:.1f}" if sat else ""
         if raw:  # the well clips a white flat below the ADC's top
             top = 2 ** _raw_bits(m) - 1
             sensor = f"full_well_e = {(p['white'] - black) / k:.1f}" if sat and p["white"] < top - 0.5 else ""
-        note = (f"white saturated at {p['white']:.0f} (SD {p['white_sd']:.2f}); before the clip dark x {ratio:.2f} = "
-                f"{white:.0f}; blur: the unsaturated photos' median" if sat else
+        if own is not None:  # each photo's own noise after the curve (a palette's dither, a cleaner frame)
+            sensor = ", ".join(x for x in (sensor, f"output_noise_dn = {own:.2f}") if x)
+        before = (f"dark x {ratio:.2f} = {white:.0f}" if clip_at == p["white"] else
+                  f"{white:.1f}, from the {100 * p['white_at_max']:.0f} % of its ring there")
+        note = (f"white saturated at {clip_at:.0f} (SD {p['white_sd']:.2f}); before the clip {before}; blur: the "
+                "unsaturated photos' median" if sat else
                 f"white {p['white']:.1f}, dark {p['dark']:.1f}; blur: "
                 + ("its own" if p["sigma_x_px"] is not None and p["sigma_y_px"] is not None else
                    "the unsaturated photos' median"))
@@ -322,45 +372,73 @@ camera = {{ aberration_sigma_um = {ab_x:.3f}, aberration_sigma_y_um = {ab_y:.3f}
 poses = [{{ R = [{R}], t = [{t}] }}]
 """.replace("\n\n", "\n"))
     sat = [p for p in photos if p["white_saturated"]]
+    margin_m = 0.0 if chess else m["board"]["side_model"] * square_m
+    board_keys = (f'chessboard = "{cols}x{rows}"\nside_m = {square_m}\nring = [{ring[0]:.3f}, {ring[1]:.3f}]\n'
+                  f'margin_m = {0.35 * square_m:.5f}' if chess else
+                  f'model = {_toml_str(model_ref)}\nmodel_unit_m = {square_m}\nmargin_m = {margin_m:.5f}')
     prnu_line = f"prnu_pct = {100 * rn.prnu:.3f}\n" if raw and round(100 * rn.prnu, 3) > 0 else ""
     tone = m["tone"]
     tone_words = (f"the unsaturated photos' power {tone['power']:.2f} (95 % {tone['ci'][0]:.2f}-{tone['ci'][1]:.2f}; "
                   f"--tone auto)" if tone.get("power") is not None and not raw else tone.get("note", "not measured"))
-    unsat = [p for p in photos if not p["white_saturated"]]
     noise = (f"dark SD {_range([p['dark_sd'] for p in unsat])} at {_range([p['dark'] for p in unsat], '.0f')}, "
              f"white SD {_range([p['white_sd'] for p in unsat])} at {_range([p['white'] for p in unsat], '.0f')}"
              if unsat else "no unsaturated photo")
     sensor_lines = [f'output = "{output}"'] + ([f"jpeg_quality = {quality}"] if quality is not None else [])
-    clip = f" at {_range([p['white'] for p in sat], '.0f')}" if sat else ""
+    by_top = not chess and not raw  # a model's ring: clipped at its top, the level before from the share there
+    clip = f" at {_range([p['white_top' if by_top else 'white'] for p in sat], '.0f')}" if sat else ""
+    if chess:
+        board_lines = [
+            _comment(f"A digital twin of {source}: a {cols}x{rows} chessboard, the camera edgetruth calibrated on "
+                     f"them ({camera_ref}), one group per photo at the pose its line corners give (cv2.solvePnP on the "
+                     "board study's chessboard model; t in squares).  Written by `edgetruth twin` "
+                     "(edgetruth.evaluate.board.twin.derive); docs/board.md.  Measured on the photos:"),
+            _comment(f"the board: {cols + 1} x {rows + 1} squares, the outer ring cut at {ring[0]:.3f} (x) and "
+                     f"{ring[1]:.3f} (y) of a square beyond the outermost inner corners (median over the photos);",
+                     True)]
+        where_white, flat_rule, beyond = "at its light squares' centres", "noise SD < half the dark's", \
+            "the board's margin beyond the ring"
+    else:
+        over = {k: [p["overshoot_pct"][k] for p in photos] for k in "xy"}
+        board_lines = [
+            _comment(f"A digital twin of {source}: a board of {m['board']['squares']} separate squares (the model "
+                     f"file {model_ref}, {square_m:g} m per unit), the camera edgetruth calibrated on them "
+                     f"({camera_ref}), one group per photo at the pose its squares' corners give (cv2.solvePnP on "
+                     "the model; t in model units).  Written by `edgetruth twin` "
+                     "(edgetruth.evaluate.board.twin.derive, measure_squares); docs/board.md.  Measured on the "
+                     "photos:"),
+            _comment(f"the board: the model's squares on a white plate one square's side beyond their bounding box "
+                     f"(assumed: {margin_m * 1000:.1f} mm; the sheet's edge is not measured);", True),
+            _comment(f"sharpening: the photos' edges overshoot by {_range(over['x'])} % of the step along x and "
+                     f"{_range(over['y'])} % along y (the pooled ESF, edgetruth.evaluate.board.photo_model): the twin "
+                     "renders no sharpening, and its blur is the ERF sigma read with it;", True)]
+        where_white, flat_rule, beyond = "in a ring around its squares", \
+            "noise SD < half the dark's, or over 30 % of it at its top", "the sheet's true extent"
     scene = "\n".join([
-        _comment(f"A digital twin of {source}: a {cols}x{rows} chessboard, the camera edgetruth calibrated on them "
-                 f"({camera_ref}), one group per photo at the pose its line corners give (cv2.solvePnP on the board "
-                 "study's chessboard model; t in squares).  Written by `edgetruth twin` "
-                 "(edgetruth.evaluate.board.twin.derive); docs/board.md.  Measured on the photos:"),
-        _comment(f"the board: {cols + 1} x {rows + 1} squares, the outer ring cut at {ring[0]:.3f} (x) and "
-                 f"{ring[1]:.3f} (y) of a square beyond the outermost inner corners (median over the photos);", True),
+        *board_lines,
         _comment(f"tone: {tone_words}: output_gamma = {gamma:g};", True),
         _comment(f"output: {output_words};", True),
-        _comment("levels: each photo's white at its light squares' centres (its exposure, irradiance_w_m2 here); the "
+        _comment(f"levels: each photo's white {where_white} (its exposure, irradiance_w_m2 here); the "
                  f"print's contrast, white / dark = {ratio:.2f} (median of the unsaturated photos), sets the squares' "
                  "reflectance;", True),
-        _comment(f"saturation: {len(sat)} photo(s) with whites flat (noise SD < half the dark's){clip}: "
+        _comment(f"saturation: {len(sat)} photo(s) with whites flat ({flat_rule}){clip}: "
                  + ("the ADC's top or full_well_e there" if raw else "output_clip_dn there")
-                 + f", with the white before the clip their dark level x {ratio:.2f}"
+                 + (", with the white before the clip from the share of the ring at its top and the photo's noise "
+                    "(edgetruth.evaluate.board.photo_model.clipped_white)" if by_top else
+                    f", with the white before the clip their dark level x {ratio:.2f}")
                  + (" (above the black level)" if raw else "") + ";", True),
         _comment(f"noise: {noise}: " + (
             f"photon transfer over {rn.points} levels (edgetruth.evaluate.board.twin.photon_transfer), "
             f"K = {k:.4f} DN/e- (with the level), read noise {read_e:.1f} e- ({rn.read_why}), black level "
             f"{black:.1f} DN ({rn.black_why}), PRNU {100 * rn.prnu:.2f} % ({rn.prnu_why}; the print's texture looks "
             "alike) (the twin study's Table 3 compares the photos' noise and the twin's)." if raw else
-            f"shot-noise limited, a sensor of K = {k:.4f} DN/e-, {read_e:g} e- read "
+            ("shot-noise limited, " if curve is None else "") + f"a sensor of K = {k:.4f} DN/e-, {read_e:g} e- read "
             + ("noise" if read_why in ("given", "assumed") else f"noise ({read_why})")
             + f", the white's shot-noise SD before the output coding {white_sd:.2f} DN at {WHITE_REF_DN:g} "
             f"({white_why}; the twin study's Table 3 compares the photos' noise and the twin's)."), True),
         *([_comment("bend: each photo's board curled as the calibration's bend check fitted it (x^2, xy, y^2; "
                     "board_bend_mm, rescaled to the renderer's s; docs/board.md, 'A bent twin');", True)]
           if bend else []),
-        _comment("Not reproduced: the room behind the board (black here), the board's margin beyond the ring, uneven "
+        _comment(f"Not reproduced: the room behind the board (black here), {beyond}, uneven "
                  "light beyond the twin's one lamp and the lens shading fitted to the photos (camera).")]) + f"""
 [spec]
 name = {_toml_str(name)}
@@ -370,10 +448,7 @@ spp = 256
 sampler = "multijitter"
 
 [spec.squares]
-chessboard = "{cols}x{rows}"
-side_m = {square_m}
-ring = [{ring[0]:.3f}, {ring[1]:.3f}]
-margin_m = {0.35 * square_m:.5f}
+{board_keys}
 square_reflectance = {a.board_reflectance / ratio ** gamma:.4f}
 board_reflectance = {a.board_reflectance}
 
@@ -385,20 +460,83 @@ dark_offset_dn = {black:.2f}
 dark_noise_e = {read_e:.2f}
 full_well_e = {1.05 * (2 ** _raw_bits(m) - 1 - black) / k:.1f}
 """ + prnu_line if raw else f"""output_gamma = {gamma}
-output_gain = {a.output_gain}
+output_gain = {a.output_gain}""" + (
+        "" if curve is None or curve["output_dn"] < 0.005 else f"\noutput_noise_dn = {curve['output_dn']:.2f}") + f"""
 k0_dn_per_e = {k:.5f}
 dark_noise_e = {read_e}
-full_well_e = 100000.0
+full_well_e = {max(100000.0, round(1.05 * span / k, -3))}
 """) + "\n" + "\n".join(groups)
     return cam, scene
 
 
-def board_centre_m(photo: dict, pattern, square_m: float) -> np.ndarray:
-    """The board's centre in the camera frame (m) at a photo's pose (``R``, ``t_squares``): the middle of the
-    inner corners, which is the renderer's board centre (``SquareBoard.centre_model_m``, where the lamp aims) for
-    a ring cut alike on both sides."""
-    cols, rows = pattern
-    return (np.asarray(photo["R"]) @ [(cols - 1) / 2.0, (rows - 1) / 2.0, 0.0] + photo["t_squares"]) * square_m
+def translation(photo: dict) -> list[float]:
+    """A photo's pose translation in the board's units: ``t_squares`` (chessboard) or ``t_model`` (a model file)."""
+    return photo["t_squares"] if "t_squares" in photo else photo["t_model"]
+
+
+def centre_model(m: dict) -> tuple[float, float]:
+    """The renderer's board centre (``SquareBoard.centre_model_m``, where the lamp aims) in the board's units: a
+    chessboard's middle of the inner corners (its ring cut alike on both sides), a model's squares' bounding box
+    centre."""
+    if "pattern" in m:
+        cols, rows = m["pattern"]
+        return (cols - 1) / 2.0, (rows - 1) / 2.0
+    return tuple(m["board"]["centre_model"])
+
+
+def curve_noise(photos: list[dict], lin, dlin, read_e: float, level: float, q_min: float = 1e-9) -> dict:
+    """Noise through a tone curve: shot noise before it (variance q L in the linear units of ``lin``, q per
+    electron, with ``read_e`` e- of read noise, (read_e q)²) and a constant SD o after it (stored DN), fitted to
+    the photos' dark and white SDs (stored 8-bit DN, their rounding's 1/12 taken off): at a stored level v the
+    stored variance is (q L + (read_e q)²) / L'(v)² + o², L = ``lin``(v), L' = ``dlin``(v) = dL/dv.  Before the
+    curve a dark's SD is stretched by 1 / L' (about 8x a white's at sRGB's 2.2 for a contrast of 5), after it
+    not, so the darks and whites tell them apart.  Least squares in relative variance, q >= ``q_min`` and o >= 0:
+    for each q on a log grid o² is linear (closed form), then the best refined.  -> {shot_lin: the shot SD at
+    ``level`` (linear units), q, output_dn: o, levels, rms_rel: the fitted SDs' RMS relative error}."""
+    from scipy.optimize import minimize_scalar
+
+    v = np.array([[p["dark"], p["white"]] for p in photos], float).ravel()
+    sd = np.array([[p["dark_sd"], p["white_sd"]] for p in photos], float).ravel()
+    var = np.maximum(sd ** 2 - 1.0 / 12.0, 1e-6)
+    L = np.array([lin(x) for x in v])
+    G = np.array([dlin(x) for x in v])
+
+    def before(q):
+        return (q * L + (read_e * q) ** 2) / G ** 2
+
+    def out2(q):  # the o² that fits best at this q: linear least squares in relative variance, o² >= 0
+        return max(float(np.sum((1.0 - before(q) / var) / var) / np.sum(1.0 / var ** 2)), 0.0)
+
+    def cost(log_q):
+        q = math.exp(log_q)
+        return float(np.sum(((before(q) + out2(q)) / var - 1.0) ** 2))
+
+    q_top = max(float(np.max(var * G ** 2 / L)), q_min) * 10.0
+    grid = np.linspace(math.log(q_min), math.log(q_top), 200)
+    k = int(np.argmin([cost(x) for x in grid]))
+    lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+    best = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 1e-10}) if hi > lo else None
+    log_q = best.x if best is not None and best.fun <= cost(grid[k]) else grid[k]
+    q = math.exp(log_q)
+    fitted = before(q) + out2(q)
+    return {"shot_lin": math.sqrt(q * level), "q": q, "output_dn": math.sqrt(out2(q)), "levels": int(len(v)),
+            "rms_rel": float(np.sqrt(np.mean((np.sqrt(fitted / var) - 1.0) ** 2)))}
+
+
+def photo_output_noise(photo: dict, q: float, lin, dlin, read_e: float) -> float:
+    """One photo's SD after the curve (stored DN), with the set's shot noise ``q`` before it (``curve_noise``): the
+    RMS over its dark and (unsaturated) white of what their SDs, less the 8-bit rounding, hold beyond the shot and
+    read noise through the curve (0 where they hold less)."""
+    levels = [(photo["dark"], photo["dark_sd"])] + ([] if photo["white_saturated"] else
+                                                    [(photo["white"], photo["white_sd"])])
+    rest = [sd ** 2 - 1.0 / 12.0 - (q * lin(v) + (read_e * q) ** 2) / dlin(v) ** 2 for v, sd in levels]
+    return math.sqrt(max(float(np.mean(rest)), 0.0))
+
+
+def board_centre_m(photo: dict, centre: tuple[float, float], unit_m: float) -> np.ndarray:
+    """The board's centre in the camera frame (m) at a photo's pose (``R``, ``translation``): ``centre`` (board
+    units, ``centre_model``) carried by the pose."""
+    return (np.asarray(photo["R"]) @ [centre[0], centre[1], 0.0] + translation(photo)) * unit_m
 
 
 def _shading(m: dict, a: TwinAssumptions, lens, square_m: float, linear) -> tuple[dict, list[float]]:
@@ -410,14 +548,13 @@ def _shading(m: dict, a: TwinAssumptions, lens, square_m: float, linear) -> tupl
                                                        light_square_centres, project)
     from edgetruth.render.optics.prediction import field_height
 
-    cols, rows = m["pattern"]
     K, dist = np.asarray(m["K"]), np.asarray(m["dist"])
-    centres = light_square_centres((cols, rows))
+    centres = light_square_centres(m["pattern"]) if "pattern" in m else np.asarray(m["light_points"], float)
     seen = []
     for p in m["photos"]:
-        R, t = np.asarray(p["R"]), np.asarray(p["t_squares"])
+        R, t = np.asarray(p["R"]), np.asarray(translation(p))
         points = (np.c_[centres, np.zeros(len(centres))] @ R.T + t) * square_m
-        centre = board_centre_m(p, (cols, rows), square_m)
+        centre = board_centre_m(p, centre_model(m), square_m)
         uv = project(centres, R, t, K, dist)
         seen.append((light_falloff(points, centre, -R[:, 2], np.asarray(a.light_position_m, float)),
                      field_height(lens, uv[:, 0], uv[:, 1])))

@@ -85,4 +85,20 @@ def test_the_board_centre_is_the_renderers():
     for cols, rows, ring in ((9, 6, (0.49, 0.955)), (7, 5, (1.0, 1.0)), (8, 6, (0.3, 0.7))):
         centre = SquareBoard.chessboard(cols, rows, 0.03, ring).centre_model_m
         photo = {"R": np.eye(3).tolist(), "t_squares": [0.0, 0.0, 0.0]}
-        assert np.allclose(td.board_centre_m(photo, (cols, rows), 0.03), centre, atol=1e-15)
+        centre_model = td.centre_model({"pattern": [cols, rows]})
+        assert np.allclose(td.board_centre_m(photo, centre_model, 0.03), centre, atol=1e-15)
+
+
+def test_a_models_board_centre_is_the_renderers():
+    """For a board of separate squares (Zhang's model, in inches) the twin's centre is the renderer's too: the
+    squares' bounding-box centre, carried by the pose."""
+    from edgetruth.evaluate.board.model import read_model
+    from edgetruth.evaluate.board.reference import shipped_set
+    from edgetruth.render.scene.targets import SquareBoard
+
+    model = read_model(shipped_set("zhang1998")["model"])
+    q = model.corners.reshape(-1, 2)
+    m = {"board": {"centre_model": (0.5 * (q.min(0) + q.max(0))).tolist()}}
+    board = SquareBoard(quads_model_m=model.corners * 0.0254)
+    photo = {"R": np.eye(3).tolist(), "t_model": [0.0, 0.0, 0.0]}
+    assert np.allclose(td.board_centre_m(photo, td.centre_model(m), 0.0254), board.centre_model_m, atol=1e-15)

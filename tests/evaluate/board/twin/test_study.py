@@ -222,6 +222,29 @@ def test_twin_study_of_your_own_photos(tmp_path, fast_variant, capsys):
     assert len(rows) == 4 and max(abs(v) for v in means) < 0.03
 
 
+@pytest.mark.slow  # a twin of 5 photos, rendered and studied beside them: ~18 s on 2 cores
+def test_twin_study_of_your_own_squares_photos(tmp_path, fast_variant, capsys):
+    """Zhang's photos as your own: `edgetruth twin --model` -> `study twin PHOTOS --model DIR/model.txt --twin
+    DIR/twin.toml` (4 spp, 2 methods): both board studies run on the model's squares, the report's Table 3 has a
+    twin row per photo, and Table 4 points at the measurements `edgetruth twin` wrote."""
+    from edgetruth.evaluate.board.reference import shipped_set
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for p in shipped_set("zhang1998")["photos"]:
+        (photos / p.name).write_bytes(p.read_bytes())
+    model = shipped_set("zhang1998")["model"]
+    assert main(["twin", str(photos), "--model", str(model), "--model-unit-m", "0.0254", "-o",
+                 str(tmp_path / "mine"), "--no-progress"]) == 0
+    out = tmp_path / "study"
+    assert main(["study", "twin", str(photos), "--model", str(tmp_path / "mine" / "model.txt"), "--twin",
+                 str(tmp_path / "mine" / "twin.toml"), "--spp", "4", "--methods", "erf4p_fixed11,canny_devernay",
+                 "-o", str(out), "--no-progress"]) == 0
+    report = (out / "report.md").read_text()
+    assert report.startswith("# Digital twin — mine:") and "derived by `edgetruth twin` (" in report
+    assert sum(line.startswith("| twin 000") for line in report.splitlines()) == 5
+
+
 @pytest.mark.parametrize("extra, match", [
     ([], "give one shipped set's name"),
     (["--twin", "zhang1998_twin", "--tone", "srgb"], "--tone: not an option of `study twin PHOTOS...`"),
