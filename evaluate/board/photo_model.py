@@ -472,12 +472,13 @@ SHARPENED_PCT = 3.0
 
 
 def esf_model(t: np.ndarray, camera, sigma_ab_um: float, defocus_px: float, black: float, white: float,
-              gain: float = 1.0, amount: float = 0.0, sigma_s: float = 1.0) -> np.ndarray:
+              gain: float = 1.0, amount: float = 0.0, sigma_s: float = 1.0, gamma: float | None = None) -> np.ndarray:
     """The stored 8-bit value of a pixel centred at signed distance ``t`` (px) from a straight edge, with no noise:
     the pixel-integrated ESF along one axis from the analytic OTF (pixel box, ``camera``'s diffraction, a
     Gaussian aberration ``sigma_ab_um``, a defocus disk), between linear levels ``black`` and ``white`` (fractions
-    of full scale), through the sRGB curve, ``gain``, and an unsharp mask of ``amount`` and ``sigma_s`` (px) on the
-    pixel grid (the renderer's pipeline, ``edgetruth.render.sensor.pipeline``)."""
+    of full scale), through the sRGB curve (or with ``gamma`` the power curve v^(1/gamma), the sensor's
+    ``output_gamma``), ``gain``, and an unsharp mask of ``amount`` and ``sigma_s`` (px) on the pixel grid (the
+    renderer's pipeline, ``edgetruth.render.sensor.pipeline``)."""
     from edgetruth.render.optics import mtf
     from edgetruth.render.sensor.pipeline import srgb_encode
 
@@ -491,7 +492,8 @@ def esf_model(t: np.ndarray, camera, sigma_ab_um: float, defocus_px: float, blac
     grid = (np.arange(n) - n // 2) * step
     esf = np.cumsum(lsf)
     esf = (esf - esf[0]) / (esf[-1] - esf[0])
-    e = srgb_encode(black + (white - black) * esf) * gain
+    v = black + (white - black) * esf
+    e = (srgb_encode(v) if gamma is None else np.maximum(v, 0.0) ** (1.0 / gamma)) * gain
     if amount:
         r = int(5.0 * sigma_s + 0.5)
         j = np.arange(-r, r + 1)

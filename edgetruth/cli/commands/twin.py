@@ -24,9 +24,9 @@ def register(sub) -> None:
                        description="Measure on photos of a chessboard (--pattern) or of a board of separate squares "
                                    "(--model) what a digital twin of them needs -- the camera (Zhang's calibration "
                                    "on line corners), each photo's pose, the board (a chessboard's outer ring), "
-                                   "levels and clip, blur, tone and JPEG quality -- and write a render spec "
-                                   "with one image per photo (DIR/twin.toml), its camera (DIR/camera.toml) and the "
-                                   "measurements (DIR/measurements.json).  `edgetruth render DIR/twin.toml -o R` "
+                                   "levels and clip, blur and sharpening, tone and JPEG quality -- and write a render "
+                                   "spec with one image per photo (DIR/twin.toml), its camera (DIR/camera.toml) and "
+                                   "the measurements (DIR/measurements.json).  `edgetruth render DIR/twin.toml -o R` "
                                    "renders it with exact truth (docs/board.md, 'Your own twin').")
     p.add_argument("photos", nargs="*", metavar="PHOTOS",
                    help="image files, folders, glob patterns (quoted), or a shipped photo set's name (opencv_left); "

@@ -151,7 +151,9 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     ``source`` the photos in words (for the headers); ``bend``: each board curled as its photo's (``bend_mm``;
     chessboards only); ``model_ref``: how the spec names a board of separate squares' model file (required
     for one)."""
+    from edgetruth.evaluate.board.photo_model import SHARPENED_PCT
     from edgetruth.evaluate.board.twin.blur_inverse import aberration_sigma_px
+    from edgetruth.evaluate.board.twin.sharpening import fit_sharpening, mask_noise_gain, sharpened_axes
     from edgetruth.render.optics.camera import camera_from_dict
     from edgetruth.render.optics.mtf import diffraction_cutoff_cy_px
     from edgetruth.render.sensor.linear_model import SensorModel
@@ -219,20 +221,55 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         return 1.0 if gamma == 1.0 else gamma * (stored_8bit / full) ** (gamma - 1.0)
 
     slope = dlin(WHITE_REF_DN)  # d linear / d stored at 220
+    cutoff = diffraction_cutoff_cy_px(a.pitch_um, a.wavelength_nm, a.f_number)
+    # the twin camera's thin lens (f = fx * pitch, focused at dist_m), for each photo's defocus
+    lens = camera_from_dict({"width_px": int(m["image_size"][0]), "height_px": int(m["image_size"][1]),
+                             "pitch_um": a.pitch_um, "fx_px": float(K[0, 0]), "f_number": a.f_number,
+                             "cx_px": float(K[0, 2]), "cy_px": float(K[1, 2]),
+                             "focus_distance_m": dist_m, "diffraction_wavelength_nm": a.wavelength_nm}, name)
+
+    def defocus_px(p: dict) -> float:
+        """The blur disk's radius (px) at the board's centre."""
+        z = board_centre_m(p, centre_model(m), square_m)[2]
+        return float(lens.defocus_radius_px(z))
+
+    # sharpening (an overshoot beyond photo_model.SHARPENED_PCT): along those axes the aberration and an unsharp mask
+    # are fitted together to each unsaturated photo's pooled ESF; a clipped photo takes their medians
+    axes = None if raw else sharpened_axes(clean)
+    fits = {}
+    for i, p in enumerate(photos if axes else []):
+        if not p["white_saturated"] and p.get("esf"):
+            fits[i] = fit_sharpening({ax: p["esf"][ax] for ax in axes}, lens, defocus_px(p), lin(p["dark"]) / full,
+                                     lin(p["white"]) / full, a.output_gain, gamma)
+    axes = axes if fits else None
+    typical = None if not fits else {
+        "sigma_um": {ax: _median([f["sigma_um"][ax] for f in fits.values()]) for ax in axes},
+        "amount": _median([f["amount"] for f in fits.values()]),
+        "sigma_px": _median([f["sigma_px"] for f in fits.values()])}
+
+    # the mask amplifies what noise lies before it (the sensor's, through the curve) by its variance gain, per photo
+    gains = [1.0 if not axes else mask_noise_gain(fits.get(i, typical)["amount"], fits.get(i, typical)["sigma_px"],
+                                                  axes) for i in range(len(photos))]
+
+    # through a tone curve the darks' SD tells noise before it (stretched there by the curve) from noise after it
+    unsat = [p for p in photos if not p["white_saturated"]]
+    split = not raw and gamma != 1.0 and a.white_noise_dn is None and len(unsat) >= 2
+    if axes and not split and a.white_noise_dn is None:  # measured after the mask, rendered before it
+        white_sd /= math.sqrt(_median([g for p, g in zip(photos, gains) if not p["white_saturated"]] or gains))
+        white_why += ", through the sharpening's noise gain"
     sd_lin = white_sd * slope
     # the read noise in these units is r k 255 g / span = r s^2 / L (s the shot SD at L = lin(220)): a measured SD is
     # both, so the shot part solves s^2 + (r s^2 / L)^2 = sd^2
     c = (read_e / lin(WHITE_REF_DN)) ** 2
-    # through a tone curve the darks' SD tells noise before it (stretched there by the curve) from noise after it
-    unsat = [p for p in photos if not p["white_saturated"]]
     curve = None
-    if not raw and gamma != 1.0 and a.white_noise_dn is None and len(unsat) >= 2:
+    if split:
         # q (linear units per electron) sets K = q span / full: at least 1e-4 DN/e-, whose ADC range (span / K e-)
         # a full well (at most 1e8 e-) still holds
-        curve = curve_noise(unsat, lin, dlin, read_e, lin(WHITE_REF_DN), q_min=1e-4 * full / span)
+        curve = curve_noise(unsat, lin, dlin, read_e, lin(WHITE_REF_DN), q_min=1e-4 * full / span,
+                            gains=[g for p, g in zip(photos, gains) if not p["white_saturated"]])
         sd_lin = curve["shot_lin"]
         white_sd = sd_lin / slope
-        own_noise = [photo_output_noise(p, curve["q"], lin, dlin, read_e) for p in photos]
+        own_noise = [photo_output_noise(p, curve["q"], lin, dlin, read_e, g) for p, g in zip(photos, gains)]
         white_why = (f"with a constant noise after the curve, output_noise_dn {curve['output_dn']:.2f} DN, fitted to "
                      f"the {len(unsat)} unsaturated photos' dark and white SDs less the 8-bit rounding (their SDs "
                      f"within {100 * curve['rms_rel']:.0f} % RMS; {read_e:g} e- of read noise held); each group adds "
@@ -254,19 +291,7 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         electrons = (white - black) / k if raw else white * span / (255.0 * a.output_gain * k)
         return electrons / relative * math.pi / (s0.qe * ppr * a.board_reflectance)
 
-    cutoff = diffraction_cutoff_cy_px(a.pitch_um, a.wavelength_nm, a.f_number)
-    # the twin camera's thin lens (f = fx * pitch, focused at dist_m), for each photo's defocus
-    lens = camera_from_dict({"width_px": int(m["image_size"][0]), "height_px": int(m["image_size"][1]),
-                             "pitch_um": a.pitch_um, "fx_px": float(K[0, 0]), "f_number": a.f_number,
-                             "cx_px": float(K[0, 2]), "cy_px": float(K[1, 2]),
-                             "focus_distance_m": dist_m, "diffraction_wavelength_nm": a.wavelength_nm}, name)
-
     shading, relative = _shading(m, a, lens, square_m, lambda v: lin(v) - black)
-
-    def defocus_px(p: dict) -> float:
-        """The blur disk's radius (px) at the board's centre."""
-        z = board_centre_m(p, centre_model(m), square_m)[2]
-        return float(lens.defocus_radius_px(z))
 
     def jpeg_px(p: dict, axis: str) -> float:
         return 0.0 if p.get("jpeg_sigma_px") is None else float(p["jpeg_sigma_px"][axis])
@@ -276,6 +301,9 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     def aberration_um(sigma_px: float, jpeg: float, defocus: float) -> float:
         """The Gaussian aberration whose render reads ERF sigma ``sigma_px`` once a JPEG adds ``jpeg`` px."""
         return a.pitch_um * aberration_sigma_px(sigma_px - jpeg, cutoff, defocus, ratio ** gamma, gamma)
+
+    def camera_aberration(axis: str, sigma_px: float, jpeg: float) -> float:
+        return typical["sigma_um"][axis] if axes and axis in axes else aberration_um(sigma_px, jpeg, 0.0)
 
     cal_words = (f"Zhang's calibration on the {cols * rows} line corners of every photo (ERF4P-fixed11, the grid "
                  f"lines fitted in the undistorted image; `edgetruth calibrate --pattern {cols}x{rows} --corners "
@@ -294,7 +322,10 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         + (f", less what the JPEG adds ({jpeg_x:.3f} and {jpeg_y:.3f} px on a synthetic board)" if output == "jpeg"
            else "") + ", as the Gaussian aberration whose edge through the pixel and the diffraction reads that "
         "sigma (edgetruth.evaluate.board.twin.blur_inverse; in focus); the twin scene sets it per photo, at the "
-        "photo's defocus, and with its own sigma only where that is unbiased.  " + (
+        "photo's defocus, and with its own sigma only where that is unbiased.  "
+        + ("" if not axes else f"Along {' and '.join(axes)} the photos' edges overshoot (sharpening): there the "
+           "aberration is fitted with the renderer's unsharp mask to each photo's pooled ESF "
+           "(edgetruth.evaluate.board.twin.sharpening; here the median).  ") + (
             f"The lens shading (shading_a2, shading_a4: 1 + a2 h^2 + a4 h^4, h the field height) is what the "
             f"unsaturated photos' {'light squares' if chess else 'white gaps between the squares'} show beyond "
             "the twin's light (edgetruth.evaluate.board.twin.shading; "
@@ -312,8 +343,8 @@ cy_px = {K[1, 2]:.4f}
 f_number = {a.f_number}
 focus_distance_m = {dist_m:.4f}
 diffraction_wavelength_nm = {a.wavelength_nm}
-aberration_sigma_um = {aberration_um(sig_x, jpeg_x, 0.0):.3f}
-aberration_sigma_y_um = {aberration_um(sig_y, jpeg_y, 0.0):.3f}
+aberration_sigma_um = {camera_aberration("x", sig_x, jpeg_x):.3f}
+aberration_sigma_y_um = {camera_aberration("y", sig_y, jpeg_y):.3f}
 aberration_sigma_growth = 0.0
 shading_a2 = {shading["a2"]:.4f}
 shading_a4 = {shading["a4"]:.4f}
@@ -329,10 +360,10 @@ k3 = {dist[4]:.6f}
     groups = []
     light = "[" + ", ".join(f"{v}" for v in a.light_position_m) + "]"
     bends = bend_mm(m, ring, square_m) if bend else [None] * len(photos)
-    for p, curl, rel in zip(photos, bends, relative):
+    for i, (p, curl, rel) in enumerate(zip(photos, bends, relative)):
         sat = p["white_saturated"]
         white = black + (p["dark"] - black) * ratio if sat else p["white"]
-        own = photo_output_noise(p, curve["q"], lin, dlin, read_e) if curve is not None else None
+        own = own_noise[i] if curve is not None else None
         # a model's ring is clipped at its top, not at its mean (which holds the blurred edges): the level before the
         # clip from the share of the ring there and the photo's noise (``photo_model.clipped_white``)
         clip_at = p["white"] if "white_top" not in p or raw else p["white_top"]
@@ -345,6 +376,10 @@ k3 = {dist[4]:.6f}
         sx, jx = (p["sigma_x_px"], jpeg_px(p, "x")) if own_x else (sig_x, jpeg_x)
         sy, jy = (p["sigma_y_px"], jpeg_px(p, "y")) if own_y else (sig_y, jpeg_y)
         ab_x, ab_y = aberration_um(sx, jx, defocus_px(p)), aberration_um(sy, jy, defocus_px(p))
+        fit = fits.get(i, typical)
+        if axes:
+            ab_x = fit["sigma_um"].get("x", ab_x)
+            ab_y = fit["sigma_um"].get("y", ab_y)
         R = ", ".join("[" + ", ".join(f"{v:.7f}" for v in row) + "]" for row in p["R"])
         t = ", ".join(f"{v:.5f}" for v in translation(p))
         sensor = f"output_clip_dn = {clip_at:.1f}" if sat else ""
@@ -353,6 +388,9 @@ k3 = {dist[4]:.6f}
             sensor = f"full_well_e = {(p['white'] - black) / k:.1f}" if sat and p["white"] < top - 0.5 else ""
         if own is not None:  # each photo's own noise after the curve (a palette's dither, a cleaner frame)
             sensor = ", ".join(x for x in (sensor, f"output_noise_dn = {own:.2f}") if x)
+        if axes:
+            sensor = ", ".join(x for x in (sensor, f"sharpen_amount = {fit['amount']:.3f}",
+                                           f"sharpen_sigma_px = {fit['sigma_px']:.3f}") if x)
         before = (f"dark x {ratio:.2f} = {white:.0f}" if clip_at == p["white"] else
                   f"{white:.1f}, from the {100 * p['white_at_max']:.0f} % of its ring there")
         note = (f"white saturated at {clip_at:.0f} (SD {p['white_sd']:.2f}); before the clip {before}; blur: the "
@@ -383,7 +421,8 @@ poses = [{{ R = [{R}], t = [{t}] }}]
     noise = (f"dark SD {_range([p['dark_sd'] for p in unsat])} at {_range([p['dark'] for p in unsat], '.0f')}, "
              f"white SD {_range([p['white_sd'] for p in unsat])} at {_range([p['white'] for p in unsat], '.0f')}"
              if unsat else "no unsaturated photo")
-    sensor_lines = [f'output = "{output}"'] + ([f"jpeg_quality = {quality}"] if quality is not None else [])
+    sensor_lines = [f'output = "{output}"'] + ([f"jpeg_quality = {quality}"] if quality is not None else []) + (
+        [f'sharpen_axis = "{axes}"'] if axes else [])
     by_top = not chess and not raw  # a model's ring: clipped at its top, the level before from the share there
     clip = f" at {_range([p['white_top' if by_top else 'white'] for p in sat], '.0f')}" if sat else ""
     if chess:
@@ -398,7 +437,6 @@ poses = [{{ R = [{R}], t = [{t}] }}]
         where_white, flat_rule, beyond = "at its light squares' centres", "noise SD < half the dark's", \
             "the board's margin beyond the ring"
     else:
-        over = {k: [p["overshoot_pct"][k] for p in photos] for k in "xy"}
         board_lines = [
             _comment(f"A digital twin of {source}: a board of {m['board']['squares']} separate squares (the model "
                      f"file {model_ref}, {square_m:g} m per unit), the camera edgetruth calibrated on them "
@@ -407,12 +445,22 @@ poses = [{{ R = [{R}], t = [{t}] }}]
                      "(edgetruth.evaluate.board.twin.derive, measure_squares); docs/board.md.  Measured on the "
                      "photos:"),
             _comment(f"the board: the model's squares on a white plate one square's side beyond their bounding box "
-                     f"(assumed: {margin_m * 1000:.1f} mm; the sheet's edge is not measured);", True),
-            _comment(f"sharpening: the photos' edges overshoot by {_range(over['x'])} % of the step along x and "
-                     f"{_range(over['y'])} % along y (the pooled ESF, edgetruth.evaluate.board.photo_model): the twin "
-                     "renders no sharpening, and its blur is the ERF sigma read with it;", True)]
+                     f"(assumed: {margin_m * 1000:.1f} mm; the sheet's edge is not measured);", True)]
         where_white, flat_rule, beyond = "in a ring around its squares", \
             "noise SD < half the dark's, or over 30 % of it at its top", "the sheet's true extent"
+    over = {k: [p["overshoot_pct"][k] for p in photos if p.get("overshoot_pct")] for k in "xy"}
+    if over["x"]:
+        shape = (f"sharpening: the photos' pooled ESFs overshoot by {_range(over['x'])} % of the step along x and "
+                 f"{_range(over['y'])} % along y (edgetruth.evaluate.board.photo_model)")
+        board_lines.append(_comment(shape + (
+            f": above {SHARPENED_PCT:g} % (the unsaturated photos' median) along {' and '.join(axes)}, rendered as "
+            f"an unsharp mask there (sharpen_axis), its amount "
+            f"{_range([f['amount'] for f in fits.values()], '.2f')} and sigma "
+            f"{_range([f['sigma_px'] for f in fits.values()], '.2f')} px fitted per photo with the aberration "
+            f"along it to the photo's pooled ESF (edgetruth.evaluate.board.twin.sharpening; RMS "
+            f"{_range([f['fit_rms'] for f in fits.values()], '.3f')} of the step); a clipped photo takes the "
+            "medians;" if axes else f": none rendered (at most {SHARPENED_PCT:g} %, the unsaturated photos' "
+            "median);"), True))
     scene = "\n".join([
         *board_lines,
         _comment(f"tone: {tone_words}: output_gamma = {gamma:g};", True),
@@ -484,13 +532,16 @@ def centre_model(m: dict) -> tuple[float, float]:
     return tuple(m["board"]["centre_model"])
 
 
-def curve_noise(photos: list[dict], lin, dlin, read_e: float, level: float, q_min: float = 1e-9) -> dict:
+def curve_noise(photos: list[dict], lin, dlin, read_e: float, level: float, q_min: float = 1e-9,
+                gains=None) -> dict:
     """Noise through a tone curve: shot noise before it (variance q L in the linear units of ``lin``, q per
     electron, with ``read_e`` e- of read noise, (read_e q)²) and a constant SD o after it (stored DN), fitted to
     the photos' dark and white SDs (stored 8-bit DN, their rounding's 1/12 taken off): at a stored level v the
     stored variance is (q L + (read_e q)²) / L'(v)² + o², L = ``lin``(v), L' = ``dlin``(v) = dL/dv.  Before the
     curve a dark's SD is stretched by 1 / L' (about 8x a white's at sRGB's 2.2 for a contrast of 5), after it
-    not, so the darks and whites tell them apart.  Least squares in relative variance, q >= ``q_min`` and o >= 0:
+    not, so the darks and whites tell them apart.  ``gains``: per photo, what multiplies the variance before the
+    output noise (a sharpening mask's, ``sharpening.mask_noise_gain``; 1 without).  Least squares in relative
+    variance, q >= ``q_min`` and o >= 0:
     for each q on a log grid o² is linear (closed form), then the best refined.  -> {shot_lin: the shot SD at
     ``level`` (linear units), q, output_dn: o, levels, rms_rel: the fitted SDs' RMS relative error}."""
     from scipy.optimize import minimize_scalar
@@ -500,9 +551,10 @@ def curve_noise(photos: list[dict], lin, dlin, read_e: float, level: float, q_mi
     var = np.maximum(sd ** 2 - 1.0 / 12.0, 1e-6)
     L = np.array([lin(x) for x in v])
     G = np.array([dlin(x) for x in v])
+    M = np.repeat(np.ones(len(photos)) if gains is None else np.asarray(gains, float), 2)
 
     def before(q):
-        return (q * L + (read_e * q) ** 2) / G ** 2
+        return M * (q * L + (read_e * q) ** 2) / G ** 2
 
     def out2(q):  # the o² that fits best at this q: linear least squares in relative variance, o² >= 0
         return max(float(np.sum((1.0 - before(q) / var) / var) / np.sum(1.0 / var ** 2)), 0.0)
@@ -523,13 +575,13 @@ def curve_noise(photos: list[dict], lin, dlin, read_e: float, level: float, q_mi
             "rms_rel": float(np.sqrt(np.mean((np.sqrt(fitted / var) - 1.0) ** 2)))}
 
 
-def photo_output_noise(photo: dict, q: float, lin, dlin, read_e: float) -> float:
+def photo_output_noise(photo: dict, q: float, lin, dlin, read_e: float, gain: float = 1.0) -> float:
     """One photo's SD after the curve (stored DN), with the set's shot noise ``q`` before it (``curve_noise``): the
     RMS over its dark and (unsaturated) white of what their SDs, less the 8-bit rounding, hold beyond the shot and
-    read noise through the curve (0 where they hold less)."""
+    read noise through the curve, times the mask's ``gain`` (0 where they hold less)."""
     levels = [(photo["dark"], photo["dark_sd"])] + ([] if photo["white_saturated"] else
                                                     [(photo["white"], photo["white_sd"])])
-    rest = [sd ** 2 - 1.0 / 12.0 - (q * lin(v) + (read_e * q) ** 2) / dlin(v) ** 2 for v, sd in levels]
+    rest = [sd ** 2 - 1.0 / 12.0 - gain * (q * lin(v) + (read_e * q) ** 2) / dlin(v) ** 2 for v, sd in levels]
     return math.sqrt(max(float(np.mean(rest)), 0.0))
 
 

@@ -74,6 +74,20 @@ def jpeg_quality(path) -> tuple[int, bool] | None:
 
 
 # --- measurements -----------------------------------------------------------------------------------
+def edge_shape(blur: dict) -> dict:
+    """A photo's edges' shape per axis from ``photo_model.blur``: ``overshoot_pct`` (the larger of the pooled ESF's
+    over- and undershoot, % of the step: sharpening) and ``esf`` (the pooled normalised ESF, [t px, value] lists, 5
+    decimals), for ``sharpening.fit_sharpening``; empty where no side was measured."""
+    out = {"overshoot_pct": {}, "esf": {}}
+    for axis, name in (("x", "vertical"), ("y", "horizontal")):
+        b = blur.get(name)
+        if not b or not len(b["esf"][0]):
+            return {}
+        out["overshoot_pct"][axis] = float(max(b["overshoot_pct"], b["undershoot_pct"]))
+        out["esf"][axis] = [np.round(np.asarray(v, float), 5).tolist() for v in b["esf"]]
+    return out
+
+
 def model_order(view, corners: np.ndarray) -> np.ndarray:
     """The model's (S, 4, 2) square corners taken from ``corners`` (OpenCV's order), via the view's grid."""
     q = view.squares.corners.reshape(-1, 2)
@@ -202,6 +216,7 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
             "sigma_x_px": sx, "sigma_y_px": sy, "jpeg_sigma_px": jpeg_px, "noise_before_jpeg": before,
             "jpeg_quality": None if q is None else {"quality": q[0], "exact": q[1]},
             "light_levels": shade,
+            **edge_shape(blur),
             **({} if flat is None else {"flat_noise": flat}),
         })
         images.append(img)

@@ -12,8 +12,9 @@ neither, so here:
   region's SD about its own quadratic (shading across the board does not count).  A white is saturated where its
   SD is below half the dark's (``levels.saturated``'s rule) or more than ``CLIPPED_SHARE`` of it sits at its top
   (``white_top``, the ring's 99th percentile: the twin clips there, its level before the clip from that share).
-- **Blur.**  ``photo_model.blur``: the ERF σ per axis, and the pooled ESF's overshoot (sharpening, reported; the
-  twin renders none).  JPEG photos: what their JPEG adds to σ (``jpeg_synthetic.jpeg_blur_px``).
+- **Blur.**  ``photo_model.blur``: the ERF σ per axis, and the pooled ESF and its overshoot (``measure.edge_shape``:
+  sharpening, which the twin fits, ``sharpening``).  JPEG photos: what their JPEG adds to σ
+  (``jpeg_synthetic.jpeg_blur_px``).
 - **Lens shading.**  The white gaps' levels (``gap_points``: midway between neighbouring squares) at the points
   the pose projects them to (``shading.light_levels``).
 - **Tone.**  Not measurable without junctions: 8-bit photos take the power given (``tone_power``; the twin's
@@ -80,7 +81,7 @@ def measure_squares(photos: list[Path], model, tone_power: float = 2.2, channel:
     from edgetruth.evaluate.board.photo_model import blur as edge_blur
     from edgetruth.evaluate.board.photo_model import board_lines, flat_labels, noise
     from edgetruth.evaluate.board.twin.jpeg_synthetic import jpeg_blur_px
-    from edgetruth.evaluate.board.twin.measure import jpeg_quality
+    from edgetruth.evaluate.board.twin.measure import edge_shape, jpeg_quality
     from edgetruth.evaluate.board.twin.shading import light_levels, project
     from edgetruth.image_io import read_gray_scaled
 
@@ -142,8 +143,7 @@ def measure_squares(photos: list[Path], model, tone_power: float = 2.2, channel:
             "white_at_max": white["at_max_fraction"], "white_top": float(np.percentile(ring, 99)),
             "white_saturated": sat,
             "sigma_x_px": sx if np.isfinite(sx) else None, "sigma_y_px": sy if np.isfinite(sy) else None,
-            "overshoot_pct": {a: max(b[k]["overshoot_pct"], b[k]["undershoot_pct"])
-                              for a, k in (("x", "vertical"), ("y", "horizontal"))},
+            **edge_shape(b),
             "jpeg_sigma_px": jpeg_blur_px(img.shape, lines, sx, sy, dark["mean"], white["mean"], q[0])
             if synthetic else None,
             "noise_before_jpeg": None,  # the chessboard's measure reads it at junction-bounded squares' centres

@@ -217,3 +217,43 @@ def test_raw_and_8_bit_options_are_refused_on_the_other(tmp_path):
     with pytest.raises(InputError, match="--white-noise-dn: for 8-bit"):
         td.twin_texts({**m, "full_scale": 65535.0, "max_value": 4095}, "t", "x", "camera.toml", 0.03, "x",
                       td.TwinAssumptions(white_noise_dn=3.0))
+
+
+def test_sharpened_views_give_a_sharpened_twin(fast_variant, tmp_path):
+    """4 PNG views sharpened as the renderer sharpens (unsharp mask along both axes, amount 1.5, σ 1 px, on the stored
+    values): their sides overshoot by 9 % of the step, so the twin renders a mask along both axes (its amount
+    within 0.5 of 1.5: measured 1.54-1.75) with the blur fitted with it; rendered at 4 spp, its sides read the views'
+    ERF σ within 0.08 px (measured 0.049) and their overshoot within 5 points (measured 3.4).  The fit models each
+    orientation's sides as axis-aligned (a 1-D mask on the pixel grid along the normal), and these views tilt their
+    sides by up to 0.4 rad: sharpened along x alone, their horizontal sides, which the x mask reaches when tilted,
+    read 4.1 % in the twin against 0.3 % in the views (docs/board.md, *Sharpening*)."""
+    from edgetruth.evaluate.board.photo_model import blur, board_lines
+    from edgetruth.render.dataset.driver import render_spec
+    from edgetruth.render.dataset.spec import load_spec
+    from edgetruth.render.sensor.pipeline import sharpen
+
+    paths, _ = views(tmp_path, ".png", noise_dn=1.0)
+    for p in paths:
+        img = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE).astype(float) / 255.0
+        cv2.imwrite(str(p), np.clip(np.round(255.0 * sharpen(img, 1.5, 1.0, "xy")), 0, 255).astype(np.uint8))
+    m = tm.measure_chessboard(paths, (9, 6))
+    assert all(p["overshoot_pct"][axis] > 5.0 for p in m["photos"] for axis in "xy")
+    cam, scene = td.twin_texts(m, "s", "a sharpened twin", "camera.toml", 0.03, "four sharpened views")
+    amounts = [float(v) for v in re.findall(r"sharpen_amount = ([0-9.]+)", scene)]
+    print(f"views' overshoot x {[round(p['overshoot_pct']['x'], 1) for p in m['photos']]}, fitted amounts {amounts}")
+    assert 'sharpen_axis = "xy"' in scene and len(amounts) == 4 and all(abs(a - 1.5) < 0.5 for a in amounts)
+    (tmp_path / "camera.toml").write_text(cam)
+    (tmp_path / "twin.toml").write_text(scene.replace("\nspp = 256\n", "\nspp = 4\n", 1))
+    render_spec(load_spec(tmp_path / "twin.toml"), tmp_path / "r", progress=False, announce=lambda s: None)
+    model = cb.chessboard_model((9, 6), 1.0)
+    worst_sigma, worst_over = 0.0, 0.0
+    for path, p in zip(rendered_pngs(tmp_path / "r"), m["photos"]):
+        img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE).astype(float)
+        b = blur(img, board_lines(img, model))
+        for axis, name in (("x", "vertical"), ("y", "horizontal")):
+            worst_sigma = max(worst_sigma, abs(b[name]["sigma_px"] - p[f"sigma_{axis}_px"]))
+            worst_over = max(worst_over, abs(max(b[name]["overshoot_pct"], b[name]["undershoot_pct"])
+                                             - p["overshoot_pct"][axis]))
+    print(f"twin vs views: sigma within {worst_sigma:.3f} px, overshoot within {worst_over:.1f} points; views' y "
+          f"overshoot {[round(p['overshoot_pct']['y'], 1) for p in m['photos']]}")
+    assert worst_sigma < 0.08 and worst_over < 5.0
