@@ -155,6 +155,12 @@ def test_twin_of_a_board_of_separate_squares(tmp_path, capsys):
     assert main(["twin", str(photos), "--model", str(model), "--model-unit-m", "0.0254", "--tone-power", "1", "-o",
                  str(tmp_path / "lin"), "--no-progress"]) == 0
     assert load_spec(tmp_path / "lin" / "twin.toml").sensor.output_gamma == 1.0
+    # the shipped set by its name: the study command names its folder (`study twin zhang1998` is the set's own study)
+    capsys.readouterr()
+    assert main(["twin", "zhang1998", "--model", str(model), "--model-unit-m", "0.0254", "-o", str(tmp_path / "byname"),
+                 "--no-progress"]) == 0
+    study = shlex.split(re.search(r"compare: `(.*)`", capsys.readouterr().out).group(1))
+    assert study[3] == str(model.parent) and study[4] == "--model"
 
 
 def test_twin_board_options_are_checked(tmp_path, capsys):

@@ -29,8 +29,9 @@ def register(sub) -> None:
                                    "the measurements (DIR/measurements.json).  `edgetruth render DIR/twin.toml -o R` "
                                    "renders it with exact truth (docs/board.md, 'Your own twin').")
     p.add_argument("photos", nargs="*", metavar="PHOTOS",
-                   help="image files, folders, glob patterns (quoted), or a shipped photo set's name (opencv_left); "
-                        "8-bit, every photo showing the whole board")
+                   help="image files, folders, glob patterns (quoted), or a shipped photo set's name (opencv_left, "
+                        "zhang1998); 8- or 16-bit, gray or colour (read as luma, or --channel), every photo showing "
+                        "the whole board")
     add_pattern_option(p, "the chessboard the photos show (or --model)")
     add_square_m_option(p, "with --pattern: it sets the twin's board size and its distances", required=False)
     p.add_argument("--model", default=None, metavar="FILE",
@@ -137,9 +138,14 @@ def run(args: argparse.Namespace) -> int:
                 + f"; {sum(p['white_saturated'] for p in m['photos'])} "
                 f"clipped" + ("; each board curled as its photo's" if args.bend else "") + f" -> {out / 'twin.toml'}")
     console.say(f"twin: render it with `edgetruth render {shlex.quote(str(out / 'twin.toml'))} -o RENDERS`")
-    # the photos as given: the study pairs the twin's images with the photos its groups name
+    # the photos as given (the study pairs the twin's images with the photos its groups name); a shipped set's name
+    # as its folder: `study twin NAME` is the set's own study, with its own twin
+    from edgetruth.resources import real_set, shipped_real_set_names
+
+    given = [str(real_set(r)) if not Path(r).exists() and "/" not in r and r in shipped_real_set_names() else r
+             for r in args.photos]
     board = ["--pattern", args.pattern] if model is None else ["--model", str(out / "model.txt")]
-    study = ["edgetruth", "study", "twin", *args.photos, *board, "--twin", str(out / "twin.toml"),
+    study = ["edgetruth", "study", "twin", *given, *board, "--twin", str(out / "twin.toml"),
              *(["--channel", args.channel] if args.channel != "luma" else []), "-o", "RUN"]
     console.say(f"twin: or render it beside the photos and compare: `{shlex.join(study)}`")
     return 0

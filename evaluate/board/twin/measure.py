@@ -144,7 +144,7 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     from edgetruth.evaluate.board.twin.jpeg_synthetic import jpeg_blur_px, noise_before_jpeg
     from edgetruth.evaluate.board.twin.shading import light_levels, light_square_centres, project
     from edgetruth.evaluate.calibration import calibrate_photos
-    from edgetruth.image_io import full_scale, read_gray
+    from edgetruth.image_io import read_gray_scaled
 
     photos = [Path(p) for p in photos]
     model = cb.chessboard_model(pattern, 1.0)
@@ -166,15 +166,17 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     for i, (p, grid) in enumerate(zip(photos if progress is None else progress(photos), grids)):
         if not results[i].found:
             continue
-        img = read_gray(p, channel=channel)
-        if full_scale(img.dtype) not in (255.0, 65535.0):
+        # a colour photo is read as its luma (float), its full scale the file's (255 for an 8-bit colour JPEG)
+        img, s = read_gray_scaled(p, channel=channel)
+        if s not in (255.0, 65535.0):
             raise InputError(f"{p}: {img.dtype} values; give 8-bit or 16-bit photos (a twin renders 8-bit or raw "
                              "16-bit images)")
-        if scale is not None and full_scale(img.dtype) != scale:
-            raise InputError(f"{p}: {img.dtype} values among {'8' if scale == 255 else '16'}-bit photos; give "
-                             "photos of one bit depth (one camera's output)")
-        scale = full_scale(img.dtype)
-        union |= int(np.bitwise_or.reduce(img, axis=None))
+        if scale is not None and s != scale:
+            raise InputError(f"{p}: {'8' if s == 255 else '16'}-bit among {'8' if scale == 255 else '16'}-bit "
+                             "photos; give photos of one bit depth (one camera's output)")
+        scale = s
+        if np.issubdtype(img.dtype, np.integer):
+            union |= int(np.bitwise_or.reduce(img, axis=None))
         view = cb.find_squares(img, model)
         if view is None:  # OpenCV's corners without the board study's squares: the study could not pair it
             left_out.append({"photo": p.name, "why": "the board study's squares were not found on it"})

@@ -54,8 +54,26 @@ def test_photos_of_two_bit_depths_are_refused(tmp_path):
     paths, _ = views(tmp_path, ".png")
     img = cv2.imread(str(paths[0]), cv2.IMREAD_GRAYSCALE).astype(np.uint16) * 16
     cv2.imwrite(str(tmp_path / "deep.png"), img)
-    with pytest.raises(InputError, match="deep.png: uint16 values among 8-bit photos"):
+    with pytest.raises(InputError, match="deep.png: 16-bit among 8-bit photos"):
         tm.measure_chessboard([*paths, tmp_path / "deep.png"], (9, 6))
+
+
+def test_colour_photos_are_read_as_their_luma(tmp_path):
+    """Colour JPEGs (a phone's): the same 4 views stored as colour (a warm cast: R x 1.05, B x 0.9) at quality 75 are
+    measured on their luma (float) as 8-bit photos (full scale 255), the camera as from the gray views (fx 600 to
+    0.1 %: measured the same to 0.05 px) and their quality read from the file; before, an 8-bit colour photo was
+    refused as 'float64 values'."""
+    gray, _ = views(tmp_path, ".jpg")
+    paths = []
+    for p in gray:
+        g = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE).astype(float)
+        bgr = np.clip(np.round(np.dstack([0.9 * g, g, 1.05 * g])), 0, 255).astype(np.uint8)
+        paths.append(tmp_path / f"c_{p.name}")
+        cv2.imwrite(str(paths[-1]), bgr, [cv2.IMWRITE_JPEG_QUALITY, 75])
+    m = tm.measure_chessboard(paths, (9, 6))
+    assert m["full_scale"] == 255.0 and abs(m["K"][0][0] - 600.0) < 0.6
+    assert all(p["jpeg_quality"] == {"quality": 75, "exact": True} for p in m["photos"])
+    assert m["value_step"] == 1 and m["max_value"] <= 255
 
 
 def raw_views(power: float, black_dn: float = 0.0, seed: int = 1) -> list[np.ndarray]:
