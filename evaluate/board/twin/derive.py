@@ -28,7 +28,9 @@ Measured on the photos (``measure.measure_chessboard``):
   (``jpeg_synthetic.jpeg_blur_px``: on a synthetic image of its squares, ``jpeg_sigma_px``); then the Gaussian
   aberration whose edge through the pixel, the diffraction and the photo's defocus reads that σ
   (``blur_inverse.aberration_sigma_px``; ``aberration_sigma_um``).  A saturated photo takes the unsaturated ones'
-  medians (a clipped edge biases its σ).
+  medians (a clipped edge biases its σ).  Where the photos' edges overshoot (``sharpening.sharpened_axes``) the
+  aberration along that axis and the renderer's unsharp mask are fitted together to each photo's pooled ESF
+  (``sharpening.fit_sharpening``) instead.
 - **Tone.**  ``tone_fit.estimate_power`` on the unsaturated photos: linear (``output_gamma = 1``) when its 95 %
   interval holds 1, else the power found.  16-bit photos are rendered linear (raw), and refused where their power
   is a tone curve's (``measure.raw_tone``).

@@ -1,9 +1,11 @@
-"""What a twin of chessboard photos needs, measured on them: ``measure_chessboard`` (``edgetruth twin``'s first step).
+"""What a twin of chessboard photos needs, measured on them: ``measure_chessboard`` (``edgetruth twin``'s first step;
+a board of separate squares: ``measure_squares``).  Gray or colour photos (read as their luma, or one channel).
 
 Per set: the camera (Zhang's calibration on the line corners), the tone (``measure_tone``), the bit depth, the
 largest stored value and the stored step.  Per photo: its pose (``cv2.solvePnP`` in the board study's model order,
 ``model_order``), the outer ring's cut (``ring_reach``), the squares' levels and noise (and, for 16-bit photos, their
-flat patches' for the photon transfer), the ERF blur per axis, the light squares' levels (the lens shading), the JPEG
+flat patches' for the photon transfer), the ERF blur per axis and the edges' shape (``edge_shape``: overshoot and
+pooled ESF, for the sharpening), the light squares' levels (the lens shading), the JPEG
 quality its file carries (``jpeg_quality``) and what its JPEG adds to the blur and noise, and the calibration's
 bend.  ``derive.twin_texts`` turns the record into the twin's camera and scene; its docstring says how each
 measurement sets the twin.
