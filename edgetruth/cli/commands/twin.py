@@ -45,8 +45,8 @@ def register(sub) -> None:
                         f"{DEFAULT_TONE_POWER:g}, close to sRGB; 1: linear); separate squares have no junctions to "
                         "measure it at (a chessboard's is measured)")
     p.add_argument("-o", "--output", required=True, metavar="DIR",
-                   help="directory for twin.toml, camera.toml and measurements.json (refused if it holds a "
-                        "twin.toml already)")
+                   help="directory for twin.toml, camera.toml, measurements.json (and with --model its "
+                        "model.txt); refused if it holds a twin.toml already")
     p.add_argument("--name", default=None, help="the spec's name (default: the directory's name)")
     p.add_argument("--pitch-um", type=float, default=6.0, metavar="UM",
                    help="assumed pixel pitch (default 6); with fx it sets the focal length, hence the defocus")
@@ -54,7 +54,8 @@ def register(sub) -> None:
     p.add_argument("--white-noise-dn", type=float, default=None, metavar="DN",
                    help="the white's shot-noise SD (8-bit DN, at a white of 220) before the output coding (15 e- "
                         "of read noise add to it); default: from the photos (JPEG photos with a linear tone: shot "
-                        "and read noise through their JPEG; docs/board.md); 8-bit photos only")
+                        "and read noise through their JPEG; through a tone curve: their darks and whites split "
+                        "into noise before and after it; docs/board.md); 8-bit photos only")
     p.add_argument("--read-noise-e", type=float, default=None, metavar="E",
                    help="the sensor's read noise (e-); default: JPEG photos with a linear tone: from their darks; "
                         "16-bit photos: from their noise at a given --black-dn; else 15 (assumed)")
