@@ -153,7 +153,7 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     ``source`` the photos in words (for the headers); ``bend``: each board curled as its photo's (``bend_mm``;
     chessboards only); ``model_ref``: how the spec names a board of separate squares' model file (required
     for one)."""
-    from edgetruth.evaluate.board.photo_model import SHARPENED_PCT
+    from edgetruth.evaluate.board.photo_model import SHARPENED_PCT, clipped_white
     from edgetruth.evaluate.board.twin.blur_inverse import aberration_sigma_px
     from edgetruth.evaluate.board.twin.sharpening import fit_sharpening, mask_noise_gain, sharpened_axes
     from edgetruth.render.optics.camera import camera_from_dict
@@ -370,8 +370,6 @@ k3 = {dist[4]:.6f}
         # clip from the share of the ring there and the photo's noise (``photo_model.clipped_white``)
         clip_at = p["white"] if "white_top" not in p or raw else p["white_top"]
         if sat and clip_at != p["white"]:
-            from edgetruth.evaluate.board.photo_model import clipped_white
-
             white = clipped_white({"at_max_fraction": p["white_at_max"]}, p["dark_sd"] if own is None else own,
                                   clip_at)
         own_x, own_y = not sat and p["sigma_x_px"] is not None, not sat and p["sigma_y_px"] is not None

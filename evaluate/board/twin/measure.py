@@ -75,6 +75,24 @@ def jpeg_quality(path) -> tuple[int, bool] | None:
     return None
 
 
+def read_photo(path, channel: str, scale: float | None) -> tuple[np.ndarray, float, int]:
+    """(gray image, full scale, its stored values OR-ed) of one photo of a set whose photos so far have full scale
+    ``scale`` (None: the first).  A colour photo is read as its luma (float, ``channel``), its full scale the file's
+    (255 for an 8-bit colour JPEG); the OR (its trailing zeros: the stored step) is 0 for float values.  An
+    ``InputError`` for a photo that is not 8- or 16-bit, or not of the set's depth (one camera's output)."""
+    from edgetruth.image_io import read_gray_scaled
+
+    img, s = read_gray_scaled(path, channel=channel)
+    if s not in (255.0, 65535.0):
+        raise InputError(f"{path}: {img.dtype} values; give 8-bit or 16-bit photos (a twin renders 8-bit or raw "
+                         "16-bit images)")
+    if scale is not None and s != scale:
+        raise InputError(f"{path}: {'8' if s == 255 else '16'}-bit among {'8' if scale == 255 else '16'}-bit "
+                         "photos; give photos of one bit depth (one camera's output)")
+    bits = int(np.bitwise_or.reduce(img, axis=None)) if np.issubdtype(img.dtype, np.integer) else 0
+    return img, s, bits
+
+
 # --- measurements -----------------------------------------------------------------------------------
 def edge_shape(blur: dict) -> dict:
     """A photo's edges' shape per axis from ``photo_model.blur``: ``overshoot_pct`` (the larger of the pooled ESF's
@@ -146,7 +164,6 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     from edgetruth.evaluate.board.twin.jpeg_synthetic import jpeg_blur_px, noise_before_jpeg
     from edgetruth.evaluate.board.twin.shading import light_levels, light_square_centres, project
     from edgetruth.evaluate.calibration import calibrate_photos
-    from edgetruth.image_io import read_gray_scaled
 
     photos = [Path(p) for p in photos]
     model = cb.chessboard_model(pattern, 1.0)
@@ -168,17 +185,8 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     for i, (p, grid) in enumerate(zip(photos if progress is None else progress(photos), grids)):
         if not results[i].found:
             continue
-        # a colour photo is read as its luma (float), its full scale the file's (255 for an 8-bit colour JPEG)
-        img, s = read_gray_scaled(p, channel=channel)
-        if s not in (255.0, 65535.0):
-            raise InputError(f"{p}: {img.dtype} values; give 8-bit or 16-bit photos (a twin renders 8-bit or raw "
-                             "16-bit images)")
-        if scale is not None and s != scale:
-            raise InputError(f"{p}: {'8' if s == 255 else '16'}-bit among {'8' if scale == 255 else '16'}-bit "
-                             "photos; give photos of one bit depth (one camera's output)")
-        scale = s
-        if np.issubdtype(img.dtype, np.integer):
-            union |= int(np.bitwise_or.reduce(img, axis=None))
+        img, scale, bits = read_photo(p, channel, scale)
+        union |= bits
         view = cb.find_squares(img, model)
         if view is None:  # OpenCV's corners without the board study's squares: the study could not pair it
             left_out.append({"photo": p.name, "why": "the board study's squares were not found on it"})

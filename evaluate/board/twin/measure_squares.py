@@ -81,28 +81,19 @@ def measure_squares(photos: list[Path], model, tone_power: float = 2.2, channel:
     from edgetruth.evaluate.board.photo_model import blur as edge_blur
     from edgetruth.evaluate.board.photo_model import board_lines, flat_labels, noise
     from edgetruth.evaluate.board.twin.jpeg_synthetic import jpeg_blur_px
-    from edgetruth.evaluate.board.twin.measure import edge_shape, jpeg_quality
+    from edgetruth.evaluate.board.twin.measure import edge_shape, jpeg_quality, read_photo
     from edgetruth.evaluate.board.twin.shading import light_levels, project
-    from edgetruth.image_io import read_gray_scaled
 
     photos = [Path(p) for p in photos]
     gaps = gap_points(model.corners)
     found, left_out = [], []
     scale, size, union = None, None, 0
     for p in photos if progress is None else progress(photos):
-        img, s = read_gray_scaled(p, channel=channel)
-        if s not in (255.0, 65535.0):
-            raise InputError(f"{p}: {img.dtype} values; give 8-bit or 16-bit photos (a twin renders 8-bit or raw "
-                             "16-bit images)")
-        if scale is not None and s != scale:
-            raise InputError(f"{p}: {'8' if s == 255 else '16'}-bit among {'8' if scale == 255 else '16'}-bit "
-                             "photos; give photos of one bit depth (one camera's output)")
+        img, scale, bits = read_photo(p, channel, scale)
         if size is not None and img.shape != size:
             raise InputError(f"{p}: {img.shape[1]}x{img.shape[0]} px among photos of {size[1]}x{size[0]}; give "
                              "photos of one camera at one size")
-        scale, size = s, img.shape
-        if np.issubdtype(img.dtype, np.integer):
-            union |= int(np.bitwise_or.reduce(img, axis=None))
+        size, union = img.shape, union | bits
         lines = board_lines(img, model)
         if lines is None:
             left_out.append({"photo": p.name, "why": f"the model's {len(model)} squares were not found on it"})
