@@ -174,6 +174,13 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
             radiance, band = render_target_frame(camera, settings, job, pose, gt, crop, e_render)
             band.pop("render_s")
             render_s = time.perf_counter() - t0
+        elif job.kind != "target" and settings.board_mode == "frame":  # a flat board: the composite
+            from edgetruth.render.scene.board_frame import render_board_job
+
+            radiance, band = render_board_job(camera, settings, board, pose, crop, job.render_seed, e_render,
+                                              job.light_position_m)
+            band.pop("render_s")
+            render_s = time.perf_counter() - t0
         else:
             radiance = rig.render(job.render_seed)
             render_s = time.perf_counter() - t0

@@ -65,8 +65,13 @@ SPEC_KEYS = [
         "static camera; docs/optics.md); frame = that composite over every pixel, the board and the target's "
         "material rendered at edge_spp on every shading_step_px-th pixel and interpolated (no full-frame "
         "render: target images cost a fraction)", choices=("path", "analytic", "frame")),
-    Key("shading_step_px", "int", RenderSettings.shading_step_px, "px", "edge_mode = \"frame\": the spacing of "
-        "the shading grid's nodes", 2, 256),
+    Key("board_mode", "str", RenderSettings.board_mode, "", "board images (checkerboard, squares): path = the "
+        "full frame path-traced (the reference); frame = the plate's shading rendered at the board's spp on every "
+        "shading_step_px-th pixel and composited with the plate's and the squares' exact lens-weighted coverage "
+        "(no Monte-Carlo noise at edges or in the squares; flat boards, static camera; docs/optics.md)",
+        choices=("path", "frame")),
+    Key("shading_step_px", "int", RenderSettings.shading_step_px, "px", "edge_mode = \"frame\" and board_mode = "
+        "\"frame\": the spacing of the shading grid's nodes", 2, 256),
     Key("checkerboard_spp", "int", 0, "samples/px", "samples per pixel of the checkerboard images (their corners "
         "are edges, and boards have no edge band; a power of two, of four for multijitter and stratified); "
         "0 = spp", 0, MAX_SPP),
@@ -646,11 +651,17 @@ def load_spec(name_or_path: str | Path) -> Spec:
             if g.kind == "target" and (g.camera.moving or not isinstance(g.target, str)):
                 raise InputError(f"{src} group {g.name!r}: edge_mode = \"{s['edge_mode']}\" covers preset targets (T1..T4) "
                                  "and a static camera; set edge_mode = \"path\" for this spec")
+    if s["board_mode"] == "frame":  # edgetruth.render.scene.board_frame's scope
+        for g in groups:
+            if g.kind != "target" and (g.camera.moving or g.board_bend_mm is not None):
+                raise InputError(f"{src} group {g.name!r}: board_mode = \"frame\" renders flat boards seen by a "
+                                 "static camera; set board_mode = \"path\" for a curled board or a moving camera")
     return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
                 camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"],
                                                                          edge_spp=s["edge_spp"],
                                                                          checkerboard_spp=s["checkerboard_spp"],
                                                                          edge_mode=s["edge_mode"],
-                                                                         shading_step_px=s["shading_step_px"]),
+                                                                         shading_step_px=s["shading_step_px"],
+                                                                         board_mode=s["board_mode"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
                 text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares)

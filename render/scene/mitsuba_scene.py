@@ -67,6 +67,9 @@ class RenderSettings:
     edge_mode: str = "path"
     #: ``edge_mode = "frame"``: the shading grid's node spacing, px (``edgetruth.render.scene.shading_frame``)
     shading_step_px: int = 16
+    #: board images (checkerboard, squares): "path" (the full frame path-traced, the reference) or "frame" (the
+    #: plate's shading on a grid, composited with the plate's and the squares' exact coverage: ``board_frame``)
+    board_mode: str = "path"
 
     def to_dict(self) -> dict:
         d = {"spp": self.spp, "sampler": self.sampler, "samples_per_pass": self.samples_per_pass,
@@ -75,7 +78,9 @@ class RenderSettings:
             d["checkerboard_spp"] = self.checkerboard_spp
         if self.edge_mode != "path":  # absent by default: the shipped specs' identities are unchanged
             d["edge_mode"] = self.edge_mode
-        if self.edge_mode == "frame":
+        if self.board_mode != "path":
+            d["board_mode"] = self.board_mode
+        if "frame" in (self.edge_mode, self.board_mode):
             d["shading_step_px"] = self.shading_step_px
         if self.exposure_s:
             d["exposure_s"] = self.exposure_s
