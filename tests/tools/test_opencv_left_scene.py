@@ -19,14 +19,18 @@ def tool():
 
 def test_shipped_twins_are_the_packaged_derivation(tool):
     """Derived now from the shipped photos, the three files are the shipped ones byte for byte; the bent twin differs
-    from the flat one only in its header, name, description and one board_bend_mm a group."""
+    from the flat one only in its header, name, description, one board_bend_mm a group and its noise (the loop
+    closed on path-traced renders: K, read noise and the irradiances that K sets), and it renders path-traced (the
+    flat one without Monte-Carlo noise, board_mode = "frame")."""
     cam, flat, bent = tool.texts()
     assert cam == tool.CAMERA.read_text()
     assert flat == tool.SCENE.read_text()
     assert bent == tool.BENT.read_text()
     extra = [ln for ln in bent.splitlines() if ln not in flat.splitlines()]
     assert sum(ln.startswith("board_bend_mm = ") for ln in extra) == 13
-    assert {ln.split(" =")[0] for ln in extra if not ln.startswith("#")} == {"board_bend_mm", "name", "description"}
+    assert {ln.split(" =")[0] for ln in extra if not ln.startswith("#")} == {
+        "board_bend_mm", "name", "description", "k0_dn_per_e", "dark_noise_e", "irradiance_w_m2"}
+    assert 'board_mode = "frame"' in flat and "board_mode" not in bent.replace('(board_mode = "frame" takes', "")
 
 
 def test_bent_twin_is_what_calibrate_measures(tmp_path):

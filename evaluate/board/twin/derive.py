@@ -106,6 +106,15 @@ def _range(values, fmt: str = ".1f") -> str:
     return f"{lo:{fmt}}" if f"{lo:{fmt}}" == f"{hi:{fmt}}" else f"{lo:{fmt}}-{hi:{fmt}}"
 
 
+def _board_mode(bend: bool) -> str:
+    """The spec's ``board_mode`` line(s): a flat board's composite (no Monte-Carlo noise: the darks' noise is the
+    photos' alone), a curled board's path-traced frame."""
+    if bend:
+        return "# a curled board renders path-traced (board_mode = \"frame\" takes flat boards)\n"
+    return ("board_mode = \"frame\"      # the plate's shading on a grid, the squares' coverage exact: no Monte-Carlo "
+            "noise\n                          # at the edges or in the squares (docs/optics.md)\n")
+
+
 def _output(rows) -> tuple[str, int | None, str]:
     """(output, jpeg quality or None, the words for the header)."""
     q = [r["jpeg_quality"] for r in rows]
@@ -494,7 +503,7 @@ description = {_toml_str(description)}
 camera = {_toml_str(camera_ref)}
 spp = 256
 sampler = "multijitter"
-
+{_board_mode(bend)}
 [spec.squares]
 {board_keys}
 square_reflectance = {a.board_reflectance / ratio ** gamma:.4f}
