@@ -122,8 +122,9 @@ def test_a_tone_curve_is_measured_and_rendered(fast_variant, tmp_path):
 def raw_photos(tmp_path, fast_variant):
     """16-bit 'photos' of a known raw sensor (12-bit, K 0.5 DN/e-, 15 e- read noise, black 200 DN, PRNU 1 %) behind a
     lens of known shading (1 - 0.3 h² + 0.1 h⁴): the twin of the 4 PNG views with that camera, at exposures 0.7,
-    0.42, 0.98 and 0.56 of the views' (the third clips at 4095), rendered at 256 spp (at 64 spp the Monte-Carlo
-    noise in the darks moved the black level found by ~40 DN).  -> their paths."""
+    0.42, 0.98 and 0.56 of the views' (the third clips at 4095), rendered at 256 spp without Monte-Carlo noise
+    (``board_mode = "frame"``: path-traced at 64 spp, the noise in the darks moved the black level found by
+    ~40 DN).  -> their paths."""
     import re
 
     from edgetruth.render.dataset.driver import render_spec
@@ -157,15 +158,16 @@ def rendered_pngs(root):
 @pytest.mark.slow  # two renders of 4 frames at 64 spp: ~20 s on 2 cores
 def test_a_twin_of_raw_photos(fast_variant, tmp_path):
     """16-bit photos of a known raw sensor behind a shaded lens (``raw_photos``): the twin renders raw at 12 bits with
-    the sensor's gain, black level and PRNU from the photon transfer with the PRNU term (K to 5 %: measured 0.4813
-    against 0.5; the black level from the assumed 15 e- to 40 DN: measured 179.8 against 200, the darks' Monte-Carlo
-    noise lowers it; PRNU to 0.3 % points: measured 1.025 against 1 %), in half-square patches about their planes,
+    the sensor's gain, black level and PRNU from the photon transfer with the PRNU term (K to 5 %: measured 0.5102
+    against 0.5; the black level from the assumed 15 e- to 40 DN: measured 213.2 against 200, 179.8 from path-traced
+    photos, whose darks' Monte-Carlo noise lowered it; PRNU to 0.3 % points: measured 0.972 against 1 %), in
+    half-square patches about their planes,
     none within 4 SD of the clip (before the PRNU term and the PRNU in these photos: K 0.4996; 5x5 patches at the
     squares' centres, as the 8-bit levels, 0.4497; half squares with the patches near the clip, 0.4715); given the
     black level, the read noise comes back (to 2 e-); the lens shading to 0.01 over the light squares' field heights
-    (measured 0.004).  Rendered at 64 spp, the twin reads the photos' dark and white levels to 1.5 % (measured 0.9
-    %), their noise SDs in those patches to 8 % (measured -1.8 to +2.5 %) and their ERF σ to 0.02 px (measured
-    0.009), the clipped photo's white at 4095 too.  The photos' tone reads linear (power to 0.02: measured 0.997)."""
+    (measured 0.002).  Rendered at 64 spp, the twin reads the photos' dark and white levels to 1.5 % (measured
+    0.95 %), their noise SDs in those patches to 8 % (measured -2.9 to +0.3 %) and their ERF σ to 0.02 px (measured
+    0.005), the clipped photo's white at 4095 too.  The photos' tone reads linear (power to 0.02: measured 0.997)."""
     from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.dataset.spec import load_spec
 
