@@ -5,7 +5,8 @@ cost of the lens PSF.
 directory (wall time includes pose, ground truth, sensor model, EXR/PNG/JSON writes
 and hashing; the ratio shows how much of it is spent outside ``mi.render``), then
 one full-resolution target image of the default camera with and without its PSF (the frame at
-``spp`` and the edge band at ``edge_spp``, medians of 3), then a small window on every other
+``spp`` and the edge band at ``edge_spp``, medians of 3), a board image path-traced and composited
+(``board_mode = "frame"``: ``board_frame_lines``), then a small window on every other
 working variant for a per-variant throughput figure.
 
 Then the dataset-scale figures: the fixed cost of a tiny image (40x32 px, 1 spp, one
@@ -92,6 +93,26 @@ def psf_cost_lines(distance_m: float = 1.0) -> list[str]:
     return out
 
 
+def board_frame_lines(spec_name: str = "opencv_left_twin", images: int = 3) -> list[str]:
+    """Seconds per board image, path-traced and composited (``board_mode = "frame"``), medians over the spec's first
+    ``images`` images in one process after a warm-up of each, and the ratio."""
+    from dataclasses import replace
+
+    from edgetruth.render.dataset.image import render_job
+    from edgetruth.render.dataset.spec import load_spec
+
+    spec = load_spec(spec_name)
+    n = min(images, spec.n_images)
+    med = {}
+    for mode in ("path", "frame"):
+        s = replace(spec, render=replace(spec.render, board_mode=mode))
+        render_job(s, s.jobs[0])  # warm-up: rigs, JIT and numba
+        med[mode] = _median_s(lambda k: render_job(s, s.jobs[k % n]), repeats=n)
+    cam = f"{spec.camera.width_px}x{spec.camera.height_px}"
+    return [f"render bench: board image ({spec.name}, {cam}, {spec.render.spp} spp, median of {n}): path-traced "
+            f"{med['path']:.2f} s, board_mode = \"frame\" {med['frame']:.2f} s: {med['path'] / med['frame']:.2f}x"]
+
+
 def run_bench(spec_name: str = "quick") -> list[str]:
     """Printable lines: quick-spec images/s and wall/render ratio on the best variant; per-variant
     throughput; the dataset-scale figures and the capacity plan computed from them."""
@@ -118,6 +139,7 @@ def run_bench(spec_name: str = "quick") -> list[str]:
     lines.append(f"render bench: wall time / time inside mi.render = {wall / inside:.3f} (target <= 1.10); "
                  f"incl. scene loading and JIT warm-up: {total / inside:.3f}")
     lines += psf_cost_lines()
+    lines += board_frame_lines()
     rates = {}
     for v in ORDER:
         ok, reason = probe(v)

@@ -8,7 +8,8 @@ The derivation is the packaged one; what this adds is the shipped names and the 
 renders found for these photos (docs/board.md): the white's shot-noise SD before their JPEG, 4.1 DN at a white of
 220, and 29 e- of read noise, with which the twin's dark and white SDs after the JPEG (the photo model's, Table 3
 of `edgetruth study twin opencv_left`) are the photos' to 1 % (medians over the 7 unsaturated photos; renders
-without Monte-Carlo noise, ``board_mode = "frame"``).  The bent twin renders path-traced (a curled board), with the
+without Monte-Carlo noise, ``board_mode = "frame"``; with each photo's dark offset, added after the loop, 0.99 and
+0.97).  The bent twin renders path-traced (a curled board), with the
 Monte-Carlo noise in its darks: it keeps the loop closed on path-traced renders, 4.5 DN and 15 e- (3 and 6 DN gave
 SDs after the JPEG below and above the photos').  ``tests/tools/test_opencv_left_scene.py`` re-derives the
 three files byte for byte.
@@ -34,7 +35,7 @@ def texts() -> tuple[str, str, str]:
 
     m = measure_chessboard(resolve_inputs(["opencv_left"]).photos, (9, 6))
     why = ("a closed loop through the renders and their JPEG, with the read noise: the twin's dark and white SDs "
-           "after it within 1 % of the photos' (medians over the unsaturated photos)")
+           "after it within 3 % of the photos' (medians over the unsaturated photos)")
     a = TwinAssumptions(white_noise_dn=4.1, white_noise_why=why, dark_noise_e=29.0)
     cam, flat = twin_texts(m, "opencv_left_twin", f"digital twin of OpenCV's left01-14 chessboard photos: {WHAT}",
                            "opencv_left", SQUARE_M, SOURCE, a)

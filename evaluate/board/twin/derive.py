@@ -371,6 +371,7 @@ k3 = {dist[4]:.6f}
     groups = []
     light = "[" + ", ".join(f"{v}" for v in a.light_position_m) + "]"
     bends = bend_mm(m, ring, square_m) if bend else [None] * len(photos)
+    offsets = []
     for i, (p, curl, rel) in enumerate(zip(photos, bends, relative)):
         sat = p["white_saturated"]
         white = black + (p["dark"] - black) * ratio if sat else p["white"]
@@ -381,6 +382,13 @@ k3 = {dist[4]:.6f}
         if sat and clip_at != p["white"]:
             white = clipped_white({"at_max_fraction": p["white_at_max"]}, p["dark_sd"] if own is None else own,
                                   clip_at)
+        # the print's contrast puts the dark at white / ratio; what the photo's dark holds beyond that (a camera's black
+        # level, flare) is an offset of the stored values, and the white renders that much lower (8-bit photos)
+        offset = 0.0
+        if not raw and ratio > 1.05:
+            offset = white - (white - p["dark"]) * ratio / (ratio - 1.0)
+            offset = offset if abs(offset) >= 0.05 else 0.0
+            offsets.append(offset)
         own_x, own_y = not sat and p["sigma_x_px"] is not None, not sat and p["sigma_y_px"] is not None
         sx, jx = (p["sigma_x_px"], jpeg_px(p, "x")) if own_x else (sig_x, jpeg_x)
         sy, jy = (p["sigma_y_px"], jpeg_px(p, "y")) if own_y else (sig_y, jpeg_y)
@@ -395,6 +403,8 @@ k3 = {dist[4]:.6f}
         if raw:  # the well clips a white flat below the ADC's top
             top = 2 ** _raw_bits(m) - 1
             sensor = f"full_well_e = {(p['white'] - black) / k:.1f}" if sat and p["white"] < top - 0.5 else ""
+        if offset:
+            sensor = ", ".join(x for x in (sensor, f"output_offset_dn = {offset:.2f}") if x)
         if own is not None:  # each photo's own noise after the curve (a palette's dither, a cleaner frame)
             sensor = ", ".join(x for x in (sensor, f"output_noise_dn = {own:.2f}") if x)
         if axes:
@@ -411,7 +421,7 @@ k3 = {dist[4]:.6f}
 name = "{group_name(p['photo'])}"
 kind = "squares"
 {"" if curl is None else f"board_bend_mm = {curl}"}
-irradiance_w_m2 = {irradiance(lin(white), rel):.4f}
+irradiance_w_m2 = {irradiance(lin(white - offset), rel):.4f}
 light_position_m = {light}
 pose_unit_m = {square_m}
 camera = {{ aberration_sigma_um = {ab_x:.3f}, aberration_sigma_y_um = {ab_y:.3f} }}
@@ -476,7 +486,11 @@ poses = [{{ R = [{R}], t = [{t}] }}]
         _comment(f"output: {output_words};", True),
         _comment(f"levels: each photo's white {where_white} (its exposure, irradiance_w_m2 here); the "
                  f"print's contrast, white / dark = {ratio:.2f} (median of the unsaturated photos), sets the squares' "
-                 "reflectance;", True),
+                 "reflectance" + ("" if not any(offsets) else
+                                  ", and what each photo's dark holds beyond it an offset of its stored values (a "
+                                  "camera's black level, flare: output_offset_dn, "
+                                  f"{min(offsets):+.2f} to {max(offsets):+.2f} DN), its white rendered that much "
+                                  "lower") + ";", True),
         _comment(f"saturation: {len(sat)} photo(s) with whites flat ({flat_rule}){clip}: "
                  + ("the ADC's top or full_well_e there" if raw else "output_clip_dn there")
                  + (", with the white before the clip from the share of the ring at its top and the photo's noise "
