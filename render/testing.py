@@ -55,6 +55,19 @@ def write_tiny_spec(tmp_path: Path, spp: int = 16, edge_spp: int = 64) -> Path:
     return spec
 
 
+def tiny_spec_pair(tmp_path: Path, settings: str, spp: int = 16, edge_spp: int = 64):
+    """(spec, reference): the tiny spec (``write_tiny_spec``) with the ``[spec]`` lines ``settings`` added, and
+    without them -- the same name, so the same seeds and poses."""
+    from edgetruth.render.dataset.spec import load_spec
+
+    path = write_tiny_spec(tmp_path, spp=spp, edge_spp=edge_spp)
+    text = path.read_text()
+    path.write_text(text.replace("sampler = ", settings.rstrip("\n") + "\nsampler = ", 1))
+    spec = load_spec(path)
+    path.write_text(text)
+    return spec, load_spec(path)
+
+
 def write_patch_spec(tmp_path: Path, n_images: int, name: str = "patches") -> Path:
     """A spec of ``n_images`` tiny training patches: the default camera binned 32x (40x32 px), 1 spp,
     the four targets in turn over 1.2-2 m with lateral offsets and tilts."""

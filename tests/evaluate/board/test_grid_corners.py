@@ -186,7 +186,8 @@ def test_opencv_twin_calibrates_to_its_own_camera(fast_variant, tmp_path):
     """OpenCV's twin (scenes/opencv_left_twin.toml, 13 renders at 16 spp through the photos' lens, k1 -0.28) calibrated
     as its photos are (`calibrate --corners lines`): the default fit reads the fx it was rendered with to 0.05 %; the
     lines fitted in the photo read it 0.17 % long, the bias the shipped camera carried before it was re-derived from
-    the default fit.  Measured: fx 533.93 and 534.80 against 533.85 (256 spp: 533.87, 534.77).  cornerSubPix
+    the default fit.  Measured: fx 533.87 and 534.78 against 533.85 (the twin renders without Monte-Carlo noise,
+    ``board_mode = "frame"``; path-traced at 16 spp 533.93 and 534.80, at 256 spp 533.87, 534.77).  cornerSubPix
     (the default corners) reads it to 0.1 % too, once its corners next to the cut outer ring take the narrower
     window (``calibration.NARROW_SHIFT_PX``); without that check they read fx 535.69 at 256 spp (+0.34 %)."""
     from edgetruth.render.dataset.driver import render_spec

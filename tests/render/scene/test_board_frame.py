@@ -155,14 +155,11 @@ def test_board_mode_in_a_spec(tmp_path, fast_variant):
     from edgetruth.errors import InputError
     from edgetruth.render.dataset.image import render_job
     from edgetruth.render.dataset.spec import load_spec
-    from edgetruth.render.testing import write_tiny_spec
+    from edgetruth.render.testing import tiny_spec_pair
 
-    path = write_tiny_spec(tmp_path, spp=4096, edge_spp=64)
+    frame, reference = tiny_spec_pair(tmp_path, 'board_mode = "frame"\nshading_step_px = 8', spp=4096, edge_spp=64)
+    path = reference.path
     text = path.read_text()
-    path.write_text(text.replace("sampler = ", 'board_mode = "frame"\nshading_step_px = 8\nsampler = ', 1))
-    frame = load_spec(path)
-    path.write_text(text)
-    reference = load_spec(path)
     assert frame.render.to_dict()["board_mode"] == "frame" and "board_mode" not in reference.render.to_dict()
     assert frame.identity_sha256 != reference.identity_sha256
     rad_f, _, gt_f = render_job(frame, frame.jobs[2])

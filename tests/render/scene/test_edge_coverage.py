@@ -443,15 +443,9 @@ def test_analytic_mode_through_render_job(tmp_path, fast_variant):
     """``edge_mode = "analytic"`` in a spec: render_job composites the band, records the mode, and the
     image agrees with the path-traced band (tiny camera: box only, defocused circles at 0.6-0.9 m)."""
     from edgetruth.render.dataset.image import render_job
-    from edgetruth.render.dataset.spec import load_spec
-    from edgetruth.render.testing import write_tiny_spec
+    from edgetruth.render.testing import tiny_spec_pair
 
-    path = write_tiny_spec(tmp_path, spp=16, edge_spp=4096)
-    text = path.read_text()
-    path.write_text(text.replace("sampler = ", 'edge_mode = "analytic"\nsampler = ', 1))
-    analytic = load_spec(path)
-    path.write_text(text)
-    reference = load_spec(path)
+    analytic, reference = tiny_spec_pair(tmp_path, 'edge_mode = "analytic"', spp=16, edge_spp=4096)
     assert analytic.render.edge_mode == "analytic" and reference.render.edge_mode == "path"
     assert analytic.identity_sha256 != reference.identity_sha256
     assert "edge_mode" not in reference.render.to_dict()  # path: the shipped specs' identities unchanged

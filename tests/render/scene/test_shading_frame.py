@@ -144,15 +144,9 @@ def test_frame_mode_through_render_job(tmp_path, fast_variant):
     """``edge_mode = "frame"`` in a spec: no full-frame render, the JSON says so, and the image agrees with the
     path-traced one to the latter's Monte-Carlo noise (tiny camera: box only, defocused circles)."""
     from edgetruth.render.dataset.image import render_job
-    from edgetruth.render.dataset.spec import load_spec
-    from edgetruth.render.testing import write_tiny_spec
+    from edgetruth.render.testing import tiny_spec_pair
 
-    path = write_tiny_spec(tmp_path, spp=64, edge_spp=4096)
-    text = path.read_text()
-    path.write_text(text.replace("sampler = ", 'edge_mode = "frame"\nshading_step_px = 8\nsampler = ', 1))
-    frame = load_spec(path)
-    path.write_text(text)
-    reference = load_spec(path)
+    frame, reference = tiny_spec_pair(tmp_path, 'edge_mode = "frame"\nshading_step_px = 8', spp=64, edge_spp=4096)
     assert frame.render.edge_mode == "frame" and frame.render.to_dict()["shading_step_px"] == 8
     assert "shading_step_px" not in reference.render.to_dict()
     rad_f, _, gt_f = render_job(frame, frame.jobs[0])
