@@ -201,12 +201,19 @@ class Camera:
         cx, cy = self.principal_point_px
         return np.stack([self.fx_px * x + cx, self.fy_px * y + cy], axis=1)
 
-    def undistort_pixels(self, pts_px: np.ndarray) -> np.ndarray:
-        """Distorted pixel coords (N, 2) -> ideal (undistorted) pixel coords with the same K."""
+    def rays(self, pts_px: np.ndarray) -> np.ndarray:
+        """Distorted pixel coords (N, 2) -> the camera-frame directions (N, 3) that image there, (x, y, 1): the
+        inverse of ``project``."""
         p = np.asarray(pts_px, dtype=np.float64).reshape(-1, 2)
         cx, cy = self.principal_point_px
         xu, yu = undistort_normalized((p[:, 0] - cx) / self.fx_px, (p[:, 1] - cy) / self.fy_px, self.distortion, 50)
-        return np.stack([self.fx_px * xu + cx, self.fy_px * yu + cy], axis=1)
+        return np.column_stack([xu, yu, np.ones(len(xu))])
+
+    def undistort_pixels(self, pts_px: np.ndarray) -> np.ndarray:
+        """Distorted pixel coords (N, 2) -> ideal (undistorted) pixel coords with the same K."""
+        d = self.rays(pts_px)
+        cx, cy = self.principal_point_px
+        return np.stack([self.fx_px * d[:, 0] + cx, self.fy_px * d[:, 1] + cy], axis=1)
 
     # --- (de)serialisation ---------------------------------------------------
     def scaled(self, factor: int) -> "Camera":

@@ -74,9 +74,7 @@ def reflectances(board) -> tuple[float, float]:
 def plate_half_size_m(camera, pose, board, xs: np.ndarray, ys: np.ndarray) -> tuple[float, float]:
     """The half sides (m) of a plate, centred as ``board``'s, that holds where the rays of pixels (``xs``, ``ys``)
     meet the board's plane (with ``PLATE_GROWTH`` to spare), and at least the board's own plate."""
-    und = camera.undistort_pixels(np.column_stack([np.ravel(xs), np.ravel(ys)]).astype(np.float64))
-    cx, cy = camera.principal_point_px
-    d = np.column_stack([(und[:, 0] - cx) / camera.fx_px, (und[:, 1] - cy) / camera.fy_px, np.ones(len(und))])
+    d = camera.rays(np.column_stack([np.ravel(xs), np.ravel(ys)]))
     r, t = pose.rotation, pose.translation_m
     n = r[:, 2]
     denom = d @ n
@@ -148,7 +146,6 @@ def render_board_frame(camera, settings, board, pose, frame: tuple[int, int, int
     import time
 
     from edgetruth.render.scene.edge_band import band_width_px
-    from edgetruth.render.scene.mitsuba_scene import _rect_local
     from edgetruth.render.scene.outline import OutlineCurve
     from edgetruth.render.scene.shading_frame import SHADING_STEP_PX, _render_grid, axis_nodes, interpolate, \
         nodes_for
@@ -175,8 +172,7 @@ def render_board_frame(camera, settings, board, pose, frame: tuple[int, int, int
     rigs = _shading_rigs(camera, settings, board)
     for rig in rigs:
         rig.set_state(pose, irradiance_w_m2, light_position_m)
-        rig._set_transform("plate.to_world", pose.matrix @ _rect_local(half[0], half[1], 0.0))
-        rig.params.update()
+        rig.set_plate_half_size(pose, half)
     nodes, render_s = _render_grid(rigs, xn, yn, seed, "board-frame")
     shading = interpolate(nodes, yn, xn, np.arange(by0, by1), np.arange(bx0, bx1))
 

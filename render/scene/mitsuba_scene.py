@@ -546,6 +546,15 @@ class CheckerRig(_Rig):
         return max(check_sag(bend, self._plate_verts, self._plate_faces, "the plate"),
                    check_sag(bend, self._verts_local, self._faces, "the squares"))
 
+    def set_plate_half_size(self, pose: Pose, half_size_m) -> None:
+        """Make a flat rig's plate (posed at ``pose``) ``half_size_m`` = (hx, hy) m, centred as the board's: the shading
+        rig of ``board_frame`` enlarges it beyond the view."""
+        if self.bent:
+            raise ValueError("a bent CheckerRig's plate is a mesh of the board's own size")
+        self._set_transform("plate.to_world", pose.matrix @ _rect_local(float(half_size_m[0]), float(half_size_m[1]),
+                                                                        0.0))
+        self.params.update()
+
     def set_state(self, pose: Pose, irradiance_w_m2: float, light_position_m=None, bend=None) -> float:
         """Pose the board (and, on a bent rig, curl it by ``bend``, a ``render.scene.bend.BoardBend``;
         None: flat) and set the light; the light's radiance."""

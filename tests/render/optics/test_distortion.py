@@ -36,6 +36,8 @@ def test_camera_project_matches_opencv():
     cv, _ = cv2.projectPoints(p, np.zeros(3), np.zeros(3), cam.K, cam.dist_coeffs)
     np.testing.assert_allclose(cam.project(p), cv.reshape(-1, 2), atol=1e-9)
     np.testing.assert_allclose(cam.undistort_pixels(cam.project(p)), cam.project(p, distorted=False), atol=1e-8)
+    # the rays through the projected pixels are the points' directions (x/z, y/z, 1): project's inverse
+    np.testing.assert_allclose(cam.rays(cam.project(p)), p / p[:, 2:], atol=1e-11)
 
 
 def test_rendered_dot_grid_matches_project_points():
