@@ -12,6 +12,7 @@ import numpy as np
 from edgetruth.render.optics.camera import Camera
 from edgetruth.render.optics.lens_sensor import sensor_dict
 from edgetruth.render.scene.pose import Pose
+from edgetruth.render.scene.sample_passes import render_in_passes
 
 
 def _facing_camera(local_scale: tuple[float, float], pose: Pose) -> np.ndarray:
@@ -35,8 +36,9 @@ def render_emissive(camera: Camera, shapes: list[tuple[str, float, Pose]], spp: 
         scene[f"s{i}"] = {"type": "rectangle" if kind == "square" else "disk",
                           "to_world": mi.ScalarTransform4f(_facing_camera((half, half), pose).tolist()),
                           "emitter": {"type": "area", "radiance": {"type": "uniform", "value": 1.0}}}
-    img = mi.render(mi.load_dict(scene), seed=seed, spp=spp)
-    return np.asarray(img, dtype=np.float64)[..., 1]
+    loaded = mi.load_dict(scene)
+    return render_in_passes(lambda s, n: np.asarray(mi.render(loaded, seed=s, spp=n))[..., 1], seed, spp,
+                            mi.variant(), sampler).astype(np.float64)
 
 
 def centroid(img: np.ndarray, x0: int = 0, y0: int = 0) -> tuple[float, float]:

@@ -196,9 +196,15 @@ class _Rig:
             self.sensor.set_pixels(*pixels)
         elif window_at is not None:
             self.sensor.set_window(*window_at)
-        img = self.mi.render(self.scene, self.params, seed=int(seed) & 0x7FFFFFFF, spp=self.settings.spp)
-        arr = np.asarray(img, dtype=np.float32)
-        return arr[..., 1].copy()  # achromatic scene: R = G = B exactly
+        from edgetruth.render.scene.sample_passes import render_in_passes
+
+        def once(pass_seed: int, spp: int) -> np.ndarray:
+            img = self.mi.render(self.scene, self.params, seed=int(pass_seed) & 0x7FFFFFFF, spp=spp)
+            return np.asarray(img, dtype=np.float32)[..., 1].copy()  # achromatic scene: R = G = B exactly
+
+        # passes on a GPU: its film's atomic adds would otherwise differ run to run (sample_passes)
+        return render_in_passes(once, int(seed) & 0x7FFFFFFF, self.settings.spp, self.mi.variant(),
+                                self.settings.sampler)
 
     def light_ground_truth(self, pose: Pose, le: float, irradiance_w_m2: float) -> dict:
         pos = getattr(self, "_light_pos", LIGHT_OFFSET_M)
