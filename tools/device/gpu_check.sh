@@ -5,11 +5,14 @@
 # It installs the wheels (no index there) and, from a directory outside the checkout:
 #   1. runs the main job twice (`edgetruth run`, the quick study) on VARIANT: cold, then with warm caches;
 #   2. checks the two runs' renders are byte-identical (every file hash of every manifest) and their
-#      ranging rows equal but for time_s;
+#      ranging rows equal but for time_s; 2b. re-evaluates the second run's renders twice as it runs and twice with
+#      OpenCV on one thread, and compares the calibrations and ranging rows;
 #   3. runs the full study (`run --study full --skip-synthetic`) in the time left; a run cut short
-#      resumes, and its images per second are recorded instead.
+#      records how many images were complete;
+#   4. where time is left, runs the full study again and compares its renders with the first (FULL_TWICE=0: not).
 # Env: VARIANT (cuda_ad_rgb), BUDGET_S (whole script, 480), J (workers, the cores), FULL_ARGS (extra
-# options for the full study, e.g. "--limit 2" for a dry run), SITE (where the wheels go).
+# options for the full study, e.g. "--limit 2" for a dry run), SITE (where the wheels go), EVAL_REPEAT (1: step 2b),
+# FULL_TWICE (1: step 4).
 set -u
 export PYTHONUNBUFFERED=1
 VARIANT=${VARIANT:-cuda_ad_rgb}
@@ -39,6 +42,20 @@ for m in ("edgetruth", "mitsuba", "drjit", "numba", "numpy", "scipy", "cv2", "Op
 PY
 python3 -c "from edgetruth.render import variants; ok, why = variants.probe_uncached('$VARIANT'); print('probe $VARIANT:', 'ok' if ok else why); raise SystemExit(0 if ok else 3)" || exit 3
 
+progress() {  # progress RUN_DIR: how many of the run's images are complete
+python3 - "$1" <<'PY' | tee -a "$OUT/full_progress.txt"
+import json, sys
+from pathlib import Path
+done = total = 0
+for man in sorted(Path(sys.argv[1], "render").glob("*/manifest.json")):
+    imgs = json.loads(man.read_text())["images"]
+    n = sum(bool(e.get("complete")) for e in imgs.values())
+    print(f"{sys.argv[1]}: {man.parent.name}: {n}/{len(imgs)} images complete")
+    done += n; total += len(imgs)
+print(f"{sys.argv[1]}: {done}/{total} images rendered; report: {Path(sys.argv[1], 'report.md').exists()}")
+PY
+}
+
 timed() {  # timed NAME TIMEOUT_S CMD...: runs CMD, records its wall time and exit code in NAME.time
   local name=$1 limit=$2; shift 2
   local t0=$(date +%s.%N)
@@ -52,48 +69,89 @@ echo "== 1. the main job, cold then warm ($VARIANT, -j $J)"
 timed run_cold $(( $(left) > 240 ? 240 : $(left) )) edgetruth run --variant "$VARIANT" -j "$J" -o A --no-progress
 timed run_warm $(( $(left) > 200 ? 200 : $(left) )) edgetruth run --variant "$VARIANT" -j "$J" -o B --no-progress
 
-echo "== 2. byte-identical renders within the variant"
-python3 - <<'PY' | tee "$OUT/identical.txt"
-import csv, json
+compare() {  # compare DIR_A DIR_B: every file hash of every manifest, the first differing EXRs' pixels, the rows
+python3 - "$1" "$2" <<'PY' | tee -a "$OUT/identical.txt"
+import csv, json, sys
 from pathlib import Path
-same = differ = 0
-for man in sorted(Path("A/render").glob("*/manifest.json")):
+A, B = Path(sys.argv[1]), Path(sys.argv[2])
+same = differ = shown = 0
+for man in sorted((A / "render").glob("*/manifest.json")):
     a = json.loads(man.read_text())["images"]
-    other = Path("B") / man.relative_to("A")
+    other = B / man.relative_to(A)
     b = json.loads(other.read_text())["images"] if other.exists() else {}
     for name, e in a.items():
         for kind, f in e.get("files", {}).items():
             if b.get(name, {}).get("files", {}).get(kind, {}).get("sha256") == f["sha256"]:
                 same += 1
-            else:
-                differ += 1
-                if differ <= 5:
-                    print(f"differs: {man.parent.name}/{name}.{kind}")
-print(f"render files identical: {same}, different: {differ}")
+                continue
+            differ += 1
+            if kind == "exr" and shown < 3:
+                shown += 1
+                try:  # how far apart: the pixels that differ and by how much
+                    from edgetruth.render.dataset.files import read_exr
+                    x, y = read_exr(man.parent / f["path"]), read_exr(other.parent / f["path"])
+                    d = x != y
+                    print(f"differs: {man.parent.name}/{name}.exr: {int(d.sum())} of {d.size} pixels, "
+                          f"max |diff| {float(abs(x - y).max()):.3g} on {float(abs(x).max()):.3g}")
+                except Exception as err:
+                    print(f"differs: {man.parent.name}/{name}.exr ({err})")
+print(f"{A} vs {B}: render files identical: {same}, different: {differ}")
 def rows(d):
     try:
-        with open(Path(d) / "ranging_rows.csv") as f:
+        with open(d / "ranging_rows.csv") as f:
             return [{k: v for k, v in r.items() if k != "time_s"} for r in csv.DictReader(f)]
     except FileNotFoundError:
         return None
-ra, rb = rows("A"), rows("B")
-print(f"ranging rows: {len(ra or [])} and {len(rb or [])}, equal but for time_s: {ra is not None and ra == rb}")
+ra, rb = rows(A), rows(B)
+print(f"{A} vs {B}: ranging rows: {len(ra or [])} and {len(rb or [])}, equal but for time_s: {ra is not None and ra == rb}")
 PY
+}
+
+echo "== 2. byte-identical renders within the variant"
+compare A B
+
+# 2b. the evaluation alone, repeated on the same renders (a resumed run re-renders nothing): twice as it runs, twice
+# with OpenCV on one thread.  On the H200 two runs' calibrations once differed by 2e-10 (fx) from identical images.
+if [ "${EVAL_REPEAT:-1}" = 1 ] && [ "$(left)" -gt 200 ]; then
+  echo "== 2b. the evaluation repeated on the same renders ($(left) s left)"
+  for tag in e1 e2 t1 t2; do
+    case $tag in t*) export OPENCV_FOR_THREADS_NUM=1 ;; *) unset OPENCV_FOR_THREADS_NUM ;; esac
+    timed eval_$tag 120 edgetruth run --variant "$VARIANT" -j "$J" -o B --no-progress --skip-synthetic
+    mkdir -p "E_$tag" && cp B/calibration.json B/ranging_rows.csv "E_$tag/" 2>/dev/null
+  done
+  unset OPENCV_FOR_THREADS_NUM
+  python3 - <<'PY' | tee -a "$OUT/identical.txt"
+import csv, json
+from pathlib import Path
+def load(tag):
+    d = Path(f"E_{tag}")
+    try:
+        cal = json.loads((d / "calibration.json").read_text())
+        with open(d / "ranging_rows.csv") as f:
+            rows = [{k: v for k, v in r.items() if k != "time_s"} for r in csv.DictReader(f)]
+        return cal, rows
+    except FileNotFoundError:
+        return None, None
+runs = {t: load(t) for t in ("e1", "e2", "t1", "t2")}
+for a, b, what in (("e1", "e2", "default threads"), ("t1", "t2", "OPENCV_FOR_THREADS_NUM=1")):
+    (ca, ra), (cb, rb) = runs[a], runs[b]
+    fx = (ca or {}).get("fx_px"), (cb or {}).get("fx_px")
+    print(f"evaluation twice, {what}: calibration equal: {ca is not None and ca == cb} (fx {fx[0]!r} / {fx[1]!r}); "
+          f"ranging rows equal but for time_s: {ra is not None and ra == rb}")
+PY
+fi
 
 echo "== 3. the full study ($(left) s left)"
 if [ "$(left)" -gt 60 ]; then
   timed full $(( $(left) - 20 )) edgetruth run --study full --skip-synthetic --variant "$VARIANT" -j "$J" -o F --no-progress $FULL_ARGS
-  python3 - <<'PY' | tee "$OUT/full_progress.txt"
-import json
-from pathlib import Path
-done = total = 0
-for man in sorted(Path("F/render").glob("*/manifest.json")):
-    imgs = json.loads(man.read_text())["images"]
-    n = sum(bool(e.get("complete")) for e in imgs.values())
-    print(f"{man.parent.name}: {n}/{len(imgs)} images complete")
-    done += n; total += len(imgs)
-print(f"full study: {done}/{total} images rendered; report: {Path('F/report.md').exists()}")
-PY
+  progress F
+fi
+# 4. the full study again, where time is left, and its renders compared with the first (FULL_TWICE=0: skip)
+if [ "${FULL_TWICE:-1}" = 1 ] && [ "$(left)" -gt 150 ]; then
+  echo "== 4. the full study again ($(left) s left)"
+  timed full_again $(( $(left) - 20 )) edgetruth run --study full --skip-synthetic --variant "$VARIANT" -j "$J" -o G --no-progress $FULL_ARGS
+  progress G
+  compare F G
 fi
 
 # What comes back (at most 8 files, 16 MiB each): the log, the times, the checks, and per run one archive of
