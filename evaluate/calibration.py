@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.opencv_threads import calibrate_camera
 
 #: cornerSubPix termination: 100 iterations or 1e-4 px.
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
@@ -259,7 +260,7 @@ def solve_points(obj_list, img_list, size_wh: tuple[int, int], flags: int, resid
     """cv2.calibrateCamera (iterated to 1e-12) -> (rms_px, K, dist (5,), per-view RMS px); ``residuals``, when
     given, receives each view's (n, 2) measured minus projected corners (px), ``poses`` its (rvec, tvec)."""
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-12)
-    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj_list, img_list, tuple(size_wh), None, None, flags=flags,
+    rms, K, dist, rvecs, tvecs = calibrate_camera(obj_list, img_list, tuple(size_wh), None, None, flags=flags,
                                                      criteria=crit)
     per_view = []
     for o, i, r, t in zip(obj_list, img_list, rvecs, tvecs):

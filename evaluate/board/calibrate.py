@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.opencv_threads import calibrate_camera
 
 FLAGS = cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3
 CRITERIA = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-12)
@@ -77,8 +78,8 @@ def calibrate(object_corners: np.ndarray, image_corners: list[np.ndarray], image
     if len(views) < 2 or any(len(v[1]) < MIN_CORNERS_PER_VIEW for v in views):
         raise InputError(f"calibration: need at least 2 views with {MIN_CORNERS_PER_VIEW} corners each, got "
                          f"{[len(v[1]) for v in views]}")
-    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([v[1] for v in views], [v[2] for v in views], image_size,
-                                                     None, None, flags=FLAGS, criteria=CRITERIA)
+    rms, K, dist, rvecs, tvecs = calibrate_camera([v[1] for v in views], [v[2] for v in views], image_size,
+                                                  None, None, flags=FLAGS, criteria=CRITERIA)
     cal = Calibration(K, float(dist.ravel()[0]), float(dist.ravel()[1]), float(rms), list(rvecs), list(tvecs))
     for (ok, obj, img), r, t in zip(views, rvecs, tvecs):
         proj, _ = cv2.projectPoints(obj, r, t, K, cal.dist)

@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[2]
 SOURCES = {"edgetruth": "edgetruth", "render": "edgetruth.render", "locate": "edgetruth.locate",
            "evaluate": "edgetruth.evaluate"}
 GROUND = ("edgetruth.conventions", "edgetruth.errors", "edgetruth.fileio", "edgetruth.image_io",
-          "edgetruth.resources", "edgetruth.console", "edgetruth.backends", "edgetruth.jit", "edgetruth")
+          "edgetruth.resources", "edgetruth.console", "edgetruth.backends", "edgetruth.jit", "edgetruth.opencv_threads",
+          "edgetruth")
 
 
 def modules() -> dict[str, Path]:

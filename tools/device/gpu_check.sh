@@ -111,7 +111,8 @@ echo "== 2. byte-identical renders within the variant"
 compare A B
 
 # 2b. the evaluation alone, repeated on the same renders (a resumed run re-renders nothing): twice as it runs, twice
-# with OpenCV on one thread.  On the H200 two runs' calibrations once differed by 2e-10 (fx) from identical images.
+# with OpenCV on one thread.  On the H200 two runs' calibrations once differed by 2e-10 (fx) from identical images:
+# OpenCV 5.0.0's calibrateCamera on several threads, now run on one (edgetruth/opencv_threads.py).
 if [ "${EVAL_REPEAT:-1}" = 1 ] && [ "$(left)" -gt 200 ]; then
   echo "== 2b. the evaluation repeated on the same renders ($(left) s left)"
   for tag in e1 e2 t1 t2; do
