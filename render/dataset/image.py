@@ -22,6 +22,7 @@ from edgetruth.render.scene.ground_truth import (checker_ground_truth, outline_i
                                            target_ground_truth, view_outline_local)
 from edgetruth.render.scene.mitsuba_scene import CheckerRig, RenderSettings, TargetRig
 from edgetruth.render.scene.pose import Pose
+from edgetruth.render.scene.sample_passes import sample_passes_note
 from edgetruth.render.sensor.linear_model import make_rng
 from edgetruth.render.dataset.spec import Job, Spec
 
@@ -223,7 +224,8 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
                    "distortion": "exact, per-ray inverse Brown-Conrady in a Python sensor plugin",
                    "psf": rig.psf_description(), "edge_band": band,
                    "radiance_meaning": "EXR = scene radiance times the lens's relative illumination (the ray "
-                                       "weights), integrated over pixel (x) PSF: photons = EXR x photons_per_radiance"},
+                                       "weights), integrated over pixel (x) PSF: photons = EXR x photons_per_radiance",
+                   **sample_passes_note(mi.variant(), settings.sampler)},
         "versions": versions(mi.variant()),
     }
     return radiance, image, full

@@ -73,3 +73,13 @@ def render_in_passes(render_once: Callable[[int, int], np.ndarray], seed: int, s
         part = np.asarray(render_once(pass_seed(seed, k), n), dtype=np.float64) * n
         acc = part if acc is None else acc + part
     return (acc / float(sum(passes))).astype(np.float32)
+
+
+def sample_passes_note(variant: str, sampler: str) -> dict:
+    """The JSON's ``render.sample_passes`` where renders are split (a cuda variant, not the orthogonal sampler); empty
+    elsewhere, so a CPU image's JSON is as before."""
+    if not variant.startswith("cuda") or sampler == "orthogonal":
+        return {}
+    return {"sample_passes": f"renders of more than {MAX_PASS_SPP} spp as passes of at most {MAX_PASS_SPP}, each with "
+                             "its own seed, averaged in float64 (the GPU film's atomic adds are then in one order; "
+                             "a stratified sampler stratifies each pass alone): render/scene/sample_passes.py"}

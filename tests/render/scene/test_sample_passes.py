@@ -8,6 +8,7 @@ The split is checked without a GPU:
 - CPU variants always render in one pass (their bytes, and the shipped results, unchanged);
 - the passes are weighted by their spp, in a fixed order, with seeds that depend on (seed, pass) alone;
 - the orthogonal sampler keeps one pass (it rounds 64 up to 11^2, and is not bit-reproducible anyway);
+- an image's JSON says so where its renders are split (``render.sample_passes``), and has no such key elsewhere;
 - a real render split as on a GPU (llvm, an emissive square whose pixel values are its exact coverage)
   matches that coverage as closely as the one-pass render of the same spp does.
 """
@@ -122,3 +123,11 @@ def test_a_render_split_as_on_a_gpu_matches_the_exact_coverage(fast_variant, mon
     rms_one, rms_split = np.sqrt(np.mean(e_one ** 2)), np.sqrt(np.mean(e_split ** 2))
     assert 1 / 1.35 < rms_split / rms_one < 1.35, (rms_one, rms_split)
     assert abs(e_split.mean()) < 4 * rms_split / np.sqrt(edge.sum())
+
+
+def test_the_json_names_the_passes_where_renders_are_split():
+    assert sp.sample_passes_note("llvm_ad_rgb", "multijitter") == {}
+    assert sp.sample_passes_note("scalar_rgb", "independent") == {}
+    assert sp.sample_passes_note("cuda_ad_rgb", "orthogonal") == {}
+    note = sp.sample_passes_note("cuda_ad_rgb", "multijitter")["sample_passes"]
+    assert "passes of at most 64" in note and "sample_passes.py" in note
