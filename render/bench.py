@@ -360,18 +360,28 @@ def capacity_lines(patches: dict, frames: dict) -> list[str]:
     big = patches[max(patches)]
     ms, fixed_ms = big["ms_per_image"], big["ms_per_image"] - big["mi_render"]
     w, h, spp = FULL_FRAME
-    per_core = frames["samples_per_s"] / frames["cores"]  # the window rendered on every core
-    frame_s = w * h * spp / per_core + frames["overhead_s"]  # the part outside mi.render: one thread
+    gpu = str(frames["variant"]).startswith("cuda")
+    # a CPU variant renders the window on every core; a cuda one on the GPU, whatever the cores
+    rate = frames["samples_per_s"] if gpu else frames["samples_per_s"] / frames["cores"]
+    frame_s = w * h * spp / rate + frames["overhead_s"]  # the part outside mi.render: one thread
     driver_ms = big["journal"] + big["write"]  # record + write the files sent back, per image
     n = 1_000_000
+    if gpu:
+        frames_line = (f"capacity: full frames {w}x{h} at {spp} spp on {frames['variant']}: ~{frame_s:.2f} s per frame "
+                       f"per GPU ({rate / 1e6:.1f} M samples/s; one worker process) = {3600 / frame_s:.0f} frames/h "
+                       "per GPU")
+        gpu_render = f"this GPU renders R = {rate / 1e6:.1f} M samples/s (docs/cluster.md's formula)"
+    else:
+        frames_line = (f"capacity: full frames {w}x{h} at {spp} spp on {frames['variant']}: ~{frame_s:.0f} s per frame "
+                       f"per core ({rate / 1e6:.1f} M samples/s per core) = {3600 / frame_s:.0f} frames/h per CPU core")
+        gpu_render = "GPU render time not measured: no GPU here"
     return [
         f"capacity: tiny patches: {3.6e6 / ms:,.0f} images/h per CPU worker (one core, {ms:.2f} ms/image); "
         f"1M images = {n * ms / 3.6e6:.1f} CPU-core-hours",
-        f"capacity: full frames {w}x{h} at {spp} spp on {frames['variant']}: ~{frame_s:.0f} s per frame per core "
-        f"({per_core / 1e6:.1f} M samples/s per core) = {3600 / frame_s:.0f} frames/h per CPU core",
+        frames_line,
         f"capacity: a GPU worker still spends the fixed CPU part per image ({fixed_ms:.2f} ms of a tiny patch: "
         f"pose, scene update, sensor, encoding, hashing, writing): at most {3.6e6 / fixed_ms:,.0f} tiny images/h "
-        "per GPU worker process, whatever the GPU (GPU render time not measured: no GPU here)",
+        f"per GPU worker process, whatever the GPU ({gpu_render})",
         f"capacity: driver: {driver_ms:.2f} ms per image (journal line {big['journal']:.2f}, synced in the "
         f"background; writing files sent back {big['write']:.2f}) = ~{1e3 / driver_ms:,.0f} images/s per driver"
         + (f"; Ray: {frames['ray_tasks_per_s']:,.0f} trivial tasks/s through one driver (local instance, "

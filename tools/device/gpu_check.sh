@@ -9,10 +9,11 @@
 #      OpenCV on one thread, and compares the calibrations and ranging rows;
 #   3. runs the full study (`run --study full --skip-synthetic`) in the time left; a run cut short
 #      records how many images were complete;
-#   4. where time is left, runs the full study again and compares its renders with the first (FULL_TWICE=0: not).
+#   4. where time is left, runs the full study again and compares its renders with the first (FULL_TWICE=0: not);
+#   5. where time is left, runs the render bench (`edgetruth bench --only render`: R, the GPU's samples/s).
 # Env: VARIANT (cuda_ad_rgb), BUDGET_S (whole script, 480), J (workers, the cores), FULL_ARGS (extra
 # options for the full study, e.g. "--limit 2" for a dry run), SITE (where the wheels go), EVAL_REPEAT (1: step 2b),
-# FULL_TWICE (1: step 4).
+# FULL (1: steps 3-4), FULL_TWICE (1: step 4), BENCH (1: step 5).
 set -u
 export PYTHONUNBUFFERED=1
 VARIANT=${VARIANT:-cuda_ad_rgb}
@@ -143,16 +144,24 @@ PY
 fi
 
 echo "== 3. the full study ($(left) s left)"
-if [ "$(left)" -gt 60 ]; then
+if [ "${FULL:-1}" = 1 ] && [ "$(left)" -gt 60 ]; then
   timed full $(( $(left) - 20 )) edgetruth run --study full --skip-synthetic --variant "$VARIANT" -j "$J" -o F --no-progress $FULL_ARGS
   progress F
 fi
 # 4. the full study again, where time is left, and its renders compared with the first (FULL_TWICE=0: skip)
-if [ "${FULL_TWICE:-1}" = 1 ] && [ "$(left)" -gt 150 ]; then
+if [ "${FULL:-1}" = 1 ] && [ "${FULL_TWICE:-1}" = 1 ] && [ "$(left)" -gt 150 ]; then
   echo "== 4. the full study again ($(left) s left)"
   timed full_again $(( $(left) - 20 )) edgetruth run --study full --skip-synthetic --variant "$VARIANT" -j "$J" -o G --no-progress $FULL_ARGS
   progress G
   compare F G
+fi
+
+# 5. the render bench, where time is left (BENCH=0: skip): the variants' samples/s on the bench window, R for
+# docs/cluster.md's GPU formula, and the capacity plan (its log comes back in logs.tgz)
+if [ "${BENCH:-1}" = 1 ] && [ "$(left)" -gt 200 ]; then
+  echo "== 5. the render bench ($(left) s left)"
+  timed bench $(( $(left) - 20 )) edgetruth bench --only render --repeats 1
+  grep -E "^(render bench|dataset bench|capacity)" "$OUT/bench.log"
 fi
 
 # What comes back (at most 8 files, 16 MiB each): the log, the times, the checks, and per run one archive of
