@@ -33,6 +33,7 @@ import numpy as np
 from edgetruth.render.optics.camera import Camera
 from edgetruth.render.optics.lens_sensor import sensor_dict
 from edgetruth.render.scene.pose import Pose
+from edgetruth.render.scene.sample_passes import render_in_passes
 from edgetruth.render.scene.targets import (BOARD_HALF_SIZE_M, BOARD_REFLECTANCE, CHECKER_BLACK_REFLECTANCE,
                                       TARGET_STANDOFF_M, TARGETS, Checkerboard)
 
@@ -196,10 +197,9 @@ class _Rig:
             self.sensor.set_pixels(*pixels)
         elif window_at is not None:
             self.sensor.set_window(*window_at)
-        from edgetruth.render.scene.sample_passes import render_in_passes
 
-        def once(pass_seed: int, spp: int) -> np.ndarray:
-            img = self.mi.render(self.scene, self.params, seed=int(pass_seed) & 0x7FFFFFFF, spp=spp)
+        def once(pass_seed: int, spp: int) -> np.ndarray:  # pass_seed: 31-bit already (render_in_passes)
+            img = self.mi.render(self.scene, self.params, seed=pass_seed, spp=spp)
             return np.asarray(img, dtype=np.float32)[..., 1].copy()  # achromatic scene: R = G = B exactly
 
         # passes on a GPU: its film's atomic adds would otherwise differ run to run (sample_passes)

@@ -39,11 +39,17 @@ def warps_spanned(spp: int) -> int:
     return int(((first + spp - 1) // WARP_LANES + 1).max())
 
 
+def splits(variant: str, sampler: str = "") -> bool:
+    """Whether renders on ``variant`` with ``sampler`` are split into passes: a cuda variant, any sampler but the
+    orthogonal one."""
+    return variant.startswith("cuda") and sampler != "orthogonal"
+
+
 def pass_spps(spp: int, variant: str, sampler: str = "") -> list[int]:
-    """``spp`` split into passes: one on a CPU variant or with the orthogonal sampler; on a cuda variant passes
-    of ``MAX_PASS_SPP`` and the rest, each spanning at most two warps per pixel."""
+    """``spp`` split into passes: one where nothing ``splits``; else passes of ``MAX_PASS_SPP`` and the rest, each
+    spanning at most two warps per pixel (one pass where ``spp`` already does)."""
     spp = int(spp)
-    if not variant.startswith("cuda") or sampler == "orthogonal" or warps_spanned(spp) <= 2:
+    if not splits(variant, sampler) or warps_spanned(spp) <= 2:
         return [spp]
     full, rest = divmod(spp, MAX_PASS_SPP)
     out = [MAX_PASS_SPP] * full
@@ -78,8 +84,9 @@ def render_in_passes(render_once: Callable[[int, int], np.ndarray], seed: int, s
 def sample_passes_note(variant: str, sampler: str) -> dict:
     """The JSON's ``render.sample_passes`` where renders are split (a cuda variant, not the orthogonal sampler); empty
     elsewhere, so a CPU image's JSON is as before."""
-    if not variant.startswith("cuda") or sampler == "orthogonal":
+    if not splits(variant, sampler):
         return {}
-    return {"sample_passes": f"renders of more than {MAX_PASS_SPP} spp as passes of at most {MAX_PASS_SPP}, each with "
-                             "its own seed, averaged in float64 (the GPU film's atomic adds are then in one order; "
-                             "a stratified sampler stratifies each pass alone): render/scene/sample_passes.py"}
+    return {"sample_passes": f"renders whose samples of a pixel span more than two {WARP_LANES}-lane warps (above "
+                             f"{MAX_PASS_SPP} spp) as passes of at most {MAX_PASS_SPP}, each with its own seed, "
+                             "averaged in float64 (the GPU film's atomic adds are then in one order; a stratified "
+                             "sampler stratifies each pass alone): render/scene/sample_passes.py"}

@@ -130,4 +130,6 @@ def test_the_json_names_the_passes_where_renders_are_split():
     assert sp.sample_passes_note("scalar_rgb", "independent") == {}
     assert sp.sample_passes_note("cuda_ad_rgb", "orthogonal") == {}
     note = sp.sample_passes_note("cuda_ad_rgb", "multijitter")["sample_passes"]
-    assert "passes of at most 64" in note and "sample_passes.py" in note
+    assert "passes of at most 64" in note and "more than two 32-lane warps" in note and "sample_passes.py" in note
+    assert sp.splits("cuda_ad_rgb", "multijitter") and not sp.splits("cuda_ad_rgb", "orthogonal")
+    assert not sp.splits("llvm_ad_rgb", "multijitter")
