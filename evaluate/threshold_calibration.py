@@ -75,7 +75,6 @@ def collect_renders(dataset_dirs, progress=None, names=None) -> tuple[WindowErro
     """Per-point window errors on the target images of rendered datasets (raw images, exact outline,
     the scoring rule of ``edgetruth.evaluate.points.scores``); also each image's seeds and spec."""
     from edgetruth.evaluate.points.scores import scored_candidates
-    from edgetruth.render.edge_truth import OutlineEdge
     from edgetruth.render.dataset.reader import open_dataset
 
     ent, sc, used = [], [], []
@@ -86,7 +85,7 @@ def collect_renders(dataset_dirs, progress=None, names=None) -> tuple[WindowErro
             if names is not None and s.name not in names:
                 continue
             gt = s.truth
-            truth = OutlineEdge.from_ground_truth(gt)
+            truth = s.outline  # every visible edge: one outline, or a scene's several
             total += 1
             try:
                 tc, cand, _ = scored_candidates(s.image, truth)

@@ -14,6 +14,11 @@ Which candidates are scored (one rule for every method, as ``edgetruth.evaluate.
   from every true (distorted) corner, where the profile across one side also crosses the other
   and no edge model of the study applies.
 
+An image with several outlines (a scene: shapes that cover one another, a ring's two edges, clutter) has no one
+target to find: its candidates are Canny's along every visible edge (``scene_candidates``), each scored against
+the nearest visible edge (``SceneOutline``); its per-point bounds and optical offsets, which follow one outline's
+geometry and the shading either side of it, are NaN there.
+
 A method that declines or fails a candidate answers with the candidate pixel (``converged`` False).
 The tables keep the figures apart (``edgetruth.evaluate.stats``): coverage, accuracy on the points
 the method refines, on the common subset every compared method refines, and on all candidates with
@@ -76,7 +81,7 @@ def candidate_optical_offsets(gt: dict, truth, x, y) -> tuple[np.ndarray, np.nda
 
     oe = gt.get("outline", {}).get("optical_edge")
     x, y = np.asarray(x, float), np.asarray(y, float)
-    if not oe:
+    if not oe or is_scene(truth):  # the JSON's optical edge is shape 0's outline
         return np.full(x.shape, np.nan), np.full(x.shape, np.nan)
     return (nearest_offsets(truth.polyline_px, oe["offset_px"], x, y),
             nearest_offsets(truth.polyline_px, oe.get("offset_50_px", oe["offset_px"]), x, y))
@@ -92,13 +97,44 @@ def scored_subset(truth, cand, offset) -> tuple[np.ndarray, np.ndarray]:
     return keep, d[keep]
 
 
+def is_scene(truth) -> bool:
+    """The truth of an image with several outlines (``SceneOutline``: shapes, a ring's two edges, clutter)."""
+    return getattr(truth, "shape", "") == "scene"
+
+
+def scene_candidates(image: np.ndarray, truth, margin_px: int = 12, boundary_tol_px: float = 2.0,
+                     sigma_px: float = 1.0):
+    """``TargetCandidates`` of an image with several outlines: no one target to find, so Canny runs on the crop
+    around every visible edge (+ ``margin_px``) and keeps the candidates within ``boundary_tol_px`` of one, as
+    ``target_candidates`` keeps those on its target's boundary (``region`` None)."""
+    from edgetruth import locate
+    from edgetruth.errors import InputError
+    from edgetruth.evaluate.ranging.target import TargetCandidates
+
+    img = np.asarray(image, np.float64)
+    seg = truth.visible_points_px()
+    if not len(seg):
+        raise InputError("scene: no visible edge in the image")
+    h, w = img.shape[:2]
+    x0, y0 = (max(int(v), 0) for v in np.floor(seg.min(axis=0)) - margin_px)
+    x1, y1 = (min(int(np.ceil(v)) + margin_px + 1, n) for v, n in zip(seg.max(axis=0), (w, h)))
+    if x1 - x0 < 3 or y1 - y0 < 3:
+        raise InputError("scene: the visible edges lie outside the image")
+    crop = np.ascontiguousarray(img[y0:y1, x0:x1])
+    cand = locate.candidates(crop, sigma_px=sigma_px)
+    keep = np.abs(truth.signed_distance(cand.x + x0, cand.y + y0)) <= boundary_tol_px
+    return TargetCandidates(None, crop, (x0, y0), cand, cand.subset(keep), keep)
+
+
 def scored_candidates(image: np.ndarray, truth):
     """The target's Canny boundary candidates on the raw ``image`` and the subset the rule scores:
     (``TargetCandidates``, scored ``Candidates``, their signed truth distance).  One definition for
-    the per-point tables and the threshold calibration on renders."""
+    the per-point tables and the threshold calibration on renders.  An image with several outlines
+    (``is_scene``) has its candidates along every visible edge (``scene_candidates``)."""
     from edgetruth.evaluate.ranging.target import target_candidates
 
-    tc = target_candidates(np.asarray(image, np.float64))
+    img = np.asarray(image, np.float64)
+    tc = scene_candidates(img, truth) if is_scene(truth) else target_candidates(img)
     keep, d = scored_subset(truth, tc.candidates, tc.offset)
     return tc, tc.candidates.subset(keep), d
 
@@ -166,11 +202,13 @@ def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict |
     """Refine the target's boundary candidates of the raw ``image`` with every method and score them."""
     from edgetruth import locate
     from edgetruth.evaluate.method_order import resolve
-    from edgetruth.render.edge_truth import OutlineEdge
+    from edgetruth.render.scene.ground_truth import image_outline
 
-    truth = OutlineEdge.from_ground_truth(gt)
+    truth = image_outline(gt)
     tc, sub, d = scored_candidates(image, truth)
-    bound = point_bound_px(gt, radiance, truth) if radiance is not None else float("nan")
+    # the bounds follow one outline's geometry and the shading either side of it: not computed for scenes
+    bounded = radiance is not None and not is_scene(truth)
+    bound = point_bound_px(gt, radiance, truth) if bounded else float("nan")
     out = PointScores(len(tc.candidates), bound, d.astype(np.float32))
     x0, y0 = tc.offset
     oc, o50 = candidate_optical_offsets(gt, truth, sub.x + x0, sub.y + y0)
@@ -178,7 +216,7 @@ def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict |
     masks, blur_known = {}, set()
     for label in methods:
         mid, kw = resolve(label, options)
-        if radiance is not None and len(sub):  # the bound's pixels: the method's declared footprint
+        if bounded and len(sub):  # the bound's pixels: the method's declared footprint
             masks[label] = locate.METHODS[mid].footprint_masks(sub, **kw)
             if kw.get("psf_sigma_px") is not None or (mid == "patch_esf_fit" and kw.get("blur_known")):
                 blur_known.add(label)  # told the PSF: its scale is known
@@ -195,7 +233,7 @@ def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict |
             err, conv = np.zeros(0), np.zeros(0, bool)
         out.errors[label] = np.asarray(err, np.float32)
         out.converged[label] = conv
-    if radiance is not None and len(sub):
+    if bounded and len(sub):
         from edgetruth.evaluate.points.bound import point_bounds
 
         b = point_bounds(gt, radiance, truth, sub.x + x0, sub.y + y0, masks, blur_known)

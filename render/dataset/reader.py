@@ -85,16 +85,9 @@ class Sample:
         ``signed_distance(x, y)`` in px (> 0 outside, on the bright board) and ``corner_distance(x, y)``;
         ``SceneOutline`` also ``edge_index`` / ``edge_shape`` (which outline / shape is nearest) and
         ``shape_at`` (which shape the point shows)."""
-        from edgetruth.render.edge_truth import OutlineEdge
+        from edgetruth.render.scene.ground_truth import image_outline
 
-        if self.kind != "target":
-            return None
-        gt = self.truth
-        if sum(len(s.get("outlines", ())) for s in gt.get("shapes", []) + gt.get("clutter", [])) > 1:
-            from edgetruth.render.scene.ground_truth import SceneOutline
-
-            return SceneOutline.from_ground_truth(gt)
-        return OutlineEdge.from_ground_truth(gt)
+        return image_outline(self.truth) if self.kind == "target" else None
 
     @property
     def optical_outline(self):

@@ -635,6 +635,10 @@ class SceneOutline:
             best[s0:s0 + len(qq)], seg[s0:s0 + len(qq)] = dist[r, j], cand[r, j]
         return best, self._owner[seg], q
 
+    def visible_points_px(self) -> np.ndarray:
+        """(N, 2) the vertices of every visible piece of every outline (px)."""
+        return np.concatenate([self._a, self._b]) if len(self._a) else np.zeros((0, 2))
+
     def edge_index(self, x, y) -> np.ndarray:
         """Index into ``outlines`` of the nearest visible edge of each point (-1: the scene shows none)."""
         return self._nearest(x, y)[1].reshape(np.shape(x))
@@ -692,3 +696,15 @@ class SceneOutline:
             out[inside & ~hole] = k
             todo &= ~inside  # the shape (or its hole, showing the board) hides everything below
         return out.reshape(shape)
+
+
+def image_outline(gt: dict):
+    """The exact distorted truth of every visible edge of a target image's JSON: ``OutlineEdge`` (shape 0's outline)
+    where the image shows one outline (a preset T1-T4, a scene of one shape), ``SceneOutline`` where it shows several
+    (shapes, a ring's two edges, clutter).  Both give ``signed_distance`` (> 0 on the bright board) and
+    ``corner_distance`` in px."""
+    from edgetruth.render.edge_truth import OutlineEdge
+
+    if sum(len(s.get("outlines", ())) for s in gt.get("shapes", []) + gt.get("clutter", [])) > 1:
+        return SceneOutline.from_ground_truth(gt)
+    return OutlineEdge.from_ground_truth(gt)
