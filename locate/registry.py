@@ -244,6 +244,40 @@ def method_spec(method_id: str, options: dict) -> str:
     return OPTION_SEP.join([method_id, *(f"{k}={format_option_value(v)}" for k, v in options.items())])
 
 
+def _where(m: Method) -> str:
+    """Where a user's method lives, for its errors: its source file, else its module."""
+    try:
+        return inspect.getsourcefile(m.fn) or m.fn.__module__
+    except (TypeError, AttributeError):
+        return getattr(m.fn, "__module__", "?")
+
+
+def _call_user_method(m: Method, img, cand, options: dict):
+    """A user's method on the candidates: an error inside it is the method's, reported as one line (the method,
+    where it lives, what it raised) rather than a traceback from edgetruth's stack."""
+    try:
+        return m.fn(img, cand, **options)
+    except InputError:
+        raise
+    except Exception as exc:
+        first = (str(exc).strip().splitlines() or [""])[0]
+        raise InputError(f"method {m.id!r} ({_where(m)}) raised {type(exc).__name__}: {first} -- on {len(cand)} "
+                         "candidates; fix the method, or leave it out") from exc
+
+
+def check_refinement(m: Method, r, n: int) -> None:
+    """A method's answer is a ``Refinement`` with one entry per candidate: else one line naming the method and what
+    it returned (a user's method that breaks the contract would otherwise fail later, far from its cause)."""
+    fix = "return Refinement(x, y, converged) or Refinement.from_offset(cand, offsets), one entry per candidate"
+    if not isinstance(r, Refinement):
+        raise InputError(f"method {m.id!r} ({_where(m)}) returned {type(r).__name__}, not a Refinement; {fix}")
+    fields = [("x", r.x), ("y", r.y), ("converged", r.converged), ("nx", r.nx), ("ny", r.ny)]
+    for name, v in fields + [(f"extras[{k!r}]", v) for k, v in (r.extras or {}).items()]:
+        if v is not None and np.shape(v) != (n,):
+            raise InputError(f"method {m.id!r} ({_where(m)}) returned {name} of shape {np.shape(v)} for {n} "
+                             f"candidates; {fix}")
+
+
 def refine(image, cand: Candidates, method: str = "dynamic_erf_4p", **options) -> EdgePoints:
     """Refine the candidates ``cand`` of ``image`` with ``method``.
 
@@ -262,7 +296,8 @@ def refine(image, cand: Candidates, method: str = "dynamic_erf_4p", **options) -
     n = len(cand)
     t0 = time.perf_counter()
     if n:
-        r = m.fn(img, cand, **options)
+        r = m.fn(img, cand, **options) if m.builtin else _call_user_method(m, img, cand, options)
+        check_refinement(m, r, n)
     else:
         z = np.zeros(0)
         r = Refinement(z, z, np.zeros(0, bool))

@@ -156,3 +156,69 @@ def test_plugin_errors_name_the_real_cause(tmp_path, monkeypatch, capsys, isolat
     assert main(["methods", "--plugin", "broken_dep_mod"]) == 2
     err = capsys.readouterr().err.strip()
     assert "not_installed_dependency_xyz" in err and "inside it" in err
+
+
+BROKEN_METHODS = '''
+import numpy as np
+from edgetruth import locate
+
+
+@locate.register("raises_inside")
+def raises_inside(image, cand):
+    raise RuntimeError("kaboom\\nsecond line")
+
+
+@locate.register("too_few")
+def too_few(image, cand):
+    return locate.Refinement.from_offset(cand, np.zeros(3))  # three offsets for every candidate
+
+
+@locate.register("returns_none")
+def returns_none(image, cand):
+    return None
+'''
+
+
+@pytest.mark.parametrize("method, expect", [
+    ("raises_inside", "method 'raises_inside' ({path}) raised RuntimeError: kaboom -- on {n} candidates; fix the method"),
+    ("too_few", "method 'too_few' ({path}) raised ValueError: "),
+    ("returns_none", "method 'returns_none' ({path}) returned NoneType, not a Refinement; return Refinement("),
+])
+def test_a_failing_plugin_method_is_one_line_naming_it_and_the_image(method, expect, tmp_path, capsys,
+                                                                      isolated_plugins):
+    """A user's method that raises, breaks the one-entry-per-candidate contract or returns no Refinement: one line
+    on stderr naming the image, the method and its file, exit 2, and no CSV half-written."""
+    import cv2
+    import numpy as np
+
+    plug = tmp_path / "broken_methods.py"
+    plug.write_text(BROKEN_METHODS)
+    img = np.full((80, 80), 50, np.uint8)
+    cv2.circle(img, (40, 40), 20, 200, -1)
+    cv2.imwrite(str(tmp_path / "disc.png"), cv2.GaussianBlur(img, (0, 0), 1.2))
+    from edgetruth import locate
+
+    n = len(locate.candidates(cv2.imread(str(tmp_path / "disc.png"), cv2.IMREAD_GRAYSCALE).astype(float)))
+    out = tmp_path / "pts.csv"
+    assert main(["locate", str(tmp_path / "disc.png"), "-m", method, "--plugin", str(plug), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("edgetruth locate: error: ") and "disc.png: " in err[0]
+    assert expect.format(path=plug, n=n) in err[0], err[0]
+    assert not out.exists()
+
+
+def test_a_wrong_length_answer_is_caught_where_it_is_made():
+    """``check_refinement``: every per-candidate field, extras included, has one entry per candidate."""
+    import numpy as np
+
+    from edgetruth.errors import InputError
+    from edgetruth.locate.registry import METHODS, check_refinement
+    from edgetruth.locate.result import Refinement
+
+    m = METHODS["erf4p_fixed11"]
+    ok = Refinement(np.zeros(5), np.zeros(5), np.ones(5, bool), extras={"s": np.zeros(5)})
+    check_refinement(m, ok, 5)
+    with pytest.raises(InputError, match=r"returned extras\['s'\] of shape \(4,\) for 5 candidates"):
+        check_refinement(m, Refinement(np.zeros(5), np.zeros(5), np.ones(5, bool), extras={"s": np.zeros(4)}), 5)
+    with pytest.raises(InputError, match=r"returned nx of shape \(5, 2\)"):
+        check_refinement(m, Refinement(np.zeros(5), np.zeros(5), np.ones(5, bool), nx=np.zeros((5, 2))), 5)
