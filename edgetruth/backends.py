@@ -209,6 +209,12 @@ class PoolBackend(Backend):
         if self._pool is None:
             return
         if abort:
+            # CPython <= 3.11 marks every work item of a broken pool failed, cancelled ones too, which raises
+            # InvalidStateError in its management thread (a traceback after our one-line error): drop those first
+            items = getattr(self._pool, "_pending_work_items", None)
+            for key, item in list((items or {}).items()):
+                if item.future.cancelled():
+                    items.pop(key, None)
             for proc in list((getattr(self._pool, "_processes", None) or {}).values()):
                 proc.kill()
         self._pool.shutdown(wait=not abort, cancel_futures=True)

@@ -146,9 +146,13 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
     if only is not None:
         bad = sorted(i for i in set(only) if not 0 <= i < spec.n_images)
         if bad:
-            raise InputError(f"--only: index {bad[0]} out of range; {spec.name!r} has images 0-{spec.n_images - 1}")
+            raise InputError(f"--only: spec {spec.name!r} has images 0-{spec.n_images - 1}, and {len(bad)} of the "
+                             f"indices asked for lie beyond them (the first: {bad[0]}); ask for indices within them")
         selected[:] = False
         selected[sorted(set(only))] = True
+    from edgetruth.render.dataset.image import check_views
+
+    check_views(spec)  # a pose no draw can meet: refused before anything is written
     check_not_foreign(out_dir)
     make_output_dir(out_dir)
     lock = DirLock(out_dir)

@@ -82,11 +82,49 @@ def job_pose(job: Job, camera: Camera, outline_local: np.ndarray) -> Pose:
         tx, ty = job.tilt_max_deg * shrink * rng.uniform(-1, 1, 2)
         roll = job.roll_max_deg * shrink * rng.uniform(-1, 1)
         pose = Pose(d, float(ox), float(oy), float(tx), float(ty), float(roll))
-        margin = min(VIEW_MARGIN_PX, max(1.0, 0.02 * camera.width_px))
-        if outline_in_view(camera, pose.to_camera(outline_local), margin):
+        if in_view(camera, pose, outline_local):
             return pose
-    raise InputError(f"image {job.name}: the board does not fit in the image at {d:.2f} m; "
-                     "move it further away or use a smaller board")
+    if job.kind == "target":
+        raise InputError(f"image {job.name}: the target's shapes do not fit in the image at {d:.2f} m; move them "
+                         "further away or make them smaller")
+    raise InputError(f"image {job.name}: the board does not fit in the image at {d:.2f} m; move it further away "
+                     "or use a smaller board")
+
+
+def in_view(camera: Camera, pose: Pose, outline_local: np.ndarray) -> bool:
+    """The pose draw's test: every point of the outline within the frame, less a margin."""
+    margin = min(VIEW_MARGIN_PX, max(1.0, 0.02 * camera.width_px))
+    return bool(outline_in_view(camera, pose.to_camera(outline_local), margin))
+
+
+def view_points(spec: Spec, job: Job) -> np.ndarray:
+    """Board points (N, 3) whose view decides job's pose (``job_pose``): a target's shapes (a paired cell: every
+    cell's), a board's plate."""
+    if job.kind == "target":
+        size_m = spec.target_size_m
+        return paired_view_outline(spec, size_m) if job.slot is not None else view_outline_local(job.target, size_m)
+    return (spec.squares if job.kind == "squares" else spec.checkerboard).plate_corners_local()
+
+
+def check_views(spec: Spec) -> None:
+    """Before anything renders: each group's nearest image fits in the frame centred and untilted -- the pose
+    draw's last resort, and its easiest view (a nearer image is larger) -- so no render stops half-way on a
+    pose no draw can meet.  One line naming the group and the distance it needs."""
+    for g in spec.groups:
+        if g.poses is not None or not g.count:
+            continue
+        job = spec.jobs[g.first_index + int(np.argmin(g.distances_cm))]
+        pts, d = view_points(spec, job), job.distance_cm / 100.0
+        if in_view(job.camera, Pose(d, 0.0, 0.0, 0.0, 0.0, 0.0), pts):
+            continue
+        need = d
+        while need < 100.0 * d and not in_view(job.camera, Pose(need, 0.0, 0.0, 0.0, 0.0, 0.0), pts):
+            need *= 1.02
+        what = "the target's shapes do" if job.kind == "target" else "the board does"
+        raise InputError(f"{spec.name} group {g.name!r}: {what} not fit in the image at {d:.2f} m (image "
+                         f"{job.name}), even centred and untilted; start its distance_range_cm at "
+                         f"{int(np.ceil(need * 100.0))} or more, or make {'them' if job.kind == 'target' else 'it'} "
+                         "smaller")
 
 
 _PAIRED_VIEW: dict = {}

@@ -52,6 +52,27 @@ def test_pool_task_error_reaches_the_driver():
             list(be.map_unordered(divmod, [(1, 1), (1, 0)]))
 
 
+def test_an_aborted_pool_leaves_no_thread_traceback(monkeypatch):
+    """A task's error aborts the pool (its queued tasks cancelled, its workers killed): the error reaches the driver
+    and nothing else does -- CPython 3.11's pool thread used to raise InvalidStateError on the cancelled ones,
+    printed as a traceback after the one-line error (`edgetruth render -j 2` on a pose no draw could meet)."""
+    import threading
+
+    seen = []
+    monkeypatch.setattr(threading, "excepthook", lambda a: seen.append(a.exc_type))
+    for _ in range(3):
+        with pytest.raises(ZeroDivisionError):
+            with make_backend("local", workers=2) as be:
+                list(be.map_unordered(_slow_divmod, [(1, 1), (1, 0)] + [(1, 1)] * 20, window=12))
+        time.sleep(0.5)  # the pool's own thread notices the killed workers
+    assert seen == []
+
+
+def _slow_divmod(a, b):
+    time.sleep(0.2)
+    return divmod(a, b)
+
+
 @pytest.mark.parametrize("kw, match", [
     ({"backend": "dask"}, "--backend"),
     ({"workers": 0}, "--workers"),

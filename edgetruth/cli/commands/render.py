@@ -36,18 +36,22 @@ def register(subparsers) -> None:
 def parse_indices(text: str | None) -> list[int] | None:
     from edgetruth.errors import InputError
 
-    if not text:
+    if text is None:
         return None
     out: list[int] = []
-    try:
-        for part in text.split(","):
-            a, _, b = part.partition("-")
-            lo, hi = (int(a), int(b)) if b else (int(a), int(a))
-            if lo < 0 or hi < lo or hi - lo > 10_000_000:
-                raise ValueError
-            out += list(range(lo, hi + 1))
-    except ValueError:
-        raise InputError(f"--only {text!r}: expected indices like 0,3,5-9") from None
+    for part in text.split(","):
+        a, dash, b = (t.strip() for t in part.partition("-"))
+        try:
+            lo, hi = (int(a), int(b)) if dash else (int(a), int(a))
+        except ValueError:
+            raise InputError(f"--only {text!r}: {part.strip()!r} is not an index or a range; expected indices like "
+                             "0,3,5-9 (a range names both ends)") from None
+        if lo < 0 or hi < lo:
+            raise InputError(f"--only {text!r}: {part.strip()!r} runs backwards or below 0; write ranges low-high, "
+                             "e.g. 5-9")
+        if hi - lo > 10_000_000:
+            raise InputError(f"--only {text!r}: {part.strip()!r} spans more than 10 million images; split it")
+        out += list(range(lo, hi + 1))
     return out
 
 
