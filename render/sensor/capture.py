@@ -46,6 +46,16 @@ def camera_pattern(sensor, camera, shape: tuple[int, int], crop=None):
     return sensor.fixed_pattern(frame, tuple(int(v) for v in crop))
 
 
+def saturation_fix(sensor) -> str:
+    """What lowers the saturation: with the full well in the ADC's range the well clips first, and the gain cannot
+    help; above it the ADC clips first, and the gain can."""
+    well_dn = sensor.gain_dn_per_e * sensor.full_well_e + sensor.dark_offset_dn
+    if well_dn < sensor.max_dn:
+        return (f"lower irradiance_w_m2 or exposure_s (the full well, {sensor.full_well_e:g} e-, clips at "
+                f"{well_dn:.0f} of {sensor.max_dn} DN: gain_db does not help)")
+    return "lower irradiance_w_m2, exposure_s or gain_db (the ADC clips before the full well)"
+
+
 def capture(radiance: np.ndarray, camera, sensor, rng: np.random.Generator, name: str = "image", crop=None):
     """(image file pixels, ground-truth dict) from the radiance of one render (``crop``: the
     (x0, y0, width, height) window of the camera's frame it covers, None for the whole frame)."""
@@ -60,7 +70,7 @@ def capture(radiance: np.ndarray, camera, sensor, rng: np.random.Generator, name
     frac_lit = float(saturated[lit].mean()) if lit.any() else 0.0
     if frac_lit > SATURATION_WARN_FRACTION:
         console.warn(f"{name}: {100 * frac_lit:.2f} % of the lit pixels saturate (limit "
-                     f"{100 * SATURATION_WARN_FRACTION:.1f} %); lower irradiance_w_m2, exposure_s or gain_db")
+                     f"{100 * SATURATION_WARN_FRACTION:.1f} %); {saturation_fix(sensor)}")
     image = pipeline.develop(raw, sensor, rng)  # rng: only output_noise_dn draws from it, after the exposure
     truth = {
         "image": pipeline.describe(sensor),

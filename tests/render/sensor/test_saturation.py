@@ -28,6 +28,23 @@ def test_saturated_fraction_is_recorded_and_warned_about(capsys):
     assert predicted_saturated_fraction(radiance, cam, s) == pytest.approx(17 / 7000, abs=1e-6)
 
 
+def test_the_warning_names_what_lowers_the_saturation():
+    """Where the full well maps inside the ADC's range the well clips first and only less light helps (a user at
+    gain_db = -12 was told to lower the gain); where it maps beyond full scale the ADC clips first and the gain
+    helps too.  Both against the sensor's own DN of a full well."""
+    from dataclasses import replace
+
+    from edgetruth.render.sensor.capture import saturation_fix
+
+    s = SensorModel()
+    low = replace(s, gain_db=-12.0)
+    assert low.gain_dn_per_e * low.full_well_e + low.dark_offset_dn < low.max_dn
+    assert "gain_db does not help" in saturation_fix(low) and "full well" in saturation_fix(low)
+    high = replace(s, gain_db=12.0)
+    assert high.gain_dn_per_e * high.full_well_e + high.dark_offset_dn > high.max_dn
+    assert saturation_fix(high) == "lower irradiance_w_m2, exposure_s or gain_db (the ADC clips before the full well)"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("spec_name", ["quick", "calibration", "study"])
 def test_no_shipped_spec_saturates(spec_name, fast_variant):
