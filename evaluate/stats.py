@@ -8,6 +8,7 @@ percentile) and max of |e|.  Paired comparisons: Wilcoxon signed-rank
 from __future__ import annotations
 
 import functools
+import itertools
 
 import numpy as np
 from scipy import stats as _st
@@ -46,6 +47,31 @@ def wilcoxon_paired(a, b, alpha: float = 0.05) -> dict:
     res = _st.wilcoxon(a, b, zero_method="wilcox", alternative="two-sided")
     out.update(statistic=float(res.statistic), p_value=float(res.pvalue), significant=bool(res.pvalue < alpha))
     return out
+
+
+#: up to this many pairs Spearman's p is exact (every permutation: 9! = 362,880); beyond, scipy's t approximation
+SPEARMAN_EXACT_N = 9
+
+
+def spearman(a, b) -> dict:
+    """Spearman's ρ, its two-sided p and n over the pairs where both are finite; ρ and p NaN with fewer than 3
+    pairs or a constant side.  For n <= ``SPEARMAN_EXACT_N`` p is the exact permutation p (the share of the n!
+    pairings with |ρ| at least the observed; ties kept as midranks): scipy's t approximation gives p = 0 for
+    three points in order, where the exact p is 1/3."""
+    a, b = np.asarray(a, float).ravel(), np.asarray(b, float).ravel()
+    ok = np.isfinite(a) & np.isfinite(b)
+    a, b, n = a[ok], b[ok], int(ok.sum())
+    if n < 3 or np.ptp(a) == 0 or np.ptp(b) == 0:
+        return {"rho": float("nan"), "p": float("nan"), "n": n}
+    rho = float(_st.spearmanr(a, b).statistic)
+    if n > SPEARMAN_EXACT_N:
+        return {"rho": rho, "p": float(_st.spearmanr(a, b).pvalue), "n": n}
+    ra, rb = _st.rankdata(a), _st.rankdata(b)
+    ra, rb = ra - ra.mean(), rb - rb.mean()
+    perms = np.array(list(itertools.permutations(range(n))), dtype=np.int8)
+    r = (rb[perms] @ ra) / np.sqrt((ra @ ra) * (rb @ rb))
+    p = float(np.mean(np.abs(r) >= abs(rho) - 1e-12))
+    return {"rho": rho, "p": p, "n": n}
 
 
 # ---- coverage and the common subset (shared by the synthetic and ranging reports) ----

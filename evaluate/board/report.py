@@ -285,7 +285,10 @@ def reading(sums, comparisons, reference, tone: dict | None = None, photos: list
              f"- Side-length RMSE (px): {_ranking(sums, 'length_rmse_px')}."]
     both = [s for s in methods if np.isfinite(s["straightness_px"]) and np.isfinite(s.get("calib_rms_px", np.nan))]
     if len(both) >= 3:
-        rho, p = st.spearmanr([s["straightness_px"] for s in both], [s["calib_rms_px"] for s in both])
+        from edgetruth.evaluate.stats import spearman
+
+        sp = spearman([s["straightness_px"] for s in both], [s["calib_rms_px"] for s in both])
+        rho, p = sp["rho"], sp["p"]
         lines += ["", f"Across the {len(both)} methods, straightness and calibration RMS rank alike to Spearman "
                       f"ρ = {rho:.2f} (p = {p:.2g}): a straighter side does "
                       f"{'' if rho > 0.5 and p < 0.05 else 'not clearly '}give a better calibration here."]

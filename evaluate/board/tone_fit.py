@@ -192,11 +192,9 @@ def estimate_power(inp, images: list[np.ndarray], full_scales: list[float], labe
 
 
 def _spearman(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
-    """Spearman's ρ and p; NaN where undefined (fewer than 3 pairs, or one side constant)."""
-    from scipy.stats import spearmanr
+    """Spearman's ρ and p (``stats.spearman``: exact for small n); NaN where undefined (fewer than 3 pairs, or
+    one side constant)."""
+    from edgetruth.evaluate.stats import spearman
 
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    if a.size < 3 or np.ptp(a) == 0 or np.ptp(b) == 0:
-        return float("nan"), float("nan")
-    r = spearmanr(a, b)
-    return float(r.statistic), float(r.pvalue)
+    s = spearman(a, b)
+    return s["rho"], s["p"]

@@ -15,7 +15,7 @@ from edgetruth.evaluate.ranging.design_cells import factor_tables, group_rows, m
 from edgetruth.evaluate.ranging.images import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, signed as _signed, table as _table
 from edgetruth.evaluate.stats import (bootstrap_ci, holm, rank_biserial, rmse, rmse_ci, rmse_difference_ci,
-                                      summary, wilcoxon_paired)
+                                      spearman, summary, wilcoxon_paired)
 
 #: Fewer valid images than this: claims are reported as inconclusive.
 MIN_IMAGES_FOR_VERDICT = 20
@@ -180,11 +180,10 @@ def level_analysis(rows, groups: list[str]) -> dict:
     n = min((v.size for v in vals), default=0)
     kw = st.kruskal(*vals) if n >= 2 and len(vals) >= 2 else None
     lev = np.concatenate([np.full(v.size, i) for i, v in enumerate(vals)]) if vals else np.zeros(0)
-    rho = st.spearmanr(lev, np.concatenate(vals)) if lev.size > 2 else None
+    rho = spearman(lev, np.concatenate(vals) if vals else np.zeros(0))
     return {"paired": False, "n": n, "rmse": rmses,
             "kruskal_p": float(kw.pvalue) if kw is not None else float("nan"),
-            "spearman_rho": float(rho.statistic) if rho is not None else float("nan"),
-            "spearman_p": float(rho.pvalue) if rho is not None else float("nan")}
+            "spearman_rho": rho["rho"], "spearman_p": rho["p"]}
 
 
 def describe_levels(a: dict) -> str:
@@ -207,8 +206,6 @@ def describe_levels(a: dict) -> str:
 
 def verdicts(rows, methods) -> list[dict]:
     """Claim-by-claim comparison with the seed (BRIEF §8 + seed Tables 16-17)."""
-    from scipy.stats import spearmanr
-
     out = []
     all_rows = rows
     rows = main_rows(all_rows)
@@ -256,15 +253,15 @@ def verdicts(rows, methods) -> list[dict]:
             ok = _ok(per[m])
             z = np.array([r["true_distance_m"] for r in ok])
             a = np.abs([r["error_cm"] for r in ok])
-            rho, p = spearmanr(z, a) if len(ok) > 2 else (np.nan, np.nan)
-            grow.append((m, rho, p))
-        growing = all(np.isfinite(r) and r > 0 and p < 0.05 for _, r, p in grow)
+            s = spearman(z, a)
+            grow.append((m, s["rho"], s["p"], s["n"]))
+        growing = all(np.isfinite(r) and r > 0 and p < 0.05 for _, r, p, _ in grow)
         v_worst = set(two_worst) == set(worst)
         v = ("HOLDS" if v_worst and growing else "PARTLY HOLDS" if v_worst or growing else "DOES NOT HOLD")
         out.append({"claim": "CannyPixel and Canny–Devernay are the worst, and their error grows with distance",
                     "observed": "two highest RMSE of the six: " + ", ".join(_label(m) for m in two_worst) + "; "
-                                + "; ".join(f"Spearman(|e|, Z) for {_label(m)}: n={n_img}, rho={_f(r, 2)}, p={_f(p, 3)}"
-                                            for m, r, p in grow),
+                                + "; ".join(f"Spearman(|e|, Z) for {_label(m)}: n={k}, rho={_f(r, 2)}, p={_f(p, 3)}"
+                                            for m, r, p, k in grow),
                     "verdict": tag(v)})
     # Table 16: SNR groups
     g_rows = group_rows(all_rows, "G")

@@ -104,3 +104,25 @@ def test_bootstrap_indices_are_the_generators_draws_kept_read_only():
             assert again is got and not got.flags.writeable  # kept, and nobody can change it for the next caller
         else:
             assert again is not got
+
+
+def test_spearman_p_is_exact_for_few_pairs_and_scipys_beyond():
+    """Three points in order: ρ = 1, and 2 of the 3! pairings reach |ρ| = 1, so p = 1/3 (scipy's t approximation
+    says 0: a report printed 'n=3, rho=1.00, p=0.000').  Four in order: 2/24.  n <= 9 against scipy's exact
+    permutation test (ties as midranks); n > 9 is scipy's own p."""
+    from scipy import stats as sst
+
+    from edgetruth.evaluate.stats import SPEARMAN_EXACT_N, spearman
+
+    assert spearman([1, 2, 3], [5, 6, 7]) == {"rho": 1.0, "p": pytest.approx(1 / 3), "n": 3}
+    assert spearman([1, 2, 3, 4], [4, 3, 2, 1])["p"] == pytest.approx(2 / 24)
+    rng = np.random.default_rng(3)
+    for n in (5, 7, SPEARMAN_EXACT_N):
+        x, y = rng.normal(size=n), np.round(rng.normal(size=n), 0)  # y has ties
+        want = sst.permutation_test((x,), lambda a: sst.spearmanr(a, y).statistic, permutation_type="pairings",
+                                    n_resamples=np.inf).pvalue
+        assert spearman(x, y)["p"] == pytest.approx(want, abs=1e-12)
+    x, y = rng.normal(size=30), rng.normal(size=30)
+    assert spearman(x, y)["p"] == sst.spearmanr(x, y).pvalue
+    nan = spearman([1, 2, np.nan, 4], [1, 1, 5, 1])  # a constant side after the NaN pair is dropped
+    assert nan["n"] == 3 and np.isnan(nan["rho"]) and np.isnan(nan["p"])

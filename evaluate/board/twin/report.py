@@ -6,6 +6,7 @@ import numpy as np
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board.measure import OPENCV_ROW, REFERENCE_ROW
 from edgetruth.evaluate.report_format import num, table
+from edgetruth.evaluate.stats import spearman
 from edgetruth.fileio import atomic_write_text, write_json
 
 #: the diagnostic row: PAE2013's default (floating-window) variant, next to the study's smoothed one
@@ -17,18 +18,6 @@ CSV_COLUMNS = ("row", "label", "in_ranking", "straightness_real_px", "straightne
                "rank_straightness_twin", "calib_rms_real_px", "calib_rms_twin_px", "rank_calib_real",
                "rank_calib_twin", "loo_rms_real_px", "loo_rms_twin_px", "truth_rms_px", "truth_median_abs_px",
                "truth_mean_px", "truth_sd_px", "truth_points", "converged_real", "converged_twin")
-
-
-def spearman(a, b) -> dict:
-    """Spearman ρ, its two-sided p and n over the pairs where both are finite."""
-    from scipy.stats import spearmanr
-
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    ok = np.isfinite(a) & np.isfinite(b)
-    if ok.sum() < 3:
-        return {"rho": float("nan"), "p": float("nan"), "n": int(ok.sum())}
-    r = spearmanr(a[ok], b[ok])
-    return {"rho": float(r.statistic), "p": float(r.pvalue), "n": int(ok.sum())}
 
 
 def ranks(values) -> np.ndarray:
@@ -256,7 +245,8 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
              "the corners left out), signed distance to the square's exact distorted outline (> 0 on the white "
              "board).", "",
              "## Rankings", "",
-             "Spearman ρ between the methods' figures (n methods; p two-sided, `scipy.stats.spearmanr`).", "",
+             "Spearman ρ between the methods' figures (n methods; p two-sided: exact up to 9, else "
+             "`scipy.stats.spearmanr`'s).", "",
              table(["ranking", "ρ", "p", "n"], rank_body), "",
              "## Table 1 — per method: real and twin", "",
              "Straightness: RMS of each side's points about its total-least-squares line, pooled (px).  Calibration: "

@@ -21,7 +21,7 @@
    the lens bends).
 4. **The photo model** (``photo_model.measure_photo``) of each real photo and each twin image, side by side,
    and the twin settings the photos give (``photo_model.derive_twin``) next to those the scene uses.
-5. **Rankings**: Spearman ρ (``scipy.stats.spearmanr``, with its two-sided p and n) between real and twin
+5. **Rankings**: Spearman ρ (``stats.spearman``: its two-sided p, exact up to 9 pairs, and n) between real and twin
    over the study's methods, for straightness, calibration RMS and leave-one-out RMS; and, on the twin,
    between straightness and the per-point error against the truth.
 
