@@ -531,7 +531,8 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     if len(used) < 3:
         missing = ", ".join(r.photo for r in results if not r.found)
         raise InputError(f"the {nx}x{ny} board was found in only {len(used)} of {len(results)} photos (need >= 3; "
-                         f"not found: {missing or 'none'}); check --pattern counts the inner corners (COLSxROWS)")
+                         f"not found: {missing or 'none'}); check --pattern counts the inner corners (COLSxROWS) -- "
+                         "a board of separate squares (zhang1998's) has none: run `edgetruth study board` on it")
     from edgetruth.evaluate.board_bend import bend_check
     from edgetruth.evaluate.residual_field import residual_structure
 

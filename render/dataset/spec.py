@@ -649,8 +649,11 @@ def load_spec(name_or_path: str | Path) -> Spec:
     if s["edge_mode"] in ("analytic", "frame"):  # edgetruth.render.scene.edge_band.band_coverage's scope
         for g in groups:
             if g.kind == "target" and (g.camera.moving or not isinstance(g.target, str)):
-                raise InputError(f"{src} group {g.name!r}: edge_mode = \"{s['edge_mode']}\" covers preset targets (T1..T4) "
-                                 "and a static camera; set edge_mode = \"path\" for this spec")
+                why = ("its camera moves" if g.camera.moving else
+                       "it has a scene of its own (shapes, a target_material or a texture)")
+                raise InputError(f"{src} group {g.name!r}: edge_mode = \"{s['edge_mode']}\" covers the preset targets "
+                                 f"T1..T4 as shipped and a static camera, and {why}; set edge_mode = \"path\" "
+                                 "for this spec")
     if s["board_mode"] == "frame":  # edgetruth.render.scene.board_frame's scope
         for g in groups:
             if g.kind != "target" and (g.camera.moving or g.board_bend_mm is not None):

@@ -186,6 +186,10 @@ def run(args: argparse.Namespace) -> int:
     from edgetruth.locate import thresholds as thr
 
     method, options = method_and_options(args.method)
+    if locate.METHODS[method].needs_camera and "esf" not in options:
+        raise InputError(f"-m {method}: it needs the camera's model (its edge-spread tables), which a photo alone does "
+                         "not give; it runs in the render studies (edgetruth run, edgetruth evaluate on renders) -- "
+                         "on photos use patch_psf_fit, which fits the PSF's scale itself")
     images, batch = expand_images(args.image)
     if args.thresholds is not None:
         if not method.startswith("dynamic_erf_"):
