@@ -137,7 +137,8 @@ CASES += [
      "no such file"),
     # render: options and outputs (specs are below)
     ("render-only-text", ["render", "{SPEC}", "-o", "{O}", "--only", "x"], "--only"),
-    ("render-only-range", ["render", "{SPEC}", "-o", "{O}", "--only", "999"], "out of range"),
+    ("render-only-range", ["render", "{SPEC}", "-o", "{O}", "--only", "999"],
+     "has images 0-2, and 1 of the indices asked for lie beyond them"),
     ("render-only-reversed", ["render", "{SPEC}", "-o", "{O}", "--only", "2-1"], "--only"),
     ("render-workers-0", ["render", "{SPEC}", "-o", "{O}", "--workers", "0"], "--workers"),
     ("render-workers-text", ["render", "{SPEC}", "-o", "{O}", "--workers", "many"], "--workers"),
