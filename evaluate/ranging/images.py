@@ -67,6 +67,21 @@ class ImageResult:
 SHAPES = ("square", "rectangle", "circle")
 
 
+def ranging_scope(gt: dict) -> str:
+    """Why a rendered target image is not ranged ("" where it is): ranging sizes one target of a shape it models
+    (``SHAPES``); an own scene of several outlines, or another shape, is scored per point only."""
+    from edgetruth.render.scene.ground_truth import image_outline
+    from edgetruth.evaluate.points.scores import is_scene
+
+    if is_scene(image_outline(gt)):
+        return "a scene of several outlines (ranging sizes one target); scored per point"
+    shape = gt["target"]["shape"]
+    if shape not in SHAPES:
+        article = "an" if shape[:1] in "aeiou" else "a"
+        return f"{article} {shape} (ranging sizes a {', a '.join(SHAPES[:-1])} or a {SHAPES[-1]}); scored per point"
+    return ""
+
+
 def rectangle_pose_distance(corners_px, K, width_m: float, height_m: float) -> float:
     """Z (m) of the centre of a ``width_m`` x ``height_m`` rectangle from its image corners (4, 2):
     top-left, top-right, bottom-right, bottom-left (undistorted px); ``cv2.solvePnP`` with IPPE."""
@@ -137,6 +152,8 @@ def outline_pose_distance(gt: dict, points_px, K) -> float:
     size_m = float(gt["target"]["size_m"])
     if gt["target"]["shape"] == "square":
         return pose_distance("square", size_m, K, corners_px=pts[:4])
+    if gt["target"]["shape"] == "rectangle":
+        return rectangle_pose_distance(pts[:4], K, size_m, float(gt["shapes"][0]["height_m"]))
     return pose_distance("circle", size_m, K, x=pts[:, 0], y=pts[:, 1])
 
 
@@ -201,7 +218,7 @@ def raw_pose_distance(shape: str, size_m: float, x, y, nx, ny, undistorter, K) -
 def true_size_px(gt: dict) -> float:
     """The ranging model's l evaluated on the TRUE undistorted outline (truth, for the model floor)."""
     pts = np.asarray(gt["outline"]["undistorted_px"])
-    if gt["target"]["shape"] == "square":
+    if gt["target"]["shape"] in ("square", "rectangle"):  # l: the left and right sides' gap (a rectangle's width)
         tl, tr, br, bl = pts
         from edgetruth.evaluate.ranging.size import Line, _line_gap
 
@@ -236,6 +253,10 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
     base = {"image": name, "spec": gt.get("spec", ""), "group": gt.get("group", ""),
             "target": gt["target"]["id"], "shape": shape, "true_distance_m": z_true,
             "interval": interval_label(100 * z_true), **design_fields(gt)}
+    outside = ranging_scope(gt)
+    if outside:  # rows that say so; the per-point scoring still runs (no ``error``)
+        return ImageResult(name, [dict(base, method=m, status=f"not ranged: {outside}", z_hat_m=float("nan"),
+                                       error_cm=float("nan"), rel_error_pct=float("nan")) for m in methods])
     floor_l = true_size_px(gt)
     f_true = float(gt["camera"]["fx_px"])
     base["model_floor_cm"] = 100.0 * (distance_from_size(f_true, size_m, floor_l) - z_true)
@@ -493,7 +514,7 @@ def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | N
         r = results[k]
         if r is None:
             continue
-        if k in keep and not r.error:
+        if k in keep and not r.error and "_image" in r.points:  # ranged: its crop and points to show
             examples.append(r)
         rel = os.path.relpath(jobs[k][0], out_dir)
         rows += [dict(row, dataset=rel) for row in r.rows]

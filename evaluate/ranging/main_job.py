@@ -259,6 +259,13 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
                          options=options, backend=backend, workers=workers, address=address, undistort=undistort)
     head = dict(header or {})
     head.setdefault("target images", len({(r.get("spec"), r["image"]) for r in result["rows"]}))
+    outside = {}  # images the ranging does not size (an own scene of several outlines, a shape it does not model)
+    for r in result["rows"]:
+        if str(r.get("status", "")).startswith("not ranged: "):
+            outside.setdefault(r["status"][len("not ranged: "):], set()).add((r.get("spec"), r["image"]))
+    if outside:
+        head["not ranged"] = "; ".join(f"{len(v)} image(s): {why}" for why, v in outside.items()) + \
+            " (their rows count as failed in the ranging tables; the per-point tables score them)"
     head.setdefault("methods", len(result["methods"]))
     head.setdefault("undistortion", UNDISTORT_LINES[undistort])
     head["entropy thresholds"] = f"2P {tuple(tau['2p'])}, 4P {tuple(tau['4p'])} ({tau['label']})"
