@@ -258,6 +258,7 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
         return ImageResult(name, [dict(base, method=m, status=f"not ranged: {outside}", z_hat_m=float("nan"),
                                        error_cm=float("nan"), rel_error_pct=float("nan")) for m in methods])
     floor_l = true_size_px(gt)
+    height_m = float(gt["shapes"][0]["height_m"]) if shape == "rectangle" else None  # the rectangle's pose
     f_true = float(gt["camera"]["fx_px"])
     base["model_floor_cm"] = 100.0 * (distance_from_size(f_true, size_m, floor_l) - z_true)
     base["pose_floor_cm"] = 100.0 * (true_pose_distance(gt) - z_true)
@@ -271,9 +272,10 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
         base["pose_optics_floor_cm"] = float("nan")
     if check_undistort(undistort) == "points":
         return range_undistorted(image, None, shape, size_m, z_true, cal, methods, base, keep_points=keep_points,
-                                 name=name, options=options, l_true_px=floor_l, points_undistorter=undistorter)
+                                 name=name, options=options, l_true_px=floor_l, points_undistorter=undistorter,
+                                 height_m=height_m)
     return range_undistorted(undistorter(image), undistorter.valid_mask(), shape, size_m, z_true, cal, methods, base,
-                             keep_points=keep_points, name=name, options=options, l_true_px=floor_l)
+                             keep_points=keep_points, name=name, options=options, l_true_px=floor_l, height_m=height_m)
 
 
 def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m: float, cal, methods: list[str],
