@@ -542,7 +542,8 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
                f"of the size model (mean |e| {_f(np.mean(np.abs(floor)) if floor.size else np.nan)} cm with the true "
                "outline) drops to the pose model's own floor (mean |e| "
                f"{_f(np.nanmean(np.abs(pose_floor)) if np.isfinite(pose_floor).any() else np.nan, 4)} cm with the true "
-               "outline), so what remains is the edge localisation's effect on distance, and the calibration's (Table 13c).  "
+               "outline), so what remains is the edge localisation's effect on distance, and the calibration's "
+               "(Table 13c).  "
                "bias: the mean signed error.")
     else:
         why = ("The same refined points, the target's full pose instead of Z = fx·S/l: a tilted or off-axis target "

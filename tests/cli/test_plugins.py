@@ -180,7 +180,8 @@ def returns_none(image, cand):
 
 
 @pytest.mark.parametrize("method, expect", [
-    ("raises_inside", "method 'raises_inside' ({path}) raised RuntimeError: kaboom -- on {n} candidates; fix the method"),
+    ("raises_inside",
+     "method 'raises_inside' ({path}) raised RuntimeError: kaboom -- on {n} candidates; fix the method"),
     ("too_few", "method 'too_few' ({path}) raised ValueError: "),
     ("returns_none", "method 'returns_none' ({path}) returned NoneType, not a Refinement; return Refinement("),
 ])

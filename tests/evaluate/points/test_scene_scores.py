@@ -66,7 +66,8 @@ def test_candidates_run_along_every_visible_edge_and_follow_the_rule(scene):
 def test_scene_points_are_scored_against_the_nearest_visible_edge(scene):
     """erf4p_fixed11 on the supersampled, blurred indicator, each point against its own edge: on the square's
     straight sides RMSE ≤ 0.005 px (measured 0.0003); on the circles (radius 7.5-15 px) the blur's curvature bias,
-    ~σ²/2R, ≤ 0.1 px (measured 0.04-0.09); a method that keeps the pixel centre is ~0.3 px off.  The bounds follow one outline: NaN."""
+    ~σ²/2R, ≤ 0.1 px (measured 0.04-0.09); a method that keeps the pixel centre is ~0.3 px off.  The bounds
+    follow one outline: NaN."""
     from edgetruth.evaluate.points.scores import score_image
 
     gt, so, img = scene
@@ -92,7 +93,8 @@ def test_threshold_calibration_reads_a_scene_dataset(scene, tmp_path):
     name = "0000_g"
     cv2.imwrite(str(tmp_path / f"{name}.png"), img)
     (tmp_path / f"{name}.json").write_text(json.dumps(gt))
-    files = {ext: {"path": f"{name}.{ext}", "sha256": sha256_file(tmp_path / f"{name}.{ext}")} for ext in ("png", "json")}
+    files = {ext: {"path": f"{name}.{ext}", "sha256": sha256_file(tmp_path / f"{name}.{ext}")}
+             for ext in ("png", "json")}
     (tmp_path / "manifest.json").write_text(json.dumps({
         "format": 1, "spec": "scene", "spec_sha256": "x", "n_images": 1,
         "images": {name: {"index": 0, "kind": "target", "group": "g", "seed": 1, "complete": True, "files": files}}}))
