@@ -107,24 +107,34 @@ def view_points(spec: Spec, job: Job) -> np.ndarray:
 
 
 def check_views(spec: Spec) -> None:
-    """Before anything renders: each group's nearest image fits in the frame centred and untilted -- the pose
-    draw's last resort, and its easiest view (a nearer image is larger) -- so no render stops half-way on a
-    pose no draw can meet.  One line naming the group and the distance it needs."""
+    """Before anything renders: each group's nearest image (the largest in the frame) draws its pose as its render
+    will (``job_pose``: a pure function of the job), so no render stops half-way on a pose no draw can meet.
+    One line naming the group and a distance at which the board or target fits centred and untilted (the draw's
+    last resort)."""
     for g in spec.groups:
         if g.poses is not None or not g.count:
             continue
         job = spec.jobs[g.first_index + int(np.argmin(g.distances_cm))]
         pts, d = view_points(spec, job), job.distance_cm / 100.0
-        if in_view(job.camera, Pose(d, 0.0, 0.0, 0.0, 0.0, 0.0), pts):
+        try:
+            job_pose(job, job.camera, pts)
             continue
-        need = d
-        while need < 100.0 * d and not in_view(job.camera, Pose(need, 0.0, 0.0, 0.0, 0.0, 0.0), pts):
-            need *= 1.02
+        except InputError:
+            pass
+        def fits(z: float) -> bool:
+            return in_view(job.camera, Pose(z, 0.0, 0.0, 0.0, 0.0, 0.0), pts)
+
+        lo, need = d, d
+        while need < 100.0 * d and not fits(need):
+            lo, need = need, need * 1.25
+        for _ in range(30):  # the nearest distance that fits, to well under a centimetre
+            mid = 0.5 * (lo + need)
+            lo, need = (lo, mid) if fits(mid) else (mid, need)
         what = "the target's shapes do" if job.kind == "target" else "the board does"
         raise InputError(f"{spec.name} group {g.name!r}: {what} not fit in the image at {d:.2f} m (image "
-                         f"{job.name}), even centred and untilted; start its distance_range_cm at "
-                         f"{int(np.ceil(need * 100.0))} or more, or make {'them' if job.kind == 'target' else 'it'} "
-                         "smaller")
+                         f"{job.name}) in any pose the draw tries; start its distance_range_cm at "
+                         f"{int(np.ceil(need * 100.0))} or more (where it fits centred and untilted), or make "
+                         f"{'them' if job.kind == 'target' else 'it'} smaller")
 
 
 _PAIRED_VIEW: dict = {}

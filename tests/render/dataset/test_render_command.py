@@ -32,7 +32,9 @@ def test_render_and_resume(tmp_path, capsys):
 def test_a_pose_no_draw_can_meet_is_refused_before_anything_is_written(tmp_path, capsys):
     """The tiny camera (64 px, fx 83 px) sees its 0.24 m checkerboard whole, centred, from ~0.40 m on: a group that
     starts at 0.20 m is refused at once, naming the group and the distance it needs (it stopped at its first such
-    image before, after writing the others); the distance it names renders."""
+    image before, after writing the others).  The check draws the nearest image's pose as its render would, and
+    the distance it names is where the board fits centred and untilted (the draw's last resort): 1 cm nearer it
+    does not."""
     spec = _spec(tmp_path)
     text = spec.read_text()
     spec.write_text(text.replace("distance_range_cm = [70, 90]", "distance_range_cm = [20, 90]"))
@@ -43,14 +45,16 @@ def test_a_pose_no_draw_can_meet_is_refused_before_anything_is_written(tmp_path,
     assert not out.exists()
     need = int(err[0].split("start its distance_range_cm at ")[1].split()[0])
     assert 30 <= need <= 60
-    from edgetruth.render.dataset.image import check_views
+    from edgetruth.render.dataset.image import check_views, in_view
     from edgetruth.render.dataset.spec import load_spec
+    from edgetruth.render.scene.pose import Pose
 
     spec.write_text(text.replace("distance_range_cm = [70, 90]", f"distance_range_cm = [{need}, {need + 1}]"))
-    check_views(load_spec(spec))
-    spec.write_text(text.replace("distance_range_cm = [70, 90]", f"distance_range_cm = [{need - 2}, {need - 1}]"))
-    with pytest.raises(InputError, match="group 'cal'"):
-        check_views(load_spec(spec))
+    s = load_spec(spec)
+    check_views(s)
+    board, cam = s.checkerboard.plate_corners_local(), s.jobs[2].camera
+    assert in_view(cam, Pose(need / 100, 0, 0, 0, 0, 0), board)
+    assert not in_view(cam, Pose((need - 1) / 100, 0, 0, 0, 0, 0), board)
 
 
 @pytest.mark.parametrize("text, expect", [
