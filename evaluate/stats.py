@@ -63,9 +63,10 @@ def spearman(a, b) -> dict:
     a, b, n = a[ok], b[ok], int(ok.sum())
     if n < 3 or np.ptp(a) == 0 or np.ptp(b) == 0:
         return {"rho": float("nan"), "p": float("nan"), "n": n}
-    rho = float(_st.spearmanr(a, b).statistic)
+    res = _st.spearmanr(a, b)
+    rho = float(res.statistic)
     if n > SPEARMAN_EXACT_N:
-        return {"rho": rho, "p": float(_st.spearmanr(a, b).pvalue), "n": n}
+        return {"rho": rho, "p": float(res.pvalue), "n": n}
     ra, rb = _st.rankdata(a), _st.rankdata(b)
     ra, rb = ra - ra.mean(), rb - rb.mean()
     perms = np.array(list(itertools.permutations(range(n))), dtype=np.int8)

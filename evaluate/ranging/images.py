@@ -67,6 +67,11 @@ class ImageResult:
 SHAPES = ("square", "rectangle", "circle")
 
 
+def rectangle_height_m(gt: dict) -> float:
+    """A rendered rectangle target's height (m; its ``size_m`` is the width), from the JSON's shape 0."""
+    return float(gt["shapes"][0]["height_m"])
+
+
 def ranging_scope(gt: dict) -> str:
     """Why a rendered target image is not ranged ("" where it is): ranging sizes one target of a shape it models
     (``SHAPES``); an own scene of several outlines, or another shape, is scored per point only."""
@@ -153,7 +158,7 @@ def outline_pose_distance(gt: dict, points_px, K) -> float:
     if gt["target"]["shape"] == "square":
         return pose_distance("square", size_m, K, corners_px=pts[:4])
     if gt["target"]["shape"] == "rectangle":
-        return rectangle_pose_distance(pts[:4], K, size_m, float(gt["shapes"][0]["height_m"]))
+        return rectangle_pose_distance(pts[:4], K, size_m, rectangle_height_m(gt))
     return pose_distance("circle", size_m, K, x=pts[:, 0], y=pts[:, 1])
 
 
@@ -258,7 +263,7 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
         return ImageResult(name, [dict(base, method=m, status=f"not ranged: {outside}", z_hat_m=float("nan"),
                                        error_cm=float("nan"), rel_error_pct=float("nan")) for m in methods])
     floor_l = true_size_px(gt)
-    height_m = float(gt["shapes"][0]["height_m"]) if shape == "rectangle" else None  # the rectangle's pose
+    height_m = rectangle_height_m(gt) if shape == "rectangle" else None  # the rectangle's pose
     f_true = float(gt["camera"]["fx_px"])
     base["model_floor_cm"] = 100.0 * (distance_from_size(f_true, size_m, floor_l) - z_true)
     base["pose_floor_cm"] = 100.0 * (true_pose_distance(gt) - z_true)

@@ -156,9 +156,7 @@ def paired_view_outline(spec: Spec, size_m: float) -> np.ndarray:
 def target_pose(spec: Spec, job: Job, camera: Camera) -> Pose:
     """The pose of a target job: a paired design cell checks the view with every cell's shapes
     (``paired_view_outline``), any other job with its own."""
-    size_m = spec.target_size_m
-    pts = paired_view_outline(spec, size_m) if job.slot is not None else view_outline_local(job.target, size_m)
-    return job_pose(job, camera, pts)
+    return job_pose(job, camera, view_points(spec, job))
 
 
 def versions(variant: str) -> dict:
