@@ -210,15 +210,30 @@ class PoolBackend(Backend):
             return
         if abort:
             # CPython <= 3.11 marks every work item of a broken pool failed, cancelled ones too, which raises
-            # InvalidStateError in its management thread (a traceback after our one-line error): drop those first
+            # InvalidStateError in its management thread (a traceback after our one-line error). The items stay
+            # (that thread still looks them up by id); their futures become stand-ins that take the failure quietly
             items = getattr(self._pool, "_pending_work_items", None)
-            for key, item in list((items or {}).items()):
+            for item in list((items or {}).values()):
                 if item.future.cancelled():
-                    items.pop(key, None)
+                    item.future = _CancelledWork()
             for proc in list((getattr(self._pool, "_processes", None) or {}).values()):
                 proc.kill()
         self._pool.shutdown(wait=not abort, cancel_futures=True)
         self._pool = None
+
+
+def _CancelledWork():
+    """A cancelled work item's future for a pool being aborted: cancelled, and deaf to the failure the broken
+    pool's thread then sets on every item it still holds (concurrent.futures loads only here)."""
+    from concurrent.futures import Future
+
+    class CancelledWork(Future):
+        def set_exception(self, exception) -> None:
+            pass
+
+    f = CancelledWork()
+    f.cancel()
+    return f
 
 
 def import_ray():
