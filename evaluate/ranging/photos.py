@@ -38,7 +38,7 @@ from edgetruth.errors import InputError
 from edgetruth.evaluate.ranging.images import SHAPES, ImageResult, interval_label
 
 REQUIRED_COLUMNS = ("image", "distance_cm", "size_m", "shape", "group")
-OPTIONAL_COLUMNS = ("height_m", "polarity", "note")
+OPTIONAL_COLUMNS = ("height_m", "polarity", "roi_px", "point_px", "reference", "note")
 PHOTO_POLARITIES = ("dark", "light", "auto")
 #: a physical size above this is almost surely centimetres typed into a metres column
 MAX_SIZE_M = 10.0
@@ -60,6 +60,14 @@ class PhotoRecord:
     group: str
     polarity: str = "auto"
     height_m: float | None = None
+    roi_px: tuple[int, int, int, int] | None = None  # x, y, w, h: the target lies inside this box
+    point_px: tuple[float, float] | None = None  # x, y: a point inside the target
+    reference: bool = False  # a reference photo: sets fx (fx = Z l / S), not ranged
+
+    def finder_priors(self) -> dict:
+        """What the row tells the declared-target finder (``target_finder.find_region``)."""
+        return {"shape": self.shape, "aspect": self.size_m / self.height_m if self.height_m else 1.0,
+                "polarity": self.polarity, "roi": self.roi_px, "point": self.point_px}
 
 
 def _number(text: str, where: str, column: str, unit_hint: str) -> float:
@@ -70,6 +78,21 @@ def _number(text: str, where: str, column: str, unit_hint: str) -> float:
     if not math.isfinite(v) or v <= 0:
         raise InputError(f"{where}: {column} {text!r} must be a positive finite number ({unit_hint})")
     return v
+
+
+def _numbers(text: str, n: int, where: str, column: str, hint: str) -> tuple[float, ...]:
+    """``n`` numbers separated by commas, semicolons or spaces (a comma-separated field is quoted in the CSV)."""
+    parts = [t for t in text.replace(";", " ").replace(",", " ").split() if t]
+    try:
+        vals = tuple(float(t) for t in parts)
+    except ValueError:
+        vals = ()
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
+        raise InputError(f"{where}: {column} {text!r} is not {n} numbers; give {hint}")
+    return vals
+
+
+REFERENCE_WORDS = {"": False, "no": False, "0": False, "false": False, "yes": True, "1": True, "true": True}
 
 
 def _resolve(image: str, where: str, photos_dir: Path | None, csv_dir: Path) -> Path:
@@ -154,6 +177,19 @@ def read_distances(csv_path: str | Path, photos_dir: str | Path | None = None) -
         if polarity not in PHOTO_POLARITIES:
             raise InputError(f"{where}: polarity {row['polarity']!r} is unknown; choose one of "
                              f"{', '.join(PHOTO_POLARITIES)} (or leave it empty: auto)")
+        roi = point = None
+        if row.get("roi_px"):
+            roi = _numbers(row["roi_px"], 4, where, "roi_px", '"x,y,w,h" in pixels of the photo, e.g. "120,80,300,240"')
+            if roi[2] <= 0 or roi[3] <= 0:
+                raise InputError(f"{where}: roi_px {row['roi_px']!r} has a width or height <= 0; give \"x,y,w,h\" "
+                                 "with w, h > 0")
+            roi = tuple(int(round(v)) for v in roi)
+        if row.get("point_px"):
+            point = _numbers(row["point_px"], 2, where, "point_px", '"x,y" in pixels of the photo, inside the target')
+        ref = (row.get("reference") or "").lower()
+        if ref not in REFERENCE_WORDS:
+            raise InputError(f"{where}: reference {row['reference']!r}; write yes for a reference photo (its distance "
+                             "sets the focal length) or leave it empty")
         group = row["group"]
         if not group:
             raise InputError(f"{where}: the group column is empty; name the photo's group (any text)")
@@ -162,7 +198,8 @@ def read_distances(csv_path: str | Path, photos_dir: str | Path | None = None) -
         if key in seen:
             raise InputError(f"{where}: the same photo as line {seen[key]}; one row per photo")
         seen[key] = line
-        out.append(PhotoRecord(line, image, str(path), distance_cm, size_m, shape, group, polarity, height_m))
+        out.append(PhotoRecord(line, image, str(path), distance_cm, size_m, shape, group, polarity, height_m,
+                               roi, point, REFERENCE_WORDS[ref]))
     if not out:
         raise InputError(f"{csv_path}: no rows; add one row per photo under the header")
     return out
@@ -188,6 +225,26 @@ def check_photos(records: list[PhotoRecord], image_size: tuple[int, int], csv_pa
                              "calibrate with photos of the same camera at the same resolution and orientation")
         if not np.all(np.isfinite(img)):
             raise InputError(f"{where}: holds NaN or infinite pixels; re-export the photo")
+        check_pointers(r, img.shape, where)
+
+
+def check_pointers(r: PhotoRecord, shape, where: str) -> None:
+    """The row's roi_px and point_px lie inside the photo (``shape`` (H, W)) and agree with each other."""
+    h, w = shape
+    if r.roi_px is not None:
+        x, y, bw, bh = r.roi_px
+        if x < 0 or y < 0 or x + bw > w or y + bh > h:
+            raise InputError(f"{where}: roi_px {x},{y},{bw},{bh} leaves the {w} x {h} px photo; give a box inside it "
+                             "(x, y from the top-left corner, 0-based)")
+    if r.point_px is not None:
+        px, py = r.point_px
+        if not (0 <= px <= w - 1 and 0 <= py <= h - 1):
+            raise InputError(f"{where}: point_px {px:g},{py:g} is outside the {w} x {h} px photo; give a point on the "
+                             "target")
+        if r.roi_px is not None:
+            x, y, bw, bh = r.roi_px
+            if not (x <= px <= x + bw and y <= py <= y + bh):
+                raise InputError(f"{where}: point_px {px:g},{py:g} is outside its roi_px; give a point inside the box")
 
 
 def unlisted_photos(records: list[PhotoRecord], photos_dir: str | Path) -> list[str]:
@@ -218,7 +275,7 @@ def range_photo(image: np.ndarray, record: PhotoRecord, cal, methods: list[str],
     und = undistorter or from_calibration(cal)
     raw = np.asarray(image, np.float64)
     kw = dict(keep_points=keep_points, name=record.image, options=options, polarity=record.polarity,
-              height_m=record.height_m)
+              height_m=record.height_m, finder=record.finder_priors())
     args = (record.shape, record.size_m, record.distance_cm / 100.0, cal, methods, photo_base(record))
     if check_undistort(undistort) == "points":
         return range_undistorted(raw, None, *args, points_undistorter=und, **kw)
@@ -228,8 +285,10 @@ def range_photo(image: np.ndarray, record: PhotoRecord, cal, methods: list[str],
 _undistorters: dict = {}
 
 
-def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options, channel, undistort="image"):
-    """One photo (a pure function of its arguments; runs in worker processes)."""
+def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options, channel, undistort="image",
+                figures_dir=None):
+    """One photo (a pure function of its arguments; runs in worker processes); with ``figures_dir`` it also
+    writes the photo's overlay there (``overlays.write_photo_overlay``)."""
     from edgetruth.evaluate.ranging.undistort import from_calibration
     from edgetruth.image_io import read_gray
 
@@ -237,7 +296,31 @@ def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options,
     if key not in _undistorters:
         _undistorters[key] = from_calibration(cal)
     image = read_gray(record.path, channel=channel)
-    return k, range_photo(image, record, cal, methods, keep_points, options, _undistorters[key], undistort)
+    res = range_photo(image, record, cal, methods, keep_points or figures_dir is not None, options,
+                      _undistorters[key], undistort)
+    if figures_dir is not None and not res.error and res.fits:
+        write_overlay(figures_dir, record, res, _undistorters[key](np.asarray(image, np.float64)))
+    if not keep_points:
+        res.points, res.fits = {}, {}
+    return k, res
+
+
+def overlay_method(res: ImageResult) -> str:
+    """The method an overlay shows: the reference method where it ranged, else the first that did."""
+    from edgetruth.evaluate.ranging.images import REFERENCE_METHOD
+
+    return REFERENCE_METHOD if REFERENCE_METHOD in res.fits else next(iter(res.fits))
+
+
+def write_overlay(figures_dir, record: PhotoRecord, res: ImageResult, und: np.ndarray) -> None:
+    from edgetruth.evaluate.ranging.overlays import overlay_name, write_photo_overlay
+
+    m = overlay_method(res)
+    row = next(r for r in res.rows if r["method"] == m)
+    write_photo_overlay(Path(figures_dir) / overlay_name(record.image), und, res.region, res.fits[m],
+                        res.points.get(m), m, float(row.get("z_hat_m", float("nan"))), record.distance_cm / 100.0)
+    res.region["overlay"] = f"figures/{overlay_name(record.image)}"
+    res.region["overlay_method"] = m
 
 
 def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir: str | Path | None = None,
@@ -260,7 +343,10 @@ def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir
         if len(keep) < figure_examples and r.shape not in shown:
             keep.add(k)
             shown.add(r.shape)
-    tasks = [(k, r, cal, methods, k in keep, options or {}, channel, undistort) for k, r in enumerate(records)]
+    figures = out_dir / "figures"
+    figures.mkdir(exist_ok=True)
+    tasks = [(k, r, cal, methods, k in keep, options or {}, channel, undistort, str(figures))
+             for k, r in enumerate(records)]
     n_workers = min(1 if workers is None else int(workers), max(1, len(tasks)))
     init, initargs = plugins.backend_initializer(backend, n_workers, methods)
     results: dict = {}
@@ -298,8 +384,19 @@ def photo_section(per_image: list[dict]) -> list[str]:
         found = p.get("shape_guess", "")
         flag = "" if not found or found == p["shape"] else f" (looks like a {found})"
         size = f"{p['size_m']:g}" + (f" × {p['height_m']:g}" if p.get("height_m") else "")
+        fin = p.get("finder") or {}
+        if not fin:
+            choice = "—"
+        elif fin.get("close"):
+            choice = f"**close**: {fin['chosen']['score']:.2f} vs {fin['runners_up'][0]['score']:.2f}"
+        else:
+            nxt = fin["runners_up"][0]["score"] if fin.get("runners_up") else 0.0
+            choice = f"{fin['chosen']['score']:.2f} (next {nxt:.2f})"
+        pic = f"[overlay]({p['overlay']})" if p.get("overlay") else "—"
         body.append([p["image"], p["group"], p["shape"] + flag, size, f"{p['distance_cm']:g}", pol,
-                     num(p.get("contrast", float("nan")), 2), p["n_boundary"], p["methods_ok"], p["error"] or "ok"])
+                     num(p.get("contrast", float("nan")), 2), choice, p["n_boundary"], p["methods_ok"],
+                     p["error"] or "ok", pic])
+    n_close = sum(bool((p.get("finder") or {}).get("close")) for p in per_image)
     n_light = sum(p.get("polarity") == "light" for p in per_image)
     n_dark = sum(p.get("polarity") == "dark" for p in per_image)
     n_none = len(per_image) - n_dark - n_light
@@ -311,8 +408,15 @@ def photo_section(per_image: list[dict]) -> list[str]:
             "outside and inside, sign flipped for a light target).  l is the side of a square, the "
             "diameter of a circle and the *width* (left/right side lines) of a rectangle, with size_m its "
             "horizontal side.  No per-point tables: a photo has no exact outline to score points against.", "",
-            table(["image", "group", "shape", "size (m)", "distance (cm)", "polarity", "contrast",
-                   "boundary candidates", "methods ranged", "target finding"], body),
+            table(["image", "group", "shape", "size (m)", "distance (cm)", "polarity", "contrast", "choice",
+                   "boundary candidates", "methods ranged", "target finding", "picture"], body),
+            "", "Choice: the score (0-1) of the region kept and of the best runner-up (shape fit × convexity × "
+            "aspect ratio rectified with the camera matrix × contrast all round its boundary; docs/formats.md); "
+            "**close** where the runner-up scores within 80 % of it: look at the overlay, and point at the target "
+            "with `roi_px` or `point_px` if the wrong one was kept.  Overlay: the found outline (green), the "
+            "fitted side lines or circle (magenta), the refined points of one method (red; dynamic_erf_4p where it "
+            "ranged) with its l and Z, the runners-up (faint yellow); drawn on the undistorted photo."
+            + (f"  {n_close} of {len(per_image)} choices were close." if n_close else ""),
             "", "A method that did not range a photo says why in `ranging_rows.csv` (`status`)."]
 
 
