@@ -205,13 +205,16 @@ def read_distances(csv_path: str | Path, photos_dir: str | Path | None = None) -
     return out
 
 
-def check_photos(records: list[PhotoRecord], image_size: tuple[int, int], csv_path="distances CSV",
-                 channel: str = "luma", progress: bool = True) -> None:
-    """Decode every photo and check it against the calibration's image size (before anything is written)."""
+def check_photos(records: list[PhotoRecord], image_size: tuple[int, int] | None, csv_path="distances CSV",
+                 channel: str = "luma", progress: bool = True) -> tuple[int, int]:
+    """Decode every photo and check it against the calibration's image size (before anything is written);
+    ``image_size`` None (no calibration): every photo must have the first one's size.  Returns the size."""
     from edgetruth import console
     from edgetruth.image_io import read_gray
 
-    w, h = (int(v) for v in image_size)
+    w = h = None if image_size is None else 0
+    if image_size is not None:
+        w, h = (int(v) for v in image_size)
     for r in console.track(records, "check photos", "photo", enabled=progress):
         where = f"{csv_path} line {r.line} ({r.image})"
         try:
@@ -220,12 +223,66 @@ def check_photos(records: list[PhotoRecord], image_size: tuple[int, int], csv_pa
             raise InputError(f"{where}: {exc}") from None
         if img.ndim != 2:
             raise InputError(f"{where}: not a 2-D gray image (shape {img.shape}); save it as a gray or colour photo")
+        if w is None:
+            w, h, first = img.shape[1], img.shape[0], r
         if (img.shape[1], img.shape[0]) != (w, h):
+            if image_size is None:
+                raise InputError(f"{where}: {img.shape[1]} x {img.shape[0]} px, {first.image} is {w} x {h} px; "
+                                 "without a calibration every photo must come from one camera at one resolution "
+                                 "and orientation")
             raise InputError(f"{where}: {img.shape[1]} x {img.shape[0]} px, the calibration is for {w} x {h} px; "
                              "calibrate with photos of the same camera at the same resolution and orientation")
         if not np.all(np.isfinite(img)):
             raise InputError(f"{where}: holds NaN or infinite pixels; re-export the photo")
         check_pointers(r, img.shape, where)
+    return int(w), int(h)
+
+
+def resolve_references(records: list[PhotoRecord], specs: list[str], photos_dir, csv_path) -> list[PhotoRecord]:
+    """``--reference-photo IMAGE[=DISTANCE_CM]``: mark the CSV's row of IMAGE as a reference photo (with a
+    distance, it must agree with the row's), or add IMAGE as one (then the distance is needed and the CSV's
+    rows must share one shape and size).  At least one test row must remain."""
+    import dataclasses
+
+    out = list(records)
+    by_path = {os.path.realpath(r.path): k for k, r in enumerate(out)}
+    for spec in specs:
+        image, _, dist = spec.partition("=")
+        where = f"--reference-photo {spec}"
+        d = _number(dist, where, "distance", "IMAGE=DISTANCE_CM, e.g. ref.jpg=100") if dist else None
+        path = _resolve(image, where, Path(photos_dir) if photos_dir else None, Path(csv_path).parent)
+        k = by_path.get(os.path.realpath(path))
+        if k is not None:
+            r = out[k]
+            if d is not None and abs(d - r.distance_cm) > 1e-9 * max(d, 1.0):
+                raise InputError(f"{where}: {csv_path} line {r.line} lists {r.image} as a test photo at "
+                                 f"{r.distance_cm:g} cm, not {d:g} cm; give one distance (drop =DISTANCE_CM to use "
+                                 "the CSV's)")
+            out[k] = dataclasses.replace(r, reference=True)
+            continue
+        if d is None:
+            raise InputError(f"{where}: {image} is not in {csv_path}; give its distance as IMAGE=DISTANCE_CM")
+        kinds = {(r.shape, r.size_m, r.height_m) for r in records}
+        if len(kinds) != 1:
+            raise InputError(f"{where}: {image} is not in {csv_path}, whose rows hold several targets; add it to "
+                             "the CSV as a row with reference = yes")
+        r0 = records[0]
+        out.append(PhotoRecord(0, image, str(path), d, r0.size_m, r0.shape, "reference", r0.polarity, r0.height_m,
+                               reference=True))
+        by_path[os.path.realpath(path)] = len(out) - 1
+    if all(r.reference for r in out):
+        raise InputError(f"{csv_path}: every photo is a reference photo; keep at least one to range")
+    return out
+
+
+def camera_without_board(fx_px: float, image_size: tuple[int, int], method: str):
+    """A calibration with no board: fx = fy = ``fx_px``, the principal point at the image centre, no distortion."""
+    from edgetruth.evaluate.calibration import Calibration
+
+    w, h = image_size
+    K = np.array([[fx_px, 0.0, (w - 1) / 2.0], [0.0, fx_px, (h - 1) / 2.0], [0.0, 0.0, 1.0]])
+    return Calibration(K=K, dist=np.zeros(5), image_size=(int(w), int(h)), rms_px=float("nan"), n_views=0,
+                       method=method)
 
 
 def check_pointers(r: PhotoRecord, shape, where: str) -> None:
@@ -326,9 +383,13 @@ def write_overlay(figures_dir, record: PhotoRecord, res: ImageResult, und: np.nd
 def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir: str | Path | None = None,
                       methods: list[str] | None = None, options: dict | None = None, channel: str = "luma",
                       progress: bool = True, backend: str = "local", workers: int | None = 1,
-                      address: str | None = None, figure_examples: int = 3, undistort: str = "image") -> dict:
+                      address: str | None = None, figure_examples: int = 3, undistort: str = "image",
+                      cals: list | None = None) -> dict:
     """Range every photo with every method; write ``ranging_rows.csv`` and ``ranging_images.json``.
-    Returns {"rows", "examples", "per_image", "methods"} (as ``ranging.run_ranging``)."""
+    ``cals``: one calibration per record (fx from each photo's EXIF) instead of ``cal`` for all.
+    Reference rows (``PhotoRecord.reference``) set each method's fx (``focal_length.reference_fx``) and
+    leave the error tables; the others are re-ranged with it.
+    Returns {"rows", "examples", "per_image", "methods", "reference_fx"} (as ``ranging.run_ranging``)."""
     from edgetruth import console, locate
     from edgetruth.backends import make_backend
     from edgetruth.evaluate.ranging.images import write_rows
@@ -345,7 +406,7 @@ def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir
             shown.add(r.shape)
     figures = out_dir / "figures"
     figures.mkdir(exist_ok=True)
-    tasks = [(k, r, cal, methods, k in keep, options or {}, channel, undistort, str(figures))
+    tasks = [(k, r, cals[k] if cals else cal, methods, k in keep, options or {}, channel, undistort, str(figures))
              for k, r in enumerate(records)]
     n_workers = min(1 if workers is None else int(workers), max(1, len(tasks)))
     init, initargs = plugins.backend_initializer(backend, n_workers, methods)
@@ -366,10 +427,21 @@ def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir
                           "shape": rec.shape, "size_m": rec.size_m, "height_m": rec.height_m,
                           "distance_cm": rec.distance_cm, "polarity_requested": rec.polarity,
                           "n_candidates": res.n_candidates, "n_boundary": res.n_boundary, **res.region,
-                          "methods_ok": sum(row.get("status") == "ok" for row in res.rows), "error": res.error})
+                          "methods_ok": sum(row.get("status") == "ok" for row in res.rows), "error": res.error,
+                          "reference": rec.reference,
+                          **({"fx_px": (cals[k] if cals else cal).fx} if cals else {})})
+    ref_fx = None
+    if any(r.reference for r in records):
+        from edgetruth.evaluate.ranging.focal_length import apply_fx, reference_fx
+
+        refs = {r.image for r in records if r.reference}
+        size_of_image = {r.image: r.size_m for r in records}
+        ref_fx = reference_fx([row for row in rows if row["image"] in refs], size_of_image)
+        rows = apply_fx([row for row in rows if row["image"] not in refs], ref_fx, size_of_image)
+        write_json(out_dir / "reference_fx.json", ref_fx)
     write_rows(out_dir / "ranging_rows.csv", rows)
     write_json(out_dir / "ranging_images.json", per_image)
-    return {"rows": rows, "examples": examples, "per_image": per_image, "methods": methods}
+    return {"rows": rows, "examples": examples, "per_image": per_image, "methods": methods, "reference_fx": ref_fx}
 
 
 def photo_section(per_image: list[dict]) -> list[str]:
@@ -393,9 +465,10 @@ def photo_section(per_image: list[dict]) -> list[str]:
             nxt = fin["runners_up"][0]["score"] if fin.get("runners_up") else 0.0
             choice = f"{fin['chosen']['score']:.2f} (next {nxt:.2f})"
         pic = f"[overlay]({p['overlay']})" if p.get("overlay") else "—"
+        status = p["error"] or ("ok; reference: sets fx" if p.get("reference") else "ok")
         body.append([p["image"], p["group"], p["shape"] + flag, size, f"{p['distance_cm']:g}", pol,
                      num(p.get("contrast", float("nan")), 2), choice, p["n_boundary"], p["methods_ok"],
-                     p["error"] or "ok", pic])
+                     status, pic])
     n_close = sum(bool((p.get("finder") or {}).get("close")) for p in per_image)
     n_light = sum(p.get("polarity") == "light" for p in per_image)
     n_dark = sum(p.get("polarity") == "dark" for p in per_image)
@@ -423,7 +496,8 @@ def photo_section(per_image: list[dict]) -> list[str]:
 def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_dir: str | Path | None = None,
                     methods=None, thresholds=None, camera_thresholds=None, channel: str = "luma",
                     progress: bool = True, backend: str = "local", workers: int | None = 1,
-                    address: str | None = None, header: dict | None = None, undistort: str = "image") -> Path:
+                    address: str | None = None, header: dict | None = None, undistort: str = "image",
+                    cals: list | None = None, focal_source: str = "") -> Path:
     """Range every photo of ``records`` with every method and write ``report.md`` into ``out``
     (Tables 13-17, paired tests and verdicts against the reference distances)."""
     from edgetruth import locate
@@ -438,7 +512,7 @@ def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_d
             v for v in mo.variant_labels(options) if options[v]["method"] in (methods or free)])
     result = run_photo_ranging(records, calibration, out, photos_dir, methods=methods, options=options,
                                channel=channel, progress=progress, backend=backend, workers=workers, address=address,
-                               undistort=undistort)
+                               undistort=undistort, cals=cals)
     head = dict(header or {})
     head.setdefault("photos", len(records))
     from edgetruth.evaluate.ranging.images import UNDISTORT_LINES
@@ -450,5 +524,29 @@ def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_d
         ct = mo.thresholds_in_use(camera_thresholds)
         head["entropy thresholds for this camera (camera τ)"] = (
             f"2P {tuple(ct['2p'])}, 4P {tuple(ct['4p'])} (from {Path(camera_thresholds).name})")
+    if focal_source:
+        head["focal length"] = focal_source
+    sections = photo_section(result["per_image"]) + focal_section(records, result.get("reference_fx"), focal_source)
     return write_report(out, result["rows"], result["methods"], calibration, result["examples"], head,
-                        title="photo ranging report", reference=REFERENCE, sections=photo_section(result["per_image"]))
+                        title="photo ranging report", reference=REFERENCE, sections=sections)
+
+
+def focal_section(records: list[PhotoRecord], ref_fx: dict | None, source: str) -> list[str]:
+    """The report's "Focal length" section: where fx came from and what that means for the figures."""
+    from edgetruth.evaluate.report_format import num, table
+
+    if not source:
+        return []
+    out = ["", "## Focal length", "", source + "."]
+    if ref_fx:
+        refs = [r for r in records if r.reference]
+        out += ["", f"fx = Z·l/S on the reference photo(s) ({', '.join(f'{r.image} at {r.distance_cm:g} cm' for r in refs)}), "
+                "each method with its own l, so each method has its own fx: a method that measures every l a "
+                "little large (or small) gets an fx as much larger, and its scale error cancels: its Z is exact at "
+                "the reference distance, and elsewhere its errors are those of the *ratio* l_ref / l (what changes "
+                "with distance: blur, sampling, the tilt's share) plus the reference distance's own error, which "
+                "scales every Z alike.  The reference photos are not in the error tables.  The pose estimate needs "
+                "the whole camera matrix and is left out (nan).", "",
+                table(["method", "fx (px)", "reference photos"],
+                      [[m, num(v.get("fx_px", float("nan")), 2), v.get("n", 0)] for m, v in ref_fx.items()])]
+    return out
