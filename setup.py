@@ -5,7 +5,7 @@ else, package data included); tests/package/test_wheel.py checks the built wheel
 from setuptools import find_packages, setup
 
 #: package -> the folder it installs from (no top-level render/locate/evaluate in site-packages)
-FOLDERS = {"edgetruth": "edgetruth", "edgetruth.render": "render", "edgetruth.locate": "locate",
+FOLDERS = {"edgetruth": "edgetruth", "edgetruth.cli": "cli", "edgetruth.render": "render", "edgetruth.locate": "locate",
            "edgetruth.evaluate": "evaluate", "edgetruth.scenes": "scenes", "edgetruth.assets": "assets"}
 
 
