@@ -35,7 +35,7 @@ def dictionary_names() -> tuple[str, ...]:
     """OpenCV's predefined ArUco dictionaries (``cv2.aruco.DICT_*``)."""
     import cv2
 
-    return tuple(sorted(n for n in dir(cv2.aruco) if n.startswith("DICT_")))
+    return tuple(sorted(n for n in dir(cv2.aruco) if n.startswith("DICT_") and isinstance(getattr(cv2.aruco, n), int)))
 
 
 def get_dictionary(name: str, where: str = "charuco"):
