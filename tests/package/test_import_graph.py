@@ -79,7 +79,7 @@ ALLOWED = {"ground": {"ground"}, "render": {"ground", "render"}, "locate": {"gro
 
 
 def test_every_source_folder_is_found(graph):
-    assert {"edgetruth.render.dataset.spec", "edgetruth.locate.registry", "edgetruth.evaluate.ranging.main_job",
+    assert {"edgetruth.render.dataset.spec", "edgetruth.locate.registry", "edgetruth.evaluate.main_job",
             "edgetruth.cli.commands.run"} <= set(graph)
 
 
