@@ -137,7 +137,7 @@ def corner_finder(board: CharucoBoard, corners: str, line_frame: str | None = No
     if kind == "subpix" and not spec:
         if line_frame is not None:
             raise InputError(f"--line-frame {line_frame}: only with --corners lines; add --corners lines or drop it")
-        return (lambda image, pattern: charuco_corners(image, board, detector)[0],
+        return (lambda photo, pattern: charuco_corners(photo, board, detector)[0],
                 "OpenCV's ChArUco corners (cv2.aruco.CharucoDetector.detectBoard: markers, interpolation, "
                 "cornerSubPix)", False)
     if kind != "lines":
