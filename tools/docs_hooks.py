@@ -1,0 +1,69 @@
+"""MkDocs hooks for `make docs` (mkdocs.yml `hooks:`).
+
+The package's folders install under one namespace by setuptools' package-dir (``render/`` ->
+``edgetruth.render``, ...). griffe, which reads the docstrings for the API reference without importing
+anything, follows folders, so ``on_startup`` lays out that namespace as copies and links under ``build/apisrc/``
+(git-ignored), read from pyproject.toml's own mapping: the reference is of the source as checked out.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
+ROOT = Path(__file__).resolve().parents[1]
+API_SRC = ROOT / "build" / "apisrc"
+
+
+def build_api_tree(root: Path = ROOT, out: Path = API_SRC) -> Path:
+    """Link each ``edgetruth.*`` package of pyproject's package-dir to its folder under ``out``."""
+    mapping = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
+    if out.exists():
+        shutil.rmtree(out)
+    top = out / "edgetruth"
+    top.mkdir(parents=True)
+    for entry in (root / mapping["edgetruth"]).iterdir():  # the package's own modules
+        if entry.suffix == ".py":
+            shutil.copy2(entry, top / entry.name)  # copied: griffe resolves a linked __init__.py to its folder
+        elif entry.is_dir() and entry.name != "__pycache__":
+            os.symlink(entry, top / entry.name)
+    # the sub-packages that live in their own folders, shortest name first (parents before children)
+    for name, folder in sorted(mapping.items(), key=lambda kv: kv[0].count(".")):
+        parts = name.split(".")[1:]
+        if not parts:
+            continue
+        dest = top.joinpath(*parts)
+        if dest.is_symlink() or dest.exists():
+            continue  # inside a folder already linked (e.g. locate/methods under locate/)
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        os.symlink(root / folder, dest)
+    return out
+
+
+def on_startup(command, dirty):  # noqa: ARG001 -- MkDocs' hook signature
+    build_api_tree()
+
+
+#: Pages other work adds, named in the nav: until one lands, the build generates a marked placeholder in its
+#: place (never written to docs/), so the strict build does not fail on it and no stub competes with the page.
+PENDING_PAGES = {
+    "photos.md": ("Ranging your own photos", "issue 46"),
+    "patterns.md": ("Circle grids and ChArUco", "issue 48"),
+    "architecture.md": ("Architecture", "issue 49"),
+}
+
+
+def on_files(files, config):
+    from mkdocs.structure.files import File
+
+    for src, (title, issue) in PENDING_PAGES.items():
+        if files.get_file_from_path(src) is None:
+            text = (f"# {title}\n\n!!! note \"Placeholder\"\n    This page is not written yet ({issue}); "
+                    "the build generates this note in its place.\n")
+            files.append(File.generated(config, src, content=text))
+    return files
