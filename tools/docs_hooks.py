@@ -3,26 +3,32 @@
 The package's folders install under one namespace by setuptools' package-dir (``render/`` ->
 ``edgetruth.render``, ...). griffe, which reads the docstrings for the API reference without importing
 anything, follows folders, so ``on_startup`` lays out that namespace as copies and links under ``build/apisrc/``
-(git-ignored), read from pyproject.toml's own mapping: the reference is of the source as checked out.
+(git-ignored), read from setup.py's own mapping (``FOLDERS``): the reference is of the source as checked out.
 """
 from __future__ import annotations
 
+import ast
 import os
 import shutil
 from pathlib import Path
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
 API_SRC = ROOT / "build" / "apisrc"
 
 
+def package_folders(root: Path = ROOT) -> dict:
+    """setup.py's ``FOLDERS``: package -> the folder it installs from (read, not run)."""
+    for node in ast.parse((root / "setup.py").read_text()).body:
+        target = node.target if isinstance(node, ast.AnnAssign) else (node.targets[0] if isinstance(node, ast.Assign)
+                                                                       else None)
+        if isinstance(target, ast.Name) and target.id == "FOLDERS":
+            return ast.literal_eval(node.value)
+    raise RuntimeError("setup.py has no FOLDERS mapping")
+
+
 def build_api_tree(root: Path = ROOT, out: Path = API_SRC) -> Path:
-    """Link each ``edgetruth.*`` package of pyproject's package-dir to its folder under ``out``."""
-    mapping = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
+    """Link each ``edgetruth.*`` package of setup.py's ``FOLDERS`` to its folder under ``out``."""
+    mapping = package_folders(root)
     if out.exists():
         shutil.rmtree(out)
     top = out / "edgetruth"
