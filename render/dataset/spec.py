@@ -39,8 +39,9 @@ from edgetruth.render.schema import REQUIRED, Key, _is_num, parse_table
 from edgetruth.render.sensor.linear_model import SensorModel, sensor_from_dict
 from edgetruth.render.scene.shapes import SCENE_GROUP_KEYS, scene_from_group
 from edgetruth.render.scene.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard, SquareBoard, square_board_from_dict
+from edgetruth.render.scene.circles_grid import CirclesGrid, circles_grid_from_dict
 
-KINDS = ("target", "checkerboard", "squares")
+KINDS = ("target", "checkerboard", "squares", "circles_grid")
 SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
 MAX_SPP = 1 << 16
 MAX_IMAGES = 10_000_000
@@ -82,11 +83,14 @@ SPEC_KEYS = [
     Key("squares", "table", {}, "", "the board of dark squares of kind = \"squares\" groups {model, "
         "model_unit_m | rows, cols, side_m, pitch_m; margin_m, plate_size_m, square_reflectance, "
         "board_reflectance}"),
+    Key("circles_grid", "table", {}, "", "the circle grid of kind = \"circles_grid\" groups {cols, rows, spacing_m, "
+        "diameter_m, asymmetric, margin_m}: dark circles on a white plate in OpenCV's findCirclesGrid layout "
+        "(edgetruth.render.scene.circles_grid)"),
 ]
 GROUP_KEYS = [
     Key("name", "name", REQUIRED, "", "group name (unique in the spec; part of every image name)"),
-    Key("kind", "str", "target", "", "what the images show: a target on a board, a checkerboard, or a board "
-        "of dark squares ([spec] squares)", choices=KINDS),
+    Key("kind", "str", "target", "", "what the images show: a target on a board, a checkerboard, a board "
+        "of dark squares ([spec] squares) or a circle grid ([spec] circles_grid)", choices=KINDS),
     Key("target", "str", "T1", "", "target id (kind = target)", choices=tuple(TARGETS)),
     Key("count", "int", 1, "images", "images over distance_range_cm (one per equal sub-interval)", 1, MAX_IMAGES),
     Key("distance_range_cm", "range2", (150.0, 150.0), "cm", "[near, far] distance of the board centre", 1.0, 1e5),
@@ -104,7 +108,7 @@ GROUP_KEYS = [
     Key("poses", "tables", None, "", "explicit poses [{R = [[r11, r12, r13], [...], [...]], t = [tx, ty, tz]}, "
         "...]: one image per pose, instead of count, distances, lateral_fraction, tilts and roll; "
         "X_cam = R X_board + t (OpenCV camera frame); the board frame: kind squares: the model's frame "
-        "([spec] squares), else centred on the board (x right, y down, z into it); R must be a rotation "
+        "([spec] squares), kind circles_grid: the frame of OpenCV's object points (circle 0 at its origin), else centred on the board (x right, y down, z into it); R must be a rotation "
         f"(R^T R = I within {ROTATION_TOLERANCE:g}, det +1; the nearest rotation is used); t in pose_unit_m"),
     Key("pose_unit_m", "float", 1.0, "m", "unit of the explicit poses' t (1: metres; 0.0254: inches)", 1e-9, 1e3),
     Key("board_bend_mm", "floats", None, "mm", "kind = squares or checkerboard: the board curled, its height "
@@ -313,6 +317,7 @@ class Spec:
     groups: tuple
     text_sha256: str = ""
     squares: SquareBoard | None = None
+    circles_grid: CirclesGrid | None = None
 
     @property
     def n_images(self) -> int:
@@ -356,6 +361,8 @@ class Spec:
                "checkerboard": asdict(self.checkerboard), "sensor": self.sensor.identity(), "groups": groups}
         if any(g.kind == "squares" for g in self.groups):
             out["squares"] = self.squares.resolved()
+        if any(g.kind == "circles_grid" for g in self.groups):
+            out["circles_grid"] = self.circles_grid.resolved()
         return out
 
     def units(self) -> list[list[int]]:
@@ -503,6 +510,8 @@ def _check_explicit_poses(poses: tuple, g: dict, spec_parts: dict, camera: Camer
             pts = spec_parts["squares"].plate_corners_local()
         elif g["kind"] == "checkerboard":
             pts = spec_parts["checkerboard"].plate_corners_local()
+        elif g["kind"] == "circles_grid":
+            pts = spec_parts["circles_grid"].plate_corners_local()
         else:
             pts = view_outline_local(spec_parts["scene"] or g["target"], spec_parts["target_size_m"])
         cam_pts = pose.to_camera(pts)
@@ -558,6 +567,7 @@ def load_spec(name_or_path: str | Path) -> Spec:
     check_value(SPEC_KEYS[0], name, f"{src} [spec] (default name from the file name)")
     board = Checkerboard(**parse_table(s["checkerboard"], CHECKERBOARD_KEYS, f"{src} [spec] checkerboard"))
     squares = square_board_from_dict(s["squares"], path.parent, f"{src} [spec] squares")
+    circles = circles_grid_from_dict(s["circles_grid"], f"{src} [spec] circles_grid")
     try:
         base_camera = load_camera(s["camera"], base_dir=path.parent)
     except InputError as exc:
@@ -587,6 +597,9 @@ def load_spec(name_or_path: str | Path) -> Spec:
         names.add(g["name"])
         if g["kind"] != "target" and "target" in raw:
             raise InputError(f"{where}: target = {raw['target']!r}: a {g['kind']} group has no target; remove it")
+        if g["kind"] == "circles_grid" and g.get("board_bend_mm") is not None:
+            raise InputError(f"{where}: board_bend_mm: a circle grid renders flat (its circles' truth is planar); "
+                             "bend a squares or checkerboard group, or remove it")
         if g["kind"] == "target" and g.get("board_bend_mm") is not None:
             raise InputError(f"{where}: board_bend_mm: a target scene's board is flat (its edge band and "
                              "shadows are planar); bend a squares or checkerboard group, or remove it")
@@ -618,7 +631,10 @@ def load_spec(name_or_path: str | Path) -> Spec:
             poses = parse_poses(g["poses"], g["pose_unit_m"], where)
             if g["kind"] == "squares":  # model frame -> the rendering's board frame (centred on the squares)
                 poses = tuple(p.moved_origin(squares.centre_model_m) for p in poses)
-            _check_explicit_poses(poses, g, {"squares": squares, "checkerboard": board, "scene": scene,
+            if g["kind"] == "circles_grid":  # the object points' frame -> the board frame (centred on the circles)
+                poses = tuple(p.moved_origin(circles.centre_model_m) for p in poses)
+            _check_explicit_poses(poses, g, {"squares": squares, "checkerboard": board, "circles_grid": circles,
+                                             "scene": scene,
                                              "target_size_m": s["target_size_m"]}, camera, where)
         light = None if "light_position_m" not in raw else tuple(g["light_position_m"])
         unit = unit_e = None
@@ -667,4 +683,5 @@ def load_spec(name_or_path: str | Path) -> Spec:
                                                                          shading_step_px=s["shading_step_px"],
                                                                          board_mode=s["board_mode"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
-                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares)
+                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares,
+                circles_grid=circles)
