@@ -41,7 +41,9 @@ from edgetruth.render.scene.shapes import SCENE_GROUP_KEYS, scene_from_group
 from edgetruth.render.scene.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard, SquareBoard, square_board_from_dict
 from edgetruth.render.scene.circles_grid import CirclesGrid, circles_grid_from_dict
 
-KINDS = ("target", "checkerboard", "squares", "circles_grid")
+from edgetruth.render.scene.charuco import CharucoBoard, charuco_board_from_dict
+
+KINDS = ("target", "checkerboard", "squares", "charuco", "circles_grid")
 SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
 MAX_SPP = 1 << 16
 MAX_IMAGES = 10_000_000
@@ -86,11 +88,14 @@ SPEC_KEYS = [
     Key("circles_grid", "table", {}, "", "the circle grid of kind = \"circles_grid\" groups {cols, rows, spacing_m, "
         "diameter_m, asymmetric, margin_m}: dark circles on a white plate in OpenCV's findCirclesGrid layout "
         "(edgetruth.render.scene.circles_grid)"),
+    Key("charuco", "table", {}, "", "the ChArUco board of kind = \"charuco\" groups {cols, rows, square_m, "
+        "marker_m, dictionary, legacy, margin_m, square_reflectance, board_reflectance} (OpenCV's CharucoBoard)"),
 ]
 GROUP_KEYS = [
     Key("name", "name", REQUIRED, "", "group name (unique in the spec; part of every image name)"),
     Key("kind", "str", "target", "", "what the images show: a target on a board, a checkerboard, a board "
-        "of dark squares ([spec] squares) or a circle grid ([spec] circles_grid)", choices=KINDS),
+        "of dark squares ([spec] squares), a ChArUco board ([spec] charuco) or a circle grid ([spec] circles_grid)",
+        choices=KINDS),
     Key("target", "str", "T1", "", "target id (kind = target)", choices=tuple(TARGETS)),
     Key("count", "int", 1, "images", "images over distance_range_cm (one per equal sub-interval)", 1, MAX_IMAGES),
     Key("distance_range_cm", "range2", (150.0, 150.0), "cm", "[near, far] distance of the board centre", 1.0, 1e5),
@@ -108,7 +113,9 @@ GROUP_KEYS = [
     Key("poses", "tables", None, "", "explicit poses [{R = [[r11, r12, r13], [...], [...]], t = [tx, ty, tz]}, "
         "...]: one image per pose, instead of count, distances, lateral_fraction, tilts and roll; "
         "X_cam = R X_board + t (OpenCV camera frame); the board frame: kind squares: the model's frame "
-        "([spec] squares), kind circles_grid: the frame of OpenCV's object points (circle 0 at its origin), else centred on the board (x right, y down, z into it); R must be a rotation "
+        "([spec] squares), kind charuco: OpenCV's board frame (origin at its top-left outer corner), kind "
+        "circles_grid: the frame of OpenCV's object points (circle 0 at its origin), else centred on the board "
+        "(x right, y down, z into it); R must be a rotation "
         f"(R^T R = I within {ROTATION_TOLERANCE:g}, det +1; the nearest rotation is used); t in pose_unit_m"),
     Key("pose_unit_m", "float", 1.0, "m", "unit of the explicit poses' t (1: metres; 0.0254: inches)", 1e-9, 1e3),
     Key("board_bend_mm", "floats", None, "mm", "kind = squares or checkerboard: the board curled, its height "
@@ -318,6 +325,7 @@ class Spec:
     text_sha256: str = ""
     squares: SquareBoard | None = None
     circles_grid: CirclesGrid | None = None
+    charuco: CharucoBoard | None = None
 
     @property
     def n_images(self) -> int:
@@ -363,6 +371,8 @@ class Spec:
             out["squares"] = self.squares.resolved()
         if any(g.kind == "circles_grid" for g in self.groups):
             out["circles_grid"] = self.circles_grid.resolved()
+        if any(g.kind == "charuco" for g in self.groups):
+            out["charuco"] = self.charuco.resolved()
         return out
 
     def units(self) -> list[list[int]]:
@@ -508,6 +518,8 @@ def _check_explicit_poses(poses: tuple, g: dict, spec_parts: dict, camera: Camer
     for i, pose in enumerate(poses):
         if g["kind"] == "squares":
             pts = spec_parts["squares"].plate_corners_local()
+        elif g["kind"] == "charuco":
+            pts = spec_parts["charuco"].squares.plate_corners_local()
         elif g["kind"] == "checkerboard":
             pts = spec_parts["checkerboard"].plate_corners_local()
         elif g["kind"] == "circles_grid":
@@ -581,6 +593,10 @@ def load_spec(name_or_path: str | Path) -> Spec:
     base_sensor = sensor_from_dict(data.get("sensor", {}), where=f"{src} [sensor]")
     groups_raw = data.get("group", [])
     design_cells = _design_cells(data["design"], f"{src} [design]") if "design" in data else []
+    charuco = None  # built (OpenCV's layout) only for a spec that shows or names one
+    if s["charuco"] or any(isinstance(g, dict) and g.get("kind") == "charuco"
+                           for g in list(groups_raw) + [c for c, _ in design_cells]):
+        charuco = charuco_board_from_dict(s["charuco"], f"{src} [spec] charuco")
     if not (isinstance(groups_raw, list) and all(isinstance(g, dict) for g in groups_raw)) or \
             not (groups_raw or design_cells):
         raise InputError(f"{src}: needs at least one [[group]] table or a [design] (see docs/spec.md)")
@@ -631,9 +647,12 @@ def load_spec(name_or_path: str | Path) -> Spec:
             poses = parse_poses(g["poses"], g["pose_unit_m"], where)
             if g["kind"] == "squares":  # model frame -> the rendering's board frame (centred on the squares)
                 poses = tuple(p.moved_origin(squares.centre_model_m) for p in poses)
-            if g["kind"] == "circles_grid":  # the object points' frame -> the board frame (centred on the circles)
+            elif g["kind"] == "charuco":  # OpenCV's board frame -> the rendering's (centred on the squares)
+                poses = tuple(p.moved_origin(charuco.squares.centre_model_m) for p in poses)
+            elif g["kind"] == "circles_grid":  # the object points' frame -> the board frame (centred on the circles)
                 poses = tuple(p.moved_origin(circles.centre_model_m) for p in poses)
-            _check_explicit_poses(poses, g, {"squares": squares, "checkerboard": board, "circles_grid": circles,
+            _check_explicit_poses(poses, g, {"squares": squares, "charuco": charuco, "checkerboard": board,
+                                             "circles_grid": circles,
                                              "scene": scene,
                                              "target_size_m": s["target_size_m"]}, camera, where)
         light = None if "light_position_m" not in raw else tuple(g["light_position_m"])
@@ -684,4 +703,4 @@ def load_spec(name_or_path: str | Path) -> Spec:
                                                                          board_mode=s["board_mode"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
                 text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares,
-                circles_grid=circles)
+                circles_grid=circles, charuco=charuco)

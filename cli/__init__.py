@@ -1,6 +1,6 @@
 """``edgetruth`` command line: the roof of the house, a thin layer over the packages' functions.
 
-Subcommands live in ``edgetruth/cli/commands/<name>.py`` (one module each, with a
+Subcommands live in ``cli/commands/<name>.py`` (one module each, with a
 ``register(subparsers)`` function), so adding one touches no other file.  This is the
 only package that imports the commands.
 
