@@ -309,7 +309,25 @@ class Jobs:
 
 @dataclass(frozen=True)
 class Spec:
-    """A parsed, validated spec."""
+    """A parsed, validated render spec (``load_spec``): what every image of a dataset is made from.
+
+    Attributes
+    ----------
+    name : str
+        The spec's name; it seeds every random draw, so two specs of different names share no seed.
+    description : str
+        Free text from ``[spec] description``.
+    path : pathlib.Path or None
+        The TOML file it was read from.
+    camera : edgetruth.render.optics.camera.Camera
+        The spec's camera (binned by ``camera_scale``); groups may override per-group keys.
+    groups : tuple
+        The ``[[group]]`` tables (and a ``[design]``'s cells), each a run of consecutive images.
+    n_images : int
+        How many images the spec makes.
+    jobs : sequence of Job
+        ``spec.jobs[i]`` is image i: its name, group, kind, seeds, distance (cm), pose draw, camera, sensor.
+    """
 
     name: str
     description: str
@@ -564,7 +582,27 @@ def _check_sample_counts(s: dict, where: str) -> None:
 
 
 def load_spec(name_or_path: str | Path) -> Spec:
-    """Parse and validate a spec (a shipped name or a TOML path) into a ``Spec``, in one pass."""
+    """Parse and validate a render spec in one pass.
+
+    Every key is checked against the loader's key tables (docs/spec.md is generated from them).
+
+    Parameters
+    ----------
+    name_or_path : str or pathlib.Path
+        A shipped spec's name (``"quick"``, ``"study"``, ``"calibration"``, ...; ``edgetruth render --help``
+        lists them) or a path to a TOML file; a camera it names by a relative path is read from the
+        spec's folder.
+
+    Returns
+    -------
+    Spec
+        The typed spec; ``spec.jobs[i]`` is image i.
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        A missing file, an unknown table or key, or a bad value: one line naming the key and the fix.
+    """
     path = resolve_spec_path(name_or_path)
     data = read_toml(path)
     src = str(path)
