@@ -39,8 +39,11 @@ from edgetruth.render.schema import REQUIRED, Key, _is_num, parse_table
 from edgetruth.render.sensor.linear_model import SensorModel, sensor_from_dict
 from edgetruth.render.scene.shapes import SCENE_GROUP_KEYS, scene_from_group
 from edgetruth.render.scene.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard, SquareBoard, square_board_from_dict
+from edgetruth.render.scene.circles_grid import CirclesGrid, circles_grid_from_dict
 
-KINDS = ("target", "checkerboard", "squares")
+from edgetruth.render.scene.charuco import CharucoBoard, charuco_board_from_dict
+
+KINDS = ("target", "checkerboard", "squares", "charuco", "circles_grid")
 SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
 MAX_SPP = 1 << 16
 MAX_IMAGES = 10_000_000
@@ -82,11 +85,17 @@ SPEC_KEYS = [
     Key("squares", "table", {}, "", "the board of dark squares of kind = \"squares\" groups {model, "
         "model_unit_m | rows, cols, side_m, pitch_m; margin_m, plate_size_m, square_reflectance, "
         "board_reflectance}"),
+    Key("circles_grid", "table", {}, "", "the circle grid of kind = \"circles_grid\" groups {cols, rows, spacing_m, "
+        "diameter_m, asymmetric, margin_m}: dark circles on a white plate in OpenCV's findCirclesGrid layout "
+        "(edgetruth.render.scene.circles_grid)"),
+    Key("charuco", "table", {}, "", "the ChArUco board of kind = \"charuco\" groups {cols, rows, square_m, "
+        "marker_m, dictionary, legacy, margin_m, square_reflectance, board_reflectance} (OpenCV's CharucoBoard)"),
 ]
 GROUP_KEYS = [
     Key("name", "name", REQUIRED, "", "group name (unique in the spec; part of every image name)"),
-    Key("kind", "str", "target", "", "what the images show: a target on a board, a checkerboard, or a board "
-        "of dark squares ([spec] squares)", choices=KINDS),
+    Key("kind", "str", "target", "", "what the images show: a target on a board, a checkerboard, a board "
+        "of dark squares ([spec] squares), a ChArUco board ([spec] charuco) or a circle grid ([spec] circles_grid)",
+        choices=KINDS),
     Key("target", "str", "T1", "", "target id (kind = target)", choices=tuple(TARGETS)),
     Key("count", "int", 1, "images", "images over distance_range_cm (one per equal sub-interval)", 1, MAX_IMAGES),
     Key("distance_range_cm", "range2", (150.0, 150.0), "cm", "[near, far] distance of the board centre", 1.0, 1e5),
@@ -104,7 +113,9 @@ GROUP_KEYS = [
     Key("poses", "tables", None, "", "explicit poses [{R = [[r11, r12, r13], [...], [...]], t = [tx, ty, tz]}, "
         "...]: one image per pose, instead of count, distances, lateral_fraction, tilts and roll; "
         "X_cam = R X_board + t (OpenCV camera frame); the board frame: kind squares: the model's frame "
-        "([spec] squares), else centred on the board (x right, y down, z into it); R must be a rotation "
+        "([spec] squares), kind charuco: OpenCV's board frame (origin at its top-left outer corner), kind "
+        "circles_grid: the frame of OpenCV's object points (circle 0 at its origin), else centred on the board "
+        "(x right, y down, z into it); R must be a rotation "
         f"(R^T R = I within {ROTATION_TOLERANCE:g}, det +1; the nearest rotation is used); t in pose_unit_m"),
     Key("pose_unit_m", "float", 1.0, "m", "unit of the explicit poses' t (1: metres; 0.0254: inches)", 1e-9, 1e3),
     Key("board_bend_mm", "floats", None, "mm", "kind = squares or checkerboard: the board curled, its height "
@@ -298,7 +309,25 @@ class Jobs:
 
 @dataclass(frozen=True)
 class Spec:
-    """A parsed, validated spec."""
+    """A parsed, validated render spec (``load_spec``): what every image of a dataset is made from.
+
+    Attributes
+    ----------
+    name : str
+        The spec's name; it seeds every random draw, so two specs of different names share no seed.
+    description : str
+        Free text from ``[spec] description``.
+    path : pathlib.Path or None
+        The TOML file it was read from.
+    camera : edgetruth.render.optics.camera.Camera
+        The spec's camera (binned by ``camera_scale``); groups may override per-group keys.
+    groups : tuple
+        The ``[[group]]`` tables (and a ``[design]``'s cells), each a run of consecutive images.
+    n_images : int
+        How many images the spec makes.
+    jobs : sequence of Job
+        ``spec.jobs[i]`` is image i: its name, group, kind, seeds, distance (cm), pose draw, camera, sensor.
+    """
 
     name: str
     description: str
@@ -313,6 +342,8 @@ class Spec:
     groups: tuple
     text_sha256: str = ""
     squares: SquareBoard | None = None
+    circles_grid: CirclesGrid | None = None
+    charuco: CharucoBoard | None = None
 
     @property
     def n_images(self) -> int:
@@ -356,6 +387,10 @@ class Spec:
                "checkerboard": asdict(self.checkerboard), "sensor": self.sensor.identity(), "groups": groups}
         if any(g.kind == "squares" for g in self.groups):
             out["squares"] = self.squares.resolved()
+        if any(g.kind == "circles_grid" for g in self.groups):
+            out["circles_grid"] = self.circles_grid.resolved()
+        if any(g.kind == "charuco" for g in self.groups):
+            out["charuco"] = self.charuco.resolved()
         return out
 
     def units(self) -> list[list[int]]:
@@ -501,8 +536,12 @@ def _check_explicit_poses(poses: tuple, g: dict, spec_parts: dict, camera: Camer
     for i, pose in enumerate(poses):
         if g["kind"] == "squares":
             pts = spec_parts["squares"].plate_corners_local()
+        elif g["kind"] == "charuco":
+            pts = spec_parts["charuco"].squares.plate_corners_local()
         elif g["kind"] == "checkerboard":
             pts = spec_parts["checkerboard"].plate_corners_local()
+        elif g["kind"] == "circles_grid":
+            pts = spec_parts["circles_grid"].plate_corners_local()
         else:
             pts = view_outline_local(spec_parts["scene"] or g["target"], spec_parts["target_size_m"])
         cam_pts = pose.to_camera(pts)
@@ -543,7 +582,27 @@ def _check_sample_counts(s: dict, where: str) -> None:
 
 
 def load_spec(name_or_path: str | Path) -> Spec:
-    """Parse and validate a spec (a shipped name or a TOML path) into a ``Spec``, in one pass."""
+    """Parse and validate a render spec in one pass.
+
+    Every key is checked against the loader's key tables (docs/spec.md is generated from them).
+
+    Parameters
+    ----------
+    name_or_path : str or pathlib.Path
+        A shipped spec's name (``"quick"``, ``"study"``, ``"calibration"``, ...; ``edgetruth render --help``
+        lists them) or a path to a TOML file; a camera it names by a relative path is read from the
+        spec's folder.
+
+    Returns
+    -------
+    Spec
+        The typed spec; ``spec.jobs[i]`` is image i.
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        A missing file, an unknown table or key, or a bad value: one line naming the key and the fix.
+    """
     path = resolve_spec_path(name_or_path)
     data = read_toml(path)
     src = str(path)
@@ -558,6 +617,7 @@ def load_spec(name_or_path: str | Path) -> Spec:
     check_value(SPEC_KEYS[0], name, f"{src} [spec] (default name from the file name)")
     board = Checkerboard(**parse_table(s["checkerboard"], CHECKERBOARD_KEYS, f"{src} [spec] checkerboard"))
     squares = square_board_from_dict(s["squares"], path.parent, f"{src} [spec] squares")
+    circles = circles_grid_from_dict(s["circles_grid"], f"{src} [spec] circles_grid")
     try:
         base_camera = load_camera(s["camera"], base_dir=path.parent)
     except InputError as exc:
@@ -571,6 +631,10 @@ def load_spec(name_or_path: str | Path) -> Spec:
     base_sensor = sensor_from_dict(data.get("sensor", {}), where=f"{src} [sensor]")
     groups_raw = data.get("group", [])
     design_cells = _design_cells(data["design"], f"{src} [design]") if "design" in data else []
+    charuco = None  # built (OpenCV's layout) only for a spec that shows or names one
+    if s["charuco"] or any(isinstance(g, dict) and g.get("kind") == "charuco"
+                           for g in list(groups_raw) + [c for c, _ in design_cells]):
+        charuco = charuco_board_from_dict(s["charuco"], f"{src} [spec] charuco")
     if not (isinstance(groups_raw, list) and all(isinstance(g, dict) for g in groups_raw)) or \
             not (groups_raw or design_cells):
         raise InputError(f"{src}: needs at least one [[group]] table or a [design] (see docs/spec.md)")
@@ -587,6 +651,9 @@ def load_spec(name_or_path: str | Path) -> Spec:
         names.add(g["name"])
         if g["kind"] != "target" and "target" in raw:
             raise InputError(f"{where}: target = {raw['target']!r}: a {g['kind']} group has no target; remove it")
+        if g["kind"] == "circles_grid" and g.get("board_bend_mm") is not None:
+            raise InputError(f"{where}: board_bend_mm: a circle grid renders flat (its circles' truth is planar); "
+                             "bend a squares or checkerboard group, or remove it")
         if g["kind"] == "target" and g.get("board_bend_mm") is not None:
             raise InputError(f"{where}: board_bend_mm: a target scene's board is flat (its edge band and "
                              "shadows are planar); bend a squares or checkerboard group, or remove it")
@@ -618,7 +685,13 @@ def load_spec(name_or_path: str | Path) -> Spec:
             poses = parse_poses(g["poses"], g["pose_unit_m"], where)
             if g["kind"] == "squares":  # model frame -> the rendering's board frame (centred on the squares)
                 poses = tuple(p.moved_origin(squares.centre_model_m) for p in poses)
-            _check_explicit_poses(poses, g, {"squares": squares, "checkerboard": board, "scene": scene,
+            elif g["kind"] == "charuco":  # OpenCV's board frame -> the rendering's (centred on the squares)
+                poses = tuple(p.moved_origin(charuco.squares.centre_model_m) for p in poses)
+            elif g["kind"] == "circles_grid":  # the object points' frame -> the board frame (centred on the circles)
+                poses = tuple(p.moved_origin(circles.centre_model_m) for p in poses)
+            _check_explicit_poses(poses, g, {"squares": squares, "charuco": charuco, "checkerboard": board,
+                                             "circles_grid": circles,
+                                             "scene": scene,
                                              "target_size_m": s["target_size_m"]}, camera, where)
         light = None if "light_position_m" not in raw else tuple(g["light_position_m"])
         unit = unit_e = None
@@ -667,4 +740,5 @@ def load_spec(name_or_path: str | Path) -> Spec:
                                                                          shading_step_px=s["shading_step_px"],
                                                                          board_mode=s["board_mode"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
-                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares)
+                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares,
+                circles_grid=circles, charuco=charuco)

@@ -1,0 +1,59 @@
+"""The shipped real photo sets: each resolves by name, and carries its provenance and licence."""
+import pytest
+
+from edgetruth.evaluate.board.chessboard import find_squares, settle_parity
+from edgetruth.evaluate.board.inputs import load_photos, resolve_inputs
+from edgetruth.resources import real_set, shipped_real_set_names
+
+
+def test_every_shipped_set_has_a_section_in_the_provenance_file():
+    readme = (real_set("zhang1998").parent / "README.md").read_text()
+    for name in shipped_real_set_names():
+        assert f"## {name}/" in readme, f"assets/real/README.md has no section for {name}/"
+
+
+def test_sony_hx5v_is_boofcvs_chessboard_of_4x6_inner_corners_with_its_licence():
+    inp = resolve_inputs(["sony_hx5v"])
+    assert [p.name for p in inp.photos] == [f"frame{i:02d}.jpg" for i in range(1, 14)]
+    assert inp.model.pattern == (4, 6)
+    folder = real_set("sony_hx5v")
+    assert "Attribution 4.0 International" in (folder / "LICENSE-BoofCV-Data").read_text()
+    assert "CC by 4.0" in (folder / "README-BoofCV-Data.TXT").read_text()
+    assert "chess 2 false true 5 7 30" in (folder / "info.txt").read_text()
+
+
+@pytest.mark.parametrize("photo", [0, 12])
+def test_sony_hx5v_board_is_found_with_all_its_dark_squares(photo):
+    inp = resolve_inputs(["sony_hx5v"])
+    img = load_photos([inp.photos[photo]])[0]
+    model = settle_parity([img], inp.model)
+    view = find_squares(img, model)
+    assert view is not None and len(model) == 8
+    assert view.squares.found.all()  # every dark square, none cut by the border
+
+
+def test_sony_hx5v_circles_is_boofcvs_10x8_circle_grid_and_plain_opencv_calibrates_it():
+    """Plain OpenCV on the shipped circle-grid set (assets/real/README.md): the grid found in 4 of 6 photos and
+    its calibration as stated there (3 digits)."""
+    import cv2
+    import numpy as np
+
+    folder = real_set("sony_hx5v_circles")
+    assert "Attribution 4.0 International" in (folder / "LICENSE-BoofCV-Data").read_text()
+    assert "CC by 4.0" in (folder / "README-BoofCV-Data.TXT").read_text()
+    assert "CIRCLE_GRID" in (folder / "calibration_target.yaml").read_text()
+    grid = np.zeros((80, 3), np.float32)
+    grid[:, :2] = np.mgrid[0:10, 0:8].T.reshape(-1, 2) * 0.025
+    found, obj, img = [], [], []
+    for k in range(6):
+        gray = cv2.imread(str(folder / f"image{k:05d}.jpg"), cv2.IMREAD_GRAYSCALE)
+        ok, centres = cv2.findCirclesGrid(gray, (10, 8), flags=cv2.CALIB_CB_SYMMETRIC_GRID)
+        if ok:
+            found.append(k)
+            obj.append(grid)
+            img.append(centres)
+    assert found == [1, 2, 3, 5]
+    rms, k_mat, dist, _, _ = cv2.calibrateCamera(obj, img, (640, 480), None, None)
+    assert rms == pytest.approx(0.450, abs=5e-4)
+    np.testing.assert_allclose([k_mat[0, 0], k_mat[1, 1], k_mat[0, 2], k_mat[1, 2]],
+                               [454.10, 451.93, 322.47, 242.45], atol=0.01)
