@@ -1,6 +1,6 @@
 """Find the declared target's outer boundary in a real scene: many candidate regions, scored, the best kept.
 
-A pure function over arrays (``find_declared_target``); ``target.py``'s region and candidate steps
+A pure function over arrays (``find_declared_target``); ``evaluate/target.py``'s region and candidate steps
 run on what it returns.  Nothing here reads ground truth.  The priors are what a photo's CSV row
 says: the shape (square, rectangle, circle), the aspect ratio (``size_m / height_m``, 1 for a
 square), the polarity (dark, light or auto) and optionally a region of interest or a point inside
@@ -405,7 +405,7 @@ def find_region(image: np.ndarray, valid: np.ndarray | None = None, shape: str =
                 polarity: str = "auto", roi=None, point=None, K=None):
     """``find_declared_target`` then ``refine_mask``, as the ``target.TargetRegion`` the candidate step takes;
     its ``finder`` holds the choice, the runners-up and whether the choice was close."""
-    from edgetruth.evaluate.ranging.target import TargetRegion, _shape_guess, local_contrast
+    from edgetruth.evaluate.target import TargetRegion, _shape_guess, local_contrast
 
     img = np.asarray(image, np.float64)
     res = find_declared_target(img, shape, aspect, polarity, valid, roi, point, K)
