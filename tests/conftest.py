@@ -6,6 +6,23 @@ from pathlib import Path
 
 import pytest
 
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _check_install() -> None:
+    """An editable install made before cli/ moved out of edgetruth/ cannot find ``edgetruth.cli``: say so once,
+    not in every CLI test."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("edgetruth.cli")
+    if spec is None or not spec.origin or Path(spec.origin).resolve().parent != ROOT / "cli":
+        pytest.exit(f"edgetruth.cli is not {ROOT / 'cli'} (found: {spec and spec.origin}): the editable install "
+                    "is older than the package layout; run `make setup` (or `.venv/bin/python -m pip install "
+                    "--no-deps -e .`)", returncode=4)
+
+
+_check_install()
+
 
 @pytest.fixture(scope="session")
 def fast_variant() -> str:

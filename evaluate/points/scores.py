@@ -2,7 +2,7 @@
 
 The ranging chain works on the undistorted (resampled) image, where the truth is only as good as
 the calibration.  Edge-level errors are measured on the *raw* image instead: the target's Canny
-boundary candidates there (``edgetruth.evaluate.ranging.target``) are refined by every method and
+boundary candidates there (``edgetruth.evaluate.target``) are refined by every method and
 each point's error is its signed distance to the exact distorted outline of the ground truth
 (``edgetruth.render.edge_truth.OutlineEdge``: the JSON's dense polyline, chords within 1e-3 px of
 the curve; > 0 on the bright board, as the synthetic study's errors are > 0 on the bright side).
@@ -109,7 +109,7 @@ def scene_candidates(image: np.ndarray, truth, margin_px: int = 12, boundary_tol
     ``target_candidates`` keeps those on its target's boundary (``region`` None)."""
     from edgetruth import locate
     from edgetruth.errors import InputError
-    from edgetruth.evaluate.ranging.target import TargetCandidates
+    from edgetruth.evaluate.target import TargetCandidates
 
     img = np.asarray(image, np.float64)
     seg = truth.visible_points_px()
@@ -131,7 +131,7 @@ def scored_candidates(image: np.ndarray, truth):
     (``TargetCandidates``, scored ``Candidates``, their signed truth distance).  One definition for
     the per-point tables and the threshold calibration on renders.  An image with several outlines
     (``is_scene``) has its candidates along every visible edge (``scene_candidates``)."""
-    from edgetruth.evaluate.ranging.target import target_candidates
+    from edgetruth.evaluate.target import target_candidates
 
     img = np.asarray(image, np.float64)
     tc = scene_candidates(img, truth) if is_scene(truth) else target_candidates(img)

@@ -3,7 +3,7 @@
 Per target image:
 
 1. undistort with the *calibrated* model (``edgetruth.evaluate.ranging.undistort``);
-2. find the target and its boundary candidates from the image (``edgetruth.evaluate.ranging.target``);
+2. find the target and its boundary candidates from the image (``edgetruth.evaluate.target``);
 3. refine the *same* candidates with every method (``edgetruth.locate.refine``);
 4. size: square -> robust side lines, l = left/right distance (the seed's l, with fx);
    circle -> robust circle fit, l = diameter (``edgetruth.evaluate.ranging.size``);
@@ -295,7 +295,7 @@ def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m
     and pose fits (``Undistorter.undistort_points``), so no resampling touches the pixels."""
     from edgetruth import locate
     from edgetruth.evaluate.method_order import resolve
-    from edgetruth.evaluate.ranging.target import target_candidates
+    from edgetruth.evaluate.target import target_candidates
 
     fx, fy, cy = cal.fx, cal.fy, cal.cy
     try:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from edgetruth.evaluate.ranging.design_cells import factor_tables, group_rows, main_rows, plain_groups
+from edgetruth.evaluate.design import factor_tables, group_rows, main_rows, plain_groups
 from edgetruth.evaluate.ranging.images import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, signed as _signed, table as _table
 from edgetruth.evaluate.stats import (bootstrap_ci, holm, rank_biserial, rmse, rmse_ci, rmse_difference_ci,

@@ -59,7 +59,7 @@ FULL_STUDY_SHARES = {
 
 def image_window_counts(image: np.ndarray, method: str = "dynamic_erf_4p") -> dict[int, int]:
     from edgetruth import locate
-    from edgetruth.evaluate.ranging.target import target_candidates
+    from edgetruth.evaluate.target import target_candidates
 
     tc = target_candidates(np.asarray(image, np.float64))
     pts = locate.refine(tc.crop, tc.candidates, method)

@@ -53,7 +53,7 @@ def _cli(argv, capsys):
 def evaluated():
     """What evaluate computes for the square: its target crop, kept candidates and every label's points."""
     from edgetruth.evaluate.ranging.images import range_undistorted
-    from edgetruth.evaluate.ranging.target import target_candidates
+    from edgetruth.evaluate.target import target_candidates
 
     img = _square_image()
     valid = np.ones(img.shape, bool)

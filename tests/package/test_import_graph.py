@@ -14,7 +14,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 #: source folder -> package it installs as (pyproject's package-dir)
-SOURCES = {"edgetruth": "edgetruth", "render": "edgetruth.render", "locate": "edgetruth.locate",
+SOURCES = {"edgetruth": "edgetruth", "cli": "edgetruth.cli", "render": "edgetruth.render", "locate": "edgetruth.locate",
            "evaluate": "edgetruth.evaluate"}
 GROUND = ("edgetruth.conventions", "edgetruth.errors", "edgetruth.fileio", "edgetruth.image_io",
           "edgetruth.resources", "edgetruth.console", "edgetruth.backends", "edgetruth.jit", "edgetruth.opencv_threads",
@@ -79,7 +79,7 @@ ALLOWED = {"ground": {"ground"}, "render": {"ground", "render"}, "locate": {"gro
 
 
 def test_every_source_folder_is_found(graph):
-    assert {"edgetruth.render.dataset.spec", "edgetruth.locate.registry", "edgetruth.evaluate.ranging.main_job",
+    assert {"edgetruth.render.dataset.spec", "edgetruth.locate.registry", "edgetruth.evaluate.main_job",
             "edgetruth.cli.commands.run"} <= set(graph)
 
 

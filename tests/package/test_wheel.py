@@ -3,7 +3,8 @@
 spec with the fast llvm_ad_rgb variant where the platform allows (its pip libLLVM comes as a
 dependency) and locates points exactly as the checkout does, one image or a folder per call;
 site-packages holds `edgetruth` only (no top-level render/locate/evaluate); and the numba kernels'
-cache works from a read-only site-packages (a per-user folder instead)."""
+cache works from a read-only site-packages (a per-user folder instead). The wheel holds every package
+and data file of the checkout, found with no hand-written list."""
 from __future__ import annotations
 
 import hashlib
@@ -34,33 +35,98 @@ def _run(cmd, cwd, timeout=900):
     return r
 
 
+#: what the checkout holds that is no part of the product (the wheel is built from a copy without them)
+NOT_SOURCE = (".venv", "build", "runs", ".git", "__pycache__", "*.egg-info", "results", ".pytest_cache", "*.nb[ic]",
+              "*.py[cod]")
+#: a sub-package and a data folder that only the copy the wheel is built from holds: found with no edit of
+#: pyproject.toml or setup.py, they ship (package discovery, package data by glob)
+PROBE_PACKAGE = Path("evaluate") / "board" / "wheel_probe_room"
+PROBE_DATA = Path("assets") / "wheel_probe_set" / "nested"
+
+
+def _setup_folders() -> dict[str, str]:
+    """setup.py's FOLDERS (package -> source folder), read without running setup()."""
+    import ast
+
+    tree = ast.parse((ROOT / "setup.py").read_text())
+    node = next(n for n in tree.body if isinstance(n, ast.Assign) and n.targets[0].id == "FOLDERS")
+    return ast.literal_eval(node.value)
+
+
 @pytest.fixture(scope="module")
-def installed():
-    """(python of a clean venv with the wheel installed, a working directory outside the checkout).
-    In a folder of its own that other users may read (the read-only test runs as one)."""
+def build_dir():
+    """A folder of its own that other users may read (the read-only test runs as one)."""
     d = Path(tempfile.mkdtemp(prefix="edgetruth-wheel-"))
     d.chmod(0o755)
     try:
-        yield _install(d)
+        yield d
     finally:
         subprocess.run(["chmod", "-R", "u+w", str(d)], capture_output=True)
         shutil.rmtree(d, ignore_errors=True)
 
 
-def _install(d: Path):
+@pytest.fixture(scope="module")
+def wheel(build_dir) -> Path:
     # build from a copy: setuptools leaves build/ in the source tree, and stale files there would ship
-    src = d / "src"
-    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(".venv", "build", "runs", ".git", "__pycache__",
-                                                             "*.egg-info", "results", ".pytest_cache", "*.nb[ic]"))
-    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", d / "wh", src], d)
-    wheels = list((d / "wh").glob("edgetruth-*.whl"))
+    src = build_dir / "src"
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(*NOT_SOURCE))
+    (src / PROBE_PACKAGE).mkdir()
+    (src / PROBE_PACKAGE / "__init__.py").write_text('"""Only in the copy the wheel is built from."""\n')
+    (src / PROBE_DATA).mkdir(parents=True)
+    (src / PROBE_DATA / "probe.csv").write_text("a,b\n1,2\n")
+    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", build_dir / "wh", src], build_dir)
+    wheels = list((build_dir / "wh").glob("edgetruth-*.whl"))
     assert len(wheels) == 1
+    return wheels[0]
+
+
+@pytest.fixture(scope="module")
+def installed(build_dir, wheel):
+    """(python of a clean venv with the wheel installed, a working directory outside the checkout)."""
+    d = build_dir
     venv.create(d / "v", with_pip=True)
     py = d / "v" / "bin" / "python"
-    _run([py, "-m", "pip", "install", "-q", "--disable-pip-version-check", wheels[0]], d)  # that is all
+    _run([py, "-m", "pip", "install", "-q", "--disable-pip-version-check", wheel], d)  # that is all
     work = d / "elsewhere"
     work.mkdir()
     return py, work
+
+
+def _checkout_files(folder: Path):
+    """Every file under a source folder of the checkout, less what is no part of the product."""
+    import fnmatch
+
+    for f in sorted(folder.rglob("*")):
+        rel = f.relative_to(ROOT).parts
+        if f.is_file() and not any(fnmatch.fnmatch(p, pat) for p in rel for pat in NOT_SOURCE):
+            yield f
+
+
+def test_the_wheel_holds_every_package_module_and_data_file(wheel):
+    """Every folder with an __init__.py under setup.py's source folders is a package of the wheel, every module
+    and every data file (scenes/, assets/: TOML, JSON, images, text, licences) ships, the code folders ship no
+    stray files, and a sub-package or data folder added with no edit of the packaging config ships too."""
+    import zipfile
+
+    names = set(zipfile.ZipFile(wheel).namelist())
+    folders = _setup_folders()
+    assert {"edgetruth", "edgetruth.render", "edgetruth.locate", "edgetruth.evaluate", "edgetruth.scenes",
+            "edgetruth.assets"} <= set(folders)
+    expected, packages = set(), set()
+    for pkg, folder in folders.items():
+        base = ROOT / folder
+        for f in _checkout_files(base):
+            if f.suffix == ".py" or folder in ("scenes", "assets"):
+                expected.add("/".join([*pkg.split("."), *f.relative_to(base).parts]))
+            if f.name == "__init__.py":
+                packages.add(f.parent)
+    missing = sorted(expected - names)
+    assert not missing, f"{len(missing)} files of the checkout are not in the wheel: {missing[:20]}"
+    assert len(packages) >= 23 and len([n for n in expected if not n.endswith(".py")]) >= 40
+    shipped = {n for n in names if not n.startswith("edgetruth-") and n not in expected}
+    probe = {"/".join(["edgetruth", *PROBE_PACKAGE.parts, "__init__.py"]),
+             "/".join(["edgetruth", *PROBE_DATA.parts, "probe.csv"])}
+    assert shipped == probe, f"the wheel holds files the checkout has not: {sorted(shipped - probe)}"
 
 
 def _site(py, work) -> Path:

@@ -7,7 +7,7 @@ import csv
 import json
 from pathlib import Path
 
-from edgetruth.evaluate.ranging import design_cells as dc
+from edgetruth.evaluate import design as dc
 from edgetruth.render.testing import TINY_CAMERA
 
 SPEC = """

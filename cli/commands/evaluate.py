@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     from edgetruth.errors import InputError
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.calibration import calibrate, load_calibration
-    from edgetruth.evaluate.ranging.main_job import evaluate_datasets
+    from edgetruth.evaluate.main_job import evaluate_datasets
     from edgetruth.evaluate.run_dir import check_run_dir, prepare_run_dir, utc_stamp
     from edgetruth.fileio import write_json
     from edgetruth.render.dataset.reader import open_dataset

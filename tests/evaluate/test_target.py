@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.ranging.target import find_target, target_candidates
+from edgetruth.evaluate.target import find_target, target_candidates
 
 
 def scene(shape="square", gray=0.05, highlight=False, border_dark=True, h=240, w=320):

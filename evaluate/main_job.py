@@ -98,7 +98,7 @@ class KernelWarmup:
         import subprocess
         import sys
 
-        code = "import sys; from edgetruth.evaluate.ranging.main_job import _warm_main; _warm_main(sys.argv[1:])"
+        code = "import sys; from edgetruth.evaluate.main_job import _warm_main; _warm_main(sys.argv[1:])"
         env = dict(os.environ)
         mine = env.get("NUMBA_NUM_THREADS", "")
         if threads and not (mine.isdigit() and 0 < int(mine) <= threads):  # a smaller setting of the user's stays

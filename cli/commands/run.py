@@ -20,7 +20,7 @@ from pathlib import Path
 
 def register(subparsers) -> None:
     from edgetruth.cli import add_plugin_option, add_undistort_option, add_progress_option, methods_help, positive_int
-    from edgetruth.evaluate.ranging.main_job import STUDIES
+    from edgetruth.evaluate.main_job import STUDIES
 
     p = subparsers.add_parser(
         "run", help="render, calibrate, locate (all methods), evaluate and report, in one go",
@@ -50,7 +50,7 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from edgetruth.cli import method_list
-    from edgetruth.evaluate.ranging.main_job import run_main_job
+    from edgetruth.evaluate.main_job import run_main_job
 
     _, code = run_main_job(args.study, args.output, args.limit, args.calib_limit, method_list(args.methods),
                            args.variant, args.skip_synthetic, progress=not args.no_progress,

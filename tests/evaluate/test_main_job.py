@@ -7,7 +7,7 @@ from edgetruth.cli import main
 
 
 def test_select_jobs_spreads_the_limit_over_each_group():
-    from edgetruth.evaluate.ranging.main_job import select_jobs
+    from edgetruth.evaluate.main_job import select_jobs
     from edgetruth.render.dataset.spec import load_spec
 
     spec = load_spec("study")
@@ -26,7 +26,7 @@ def test_select_jobs_spreads_the_limit_over_each_group():
 
 def test_render_reuse_counts_one_render_per_pose_slot_and_radiance_unit():
     """study: 50 slots x 7 cells = 350 images; G2-G4 reuse G1's render, T2-T4 need their own: 200."""
-    from edgetruth.evaluate.ranging.main_job import radiance_renders, render_reuse_line, select_jobs
+    from edgetruth.evaluate.main_job import radiance_renders, render_reuse_line, select_jobs
     from edgetruth.render.dataset.spec import load_spec
 
     spec = load_spec("study")
@@ -48,7 +48,7 @@ def test_bad_limit_is_a_one_line_input_error(capsys, tmp_path):
 def test_quick_run_end_to_end(tmp_path, fast_variant):
     """Render quick and thresholds_quick (1 image per cell + 15 boards), calibrate the camera and its
     thresholds, locate, score every point, report (~40 s, llvm)."""
-    from edgetruth.evaluate.ranging.main_job import select_jobs
+    from edgetruth.evaluate.main_job import select_jobs
     from edgetruth.render.dataset.spec import load_spec
 
     out = tmp_path / "run"
@@ -82,7 +82,7 @@ def test_kernel_warmup_runs_in_the_background_and_skips_unknown_methods(tiny_dat
     """The run starts the kernels' compilation beside its renders (a fresh clone has no numba cache);
     a method this process cannot run (a plug-in's) is skipped, never an error; a rendered image fed to it
     runs the ranging task there (bad input to it is skipped too: the warm-up only saves time)."""
-    from edgetruth.evaluate.ranging.main_job import KernelWarmup, warm_kernels, warm_on_render
+    from edgetruth.evaluate.main_job import KernelWarmup, warm_kernels, warm_on_render
     from edgetruth.render.dataset.reader import open_dataset
 
     data = tiny_dataset[1]
@@ -97,7 +97,7 @@ def test_kernel_warmup_runs_in_the_background_and_skips_unknown_methods(tiny_dat
 
 
 def test_first_target_skips_checkerboards():
-    from edgetruth.evaluate.ranging.main_job import first_target, select_jobs
+    from edgetruth.evaluate.main_job import first_target, select_jobs
     from edgetruth.render.dataset.spec import load_spec
 
     spec = load_spec("quick")
@@ -110,7 +110,7 @@ def test_first_target_skips_checkerboards():
 def test_synthetic_study_beside_the_ranging_reports_its_path_or_its_failure(tmp_path):
     """The main job's synthetic study runs in a worker while this process goes on; result() waits for its
     report, or returns the failure as one line (the ranging results are kept either way)."""
-    from edgetruth.evaluate.ranging.main_job import SyntheticBeside
+    from edgetruth.evaluate.main_job import SyntheticBeside
 
     ok = SyntheticBeside(tmp_path / "syn", ["canny_pixel", "dynamic_erf_4p"], images_per_scenario=2)
     bad = SyntheticBeside(tmp_path / "bad", ["no_such_method"], images_per_scenario=2)

@@ -1,6 +1,6 @@
 """``edgetruth`` command line: the roof of the house, a thin layer over the packages' functions.
 
-Subcommands live in ``edgetruth/cli/commands/<name>.py`` (one module each, with a
+Subcommands live in ``cli/commands/<name>.py`` (one module each, with a
 ``register(subparsers)`` function), so adding one touches no other file.  This is the
 only package that imports the commands.
 
@@ -52,12 +52,23 @@ def add_undistort_option(p: argparse.ArgumentParser) -> None:
 CHANNEL_CHOICES = ("luma", "r", "g", "b")
 
 
-def add_pattern_option(p: argparse.ArgumentParser, what: str, required: bool = False) -> None:
+def add_pattern_option(p: argparse.ArgumentParser, what: str, required: bool = False,
+                       kinds: tuple[str, ...] = ("chessboard",)) -> None:
     """``--pattern COLSxROWS``: a chessboard's inner corners, as every command that reads one counts them
-    (``edgetruth.evaluate.calibration.parse_pattern``); ``what`` says what the command does with the board."""
-    p.add_argument("--pattern", required=required, default=None, metavar="COLSxROWS",
-                   help="inner corners of the chessboard, per row x per column (OpenCV's patternSize; a board of "
-                        f"10 x 7 squares is 9x6); {what}")
+    (``edgetruth.evaluate.calibration.parse_pattern``); with ``kinds`` naming circle grids or ChArUco too, their
+    forms (``edgetruth.evaluate.board.pattern.parse_board_pattern``); ``what`` says what the command does with
+    the board."""
+    forms = ["inner corners of a chessboard, per row x per column (OpenCV's patternSize; a board of 10 x 7 squares "
+             "is 9x6)"]
+    if "circles" in kinds:
+        forms.append("circles:COLSxROWS or circles:COLSxROWS:asymmetric: a circle grid, COLS circles per row, ROWS "
+                     "rows (cv2.findCirclesGrid's patternSize, e.g. circles:4x11:asymmetric)")
+    if "charuco" in kinds:
+        forms.append("charuco:COLSxROWS:DICT: a ChArUco board of COLS x ROWS squares with cv2.aruco's dictionary DICT "
+                     "(e.g. charuco:5x7:DICT_4X4_50)")
+    p.add_argument("--pattern", required=required, default=None,
+                   metavar="COLSxROWS" if len(kinds) == 1 else "PATTERN",
+                   help="; ".join(forms) + f"; {what}")
 
 
 def add_square_m_option(p: argparse.ArgumentParser, what: str, required: bool = True) -> None:
