@@ -130,7 +130,35 @@ def detect_corners(image: np.ndarray, pattern_size: tuple[int, int], window_px: 
 
 @dataclass
 class Calibration:
-    """A calibrated camera (OpenCV conventions) and how well it was determined."""
+    """A calibrated camera (OpenCV conventions) and how well it was determined.
+
+    Attributes
+    ----------
+    K : numpy.ndarray
+        (3, 3) intrinsics, px: fx, fy, cx, cy (``fx``, ``fy``, ``cx``, ``cy`` properties).
+    dist : numpy.ndarray
+        (5,) distortion (k1, k2, p1, p2, k3), OpenCV's model.
+    image_size : tuple of int
+        (width, height), px.
+    rms_px : float
+        Reprojection RMS, px.
+    n_views : int
+        Boards used.
+    per_view_rms_px : list of float
+        Reprojection RMS per view, px.
+    used, rejected : list of str
+        The images used, and those left out (board not found).
+    corner_error_px : dict
+        Renders only: detected against true corners, px.
+    truth : dict or None
+        Renders only: the true intrinsics (``errors()`` compares).
+    method : str
+        How it was determined, in words.
+    residual_structure : dict
+        Photos: whether the residuals are noise or a smooth field per view.
+    board_bend : dict
+        Photos: the calibration refitted with a bent board.
+    """
 
     K: np.ndarray
     dist: np.ndarray  # (k1, k2, p1, p2, k3)
@@ -206,7 +234,26 @@ class Calibration:
 
 
 def load_calibration(ref: str | Path, progress: bool = False) -> Calibration:
-    """A calibration from a JSON file (``calibration.json``) or from a dataset of checkerboard renders."""
+    """A calibration from a JSON file or from a dataset of checkerboard renders (calibrated then).
+
+    Parameters
+    ----------
+    ref : str or pathlib.Path
+        A ``calibration.json`` (written by ``edgetruth calibrate``, ``run`` or ``evaluate``: at least ``K``,
+        ``dist_coeffs_opencv``, ``image_size``) or a rendered dataset's folder.
+    progress : bool, optional
+        A progress bar while calibrating a dataset.
+
+    Returns
+    -------
+    Calibration
+        The camera.
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        Not a calibration, or a dataset without enough boards.
+    """
     from edgetruth.fileio import read_json
 
     p = Path(ref)

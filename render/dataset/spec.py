@@ -39,9 +39,11 @@ from edgetruth.render.schema import REQUIRED, Key, _is_num, parse_table
 from edgetruth.render.sensor.linear_model import SensorModel, sensor_from_dict
 from edgetruth.render.scene.shapes import SCENE_GROUP_KEYS, scene_from_group
 from edgetruth.render.scene.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard, SquareBoard, square_board_from_dict
+from edgetruth.render.scene.circles_grid import CirclesGrid, circles_grid_from_dict
+
 from edgetruth.render.scene.charuco import CharucoBoard, charuco_board_from_dict
 
-KINDS = ("target", "checkerboard", "squares", "charuco")
+KINDS = ("target", "checkerboard", "squares", "charuco", "circles_grid")
 SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
 MAX_SPP = 1 << 16
 MAX_IMAGES = 10_000_000
@@ -84,13 +86,17 @@ SPEC_KEYS = [
     Key("squares", "table", {}, "", "the board of dark squares of kind = \"squares\" groups {model, "
         "model_unit_m | rows, cols, side_m, pitch_m; margin_m, plate_size_m, square_reflectance, "
         "board_reflectance}"),
+    Key("circles_grid", "table", {}, "", "the circle grid of kind = \"circles_grid\" groups {cols, rows, spacing_m, "
+        "diameter_m, asymmetric, margin_m}: dark circles on a white plate in OpenCV's findCirclesGrid layout "
+        "(edgetruth.render.scene.circles_grid)"),
     Key("charuco", "table", {}, "", "the ChArUco board of kind = \"charuco\" groups {cols, rows, square_m, "
         "marker_m, dictionary, legacy, margin_m, square_reflectance, board_reflectance} (OpenCV's CharucoBoard)"),
 ]
 GROUP_KEYS = [
     Key("name", "name", REQUIRED, "", "group name (unique in the spec; part of every image name)"),
     Key("kind", "str", "target", "", "what the images show: a target on a board, a checkerboard, a board "
-        "of dark squares ([spec] squares) or a ChArUco board ([spec] charuco)", choices=KINDS),
+        "of dark squares ([spec] squares), a ChArUco board ([spec] charuco) or a circle grid ([spec] circles_grid)",
+        choices=KINDS),
     Key("target", "str", "T1", "", "target id (kind = target)", choices=tuple(TARGETS)),
     Key("count", "int", 1, "images", "images over distance_range_cm (one per equal sub-interval)", 1, MAX_IMAGES),
     Key("distance_range_cm", "range2", (150.0, 150.0), "cm", "[near, far] distance of the board centre", 1.0, 1e5),
@@ -108,7 +114,9 @@ GROUP_KEYS = [
     Key("poses", "tables", None, "", "explicit poses [{R = [[r11, r12, r13], [...], [...]], t = [tx, ty, tz]}, "
         "...]: one image per pose, instead of count, distances, lateral_fraction, tilts and roll; "
         "X_cam = R X_board + t (OpenCV camera frame); the board frame: kind squares: the model's frame "
-        "([spec] squares), kind charuco: OpenCV's board frame (origin at its top-left outer corner), else centred on the board (x right, y down, z into it); R must be a rotation "
+        "([spec] squares), kind charuco: OpenCV's board frame (origin at its top-left outer corner), kind "
+        "circles_grid: the frame of OpenCV's object points (circle 0 at its origin), else centred on the board "
+        "(x right, y down, z into it); R must be a rotation "
         f"(R^T R = I within {ROTATION_TOLERANCE:g}, det +1; the nearest rotation is used); t in pose_unit_m"),
     Key("pose_unit_m", "float", 1.0, "m", "unit of the explicit poses' t (1: metres; 0.0254: inches)", 1e-9, 1e3),
     Key("board_bend_mm", "floats", None, "mm", "kind = squares or checkerboard: the board curled, its height "
@@ -302,7 +310,25 @@ class Jobs:
 
 @dataclass(frozen=True)
 class Spec:
-    """A parsed, validated spec."""
+    """A parsed, validated render spec (``load_spec``): what every image of a dataset is made from.
+
+    Attributes
+    ----------
+    name : str
+        The spec's name; it seeds every random draw, so two specs of different names share no seed.
+    description : str
+        Free text from ``[spec] description``.
+    path : pathlib.Path or None
+        The TOML file it was read from.
+    camera : edgetruth.render.optics.camera.Camera
+        The spec's camera (binned by ``camera_scale``); groups may override per-group keys.
+    groups : tuple
+        The ``[[group]]`` tables (and a ``[design]``'s cells), each a run of consecutive images.
+    n_images : int
+        How many images the spec makes.
+    jobs : sequence of Job
+        ``spec.jobs[i]`` is image i: its name, group, kind, seeds, distance (cm), pose draw, camera, sensor.
+    """
 
     name: str
     description: str
@@ -317,6 +343,7 @@ class Spec:
     groups: tuple
     text_sha256: str = ""
     squares: SquareBoard | None = None
+    circles_grid: CirclesGrid | None = None
     charuco: CharucoBoard | None = None
 
     @property
@@ -361,6 +388,8 @@ class Spec:
                "checkerboard": asdict(self.checkerboard), "sensor": self.sensor.identity(), "groups": groups}
         if any(g.kind == "squares" for g in self.groups):
             out["squares"] = self.squares.resolved()
+        if any(g.kind == "circles_grid" for g in self.groups):
+            out["circles_grid"] = self.circles_grid.resolved()
         if any(g.kind == "charuco" for g in self.groups):
             out["charuco"] = self.charuco.resolved()
         return out
@@ -512,6 +541,8 @@ def _check_explicit_poses(poses: tuple, g: dict, spec_parts: dict, camera: Camer
             pts = spec_parts["charuco"].squares.plate_corners_local()
         elif g["kind"] == "checkerboard":
             pts = spec_parts["checkerboard"].plate_corners_local()
+        elif g["kind"] == "circles_grid":
+            pts = spec_parts["circles_grid"].plate_corners_local()
         else:
             pts = view_outline_local(spec_parts["scene"] or g["target"], spec_parts["target_size_m"])
         cam_pts = pose.to_camera(pts)
@@ -563,7 +594,7 @@ def _edge_frame_obstacle(groups) -> tuple[str, str] | None:
 
 
 #: the board kinds ``board_mode = "frame"`` composites (boards of dark squares: ``render.scene.board_frame``)
-BOARD_FRAME_KINDS = ("checkerboard", "squares", "charuco")
+BOARD_FRAME_KINDS = ("checkerboard", "squares", "charuco", "circles_grid")
 
 
 def _board_frame_obstacle(groups) -> tuple[str, str] | None:
@@ -615,7 +646,27 @@ def _resolve_modes(s: dict, given: dict, groups, src: str, text_sha256: str) -> 
                      "composite; name the mode in [spec] to silence this (docs/spec.md)")
 
 def load_spec(name_or_path: str | Path) -> Spec:
-    """Parse and validate a spec (a shipped name or a TOML path) into a ``Spec``, in one pass."""
+    """Parse and validate a render spec in one pass.
+
+    Every key is checked against the loader's key tables (docs/spec.md is generated from them).
+
+    Parameters
+    ----------
+    name_or_path : str or pathlib.Path
+        A shipped spec's name (``"quick"``, ``"study"``, ``"calibration"``, ...; ``edgetruth render --help``
+        lists them) or a path to a TOML file; a camera it names by a relative path is read from the
+        spec's folder.
+
+    Returns
+    -------
+    Spec
+        The typed spec; ``spec.jobs[i]`` is image i.
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        A missing file, an unknown table or key, or a bad value: one line naming the key and the fix.
+    """
     path = resolve_spec_path(name_or_path)
     data = read_toml(path)
     src = str(path)
@@ -630,6 +681,7 @@ def load_spec(name_or_path: str | Path) -> Spec:
     check_value(SPEC_KEYS[0], name, f"{src} [spec] (default name from the file name)")
     board = Checkerboard(**parse_table(s["checkerboard"], CHECKERBOARD_KEYS, f"{src} [spec] checkerboard"))
     squares = square_board_from_dict(s["squares"], path.parent, f"{src} [spec] squares")
+    circles = circles_grid_from_dict(s["circles_grid"], f"{src} [spec] circles_grid")
     try:
         base_camera = load_camera(s["camera"], base_dir=path.parent)
     except InputError as exc:
@@ -663,6 +715,9 @@ def load_spec(name_or_path: str | Path) -> Spec:
         names.add(g["name"])
         if g["kind"] != "target" and "target" in raw:
             raise InputError(f"{where}: target = {raw['target']!r}: a {g['kind']} group has no target; remove it")
+        if g["kind"] == "circles_grid" and g.get("board_bend_mm") is not None:
+            raise InputError(f"{where}: board_bend_mm: a circle grid renders flat (its circles' truth is planar); "
+                             "bend a squares or checkerboard group, or remove it")
         if g["kind"] == "target" and g.get("board_bend_mm") is not None:
             raise InputError(f"{where}: board_bend_mm: a target scene's board is flat (its edge band and "
                              "shadows are planar); bend a squares or checkerboard group, or remove it")
@@ -696,7 +751,10 @@ def load_spec(name_or_path: str | Path) -> Spec:
                 poses = tuple(p.moved_origin(squares.centre_model_m) for p in poses)
             elif g["kind"] == "charuco":  # OpenCV's board frame -> the rendering's (centred on the squares)
                 poses = tuple(p.moved_origin(charuco.squares.centre_model_m) for p in poses)
+            elif g["kind"] == "circles_grid":  # the object points' frame -> the board frame (centred on the circles)
+                poses = tuple(p.moved_origin(circles.centre_model_m) for p in poses)
             _check_explicit_poses(poses, g, {"squares": squares, "charuco": charuco, "checkerboard": board,
+                                             "circles_grid": circles,
                                              "scene": scene,
                                              "target_size_m": s["target_size_m"]}, camera, where)
         light = None if "light_position_m" not in raw else tuple(g["light_position_m"])
@@ -735,4 +793,4 @@ def load_spec(name_or_path: str | Path) -> Spec:
                                                                          shading_step_px=s["shading_step_px"],
                                                                          board_mode=s["board_mode"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
-                text_sha256=text_sha256, squares=squares, charuco=charuco)
+                text_sha256=text_sha256, squares=squares, circles_grid=circles, charuco=charuco)
