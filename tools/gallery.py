@@ -154,7 +154,7 @@ def defocus() -> Path:
         h = 12
         crop = s.image[max(y - h, 0):y + h, max(x - h, 0):x + h].astype(float)
         ax.imshow(crop, cmap="gray", interpolation="nearest")
-        r = s.truth.get("optics", {}).get("defocus_radius_px")
+        r = s.truth.get("defocus_radius_px")
         extra = f", defocus r {r:.2f} px" if isinstance(r, (int, float)) else ""
         ax.set_title(f"{s.truth['pose']['distance_m'] * 100:.0f} cm{extra}", fontsize=8)
         ax.set_axis_off()

@@ -62,17 +62,18 @@ SPEC_KEYS = [
     Key("edge_spp", "int", RenderSettings.edge_spp, "samples/px", "samples per pixel near a target's outline "
         "(within the PSF, defocus and motion reach; the rest of the frame uses spp; a power of two, of four for multijitter and stratified); 0 = spp "
         "everywhere", 0, MAX_SPP),
-    Key("edge_mode", "str", RenderSettings.edge_mode, "", "the edge band: path = path-traced at edge_spp (the "
-        "reference); analytic = the board and the target's material rendered without an edge at edge_spp and "
-        "composited with the exact lens-weighted coverage (no Monte-Carlo noise from the edge; preset targets, "
-        "static camera; docs/optics.md); frame = that composite over every pixel, the board and the target's "
-        "material rendered at edge_spp on every shading_step_px-th pixel and interpolated (no full-frame "
-        "render: target images cost a fraction)", choices=("path", "analytic", "frame")),
-    Key("board_mode", "str", RenderSettings.board_mode, "", "board images (checkerboard, squares): path = the "
-        "full frame path-traced (the reference); frame = the plate's shading rendered at the board's spp on every "
-        "shading_step_px-th pixel and composited with the plate's and the squares' exact lens-weighted coverage "
-        "(no Monte-Carlo noise at edges or in the squares; flat boards, static camera; docs/optics.md)",
-        choices=("path", "frame")),
+    Key("edge_mode", "str", "frame", "", "target images: path = the frame path-traced at spp and the edge band at "
+        "edge_spp (the reference); analytic = the board and the target's material rendered without an edge at "
+        "edge_spp and composited with the exact lens-weighted coverage (no Monte-Carlo noise from the edge; preset "
+        "targets, static camera; docs/optics.md); frame = that composite over every pixel, the board and the "
+        "target's material rendered at edge_spp on every shading_step_px-th pixel and interpolated (no full-frame "
+        "render: target images cost a fraction). Not given: frame where it is valid (preset targets T1..T4, a "
+        "static camera), else path, said in one line on stderr", choices=("path", "analytic", "frame")),
+    Key("board_mode", "str", "frame", "", "board images (checkerboard, squares): path = the full frame path-traced "
+        "(the reference); frame = the plate's shading rendered at the board's spp on every shading_step_px-th pixel "
+        "and composited with the plate's and the squares' exact lens-weighted coverage (no Monte-Carlo noise at "
+        "edges or in the squares; flat boards, static camera; docs/optics.md). Not given: frame where it is valid, "
+        "else path, said in one line on stderr", choices=("path", "frame")),
     Key("shading_step_px", "int", RenderSettings.shading_step_px, "px", "edge_mode = \"frame\" and board_mode = "
         "\"frame\": the spacing of the shading grid's nodes", 2, 256),
     Key("checkerboard_spp", "int", 0, "samples/px", "samples per pixel of the checkerboard images (their corners "
@@ -581,6 +582,69 @@ def _check_sample_counts(s: dict, where: str) -> None:
                              "renders byte-identical whatever the number of threads and workers")
 
 
+def _edge_frame_obstacle(groups) -> tuple[str, str] | None:
+    """(group name, why) where ``edge_mode = "frame"`` (or "analytic") cannot render a group's target images, or
+    None: their scope is ``edgetruth.render.scene.edge_band.band_coverage``'s, the preset targets T1..T4 and a
+    static camera."""
+    for g in groups:
+        if g.kind == "target" and (g.camera.moving or not isinstance(g.target, str)):
+            return g.name, ("its camera moves" if g.camera.moving else
+                            "it has a scene of its own (shapes, a target_material or a texture)")
+    return None
+
+
+#: the board kinds ``board_mode = "frame"`` composites (boards of dark squares: ``render.scene.board_frame``)
+BOARD_FRAME_KINDS = ("checkerboard", "squares", "charuco", "circles_grid")
+
+
+def _board_frame_obstacle(groups) -> tuple[str, str] | None:
+    """(group name, why) where ``board_mode = "frame"`` (``edgetruth.render.scene.board_frame``: flat boards of
+    dark squares, a static camera) cannot render a group's boards, or None."""
+    for g in groups:
+        if g.kind != "target" and (g.camera.moving or g.board_bend_mm is not None or g.kind not in BOARD_FRAME_KINDS):
+            return g.name, ("its camera moves" if g.camera.moving else "its board is curled"
+                            if g.board_bend_mm is not None else f"it shows a {g.kind} board")
+    return None
+
+
+#: (spec path, text SHA-256) whose fall-back to "path" this process has said: once per spec, not per image
+_FALLBACK_SAID: set = set()
+
+
+def _resolve_modes(s: dict, given: dict, groups, src: str, text_sha256: str) -> None:
+    """Set ``s["edge_mode"]`` and ``s["board_mode"]``.  A mode the spec names renders as named (one outside its
+    scope is refused); a mode it does not name is "frame" where that is valid for every group it applies to,
+    "path" where no group is of its kind (so the spec's identity is the one it always had), and otherwise "path",
+    said in one line on stderr (``console.warn``)."""
+    fallback = []
+    edge, board = _edge_frame_obstacle(groups), _board_frame_obstacle(groups)
+    if "edge_mode" in given:
+        if s["edge_mode"] in ("analytic", "frame") and edge:
+            raise InputError(f"{src} group {edge[0]!r}: edge_mode = \"{s['edge_mode']}\" covers the preset targets "
+                             f"T1..T4 as shipped and a static camera, and {edge[1]}; set edge_mode = \"path\" "
+                             "for this spec")
+    elif not any(g.kind == "target" for g in groups) or edge:
+        s["edge_mode"] = "path"
+        if edge:
+            fallback.append(f"edge_mode = \"path\" (group {edge[0]!r}: {edge[1]}; \"frame\" takes the preset "
+                            "targets T1..T4 and a static camera)")
+    if "board_mode" in given:
+        if s["board_mode"] == "frame" and board:
+            raise InputError(f"{src} group {board[0]!r}: board_mode = \"frame\" renders flat boards of squares seen "
+                             f"by a static camera, and {board[1]}; set board_mode = \"path\" for this spec")
+    elif all(g.kind == "target" for g in groups) or board:
+        s["board_mode"] = "path"
+        if board:
+            fallback.append(f"board_mode = \"path\" (group {board[0]!r}: {board[1]}; \"frame\" takes flat boards "
+                            "and a static camera)")
+    said = (src, text_sha256)
+    if fallback and said not in _FALLBACK_SAID:
+        from edgetruth import console
+
+        _FALLBACK_SAID.add(said)
+        console.warn(f"{src}: renders with {' and '.join(fallback)}: the Monte-Carlo reference, not the noise-free "
+                     "composite; name the mode in [spec] to silence this (docs/spec.md)")
+
 def load_spec(name_or_path: str | Path) -> Spec:
     """Parse and validate a render spec in one pass.
 
@@ -719,19 +783,8 @@ def load_spec(name_or_path: str | Path) -> Spec:
                             board_bend_mm=g.get("board_bend_mm")))
         first += n
     _check_sample_counts(s, f"{src} [spec]")
-    if s["edge_mode"] in ("analytic", "frame"):  # edgetruth.render.scene.edge_band.band_coverage's scope
-        for g in groups:
-            if g.kind == "target" and (g.camera.moving or not isinstance(g.target, str)):
-                why = ("its camera moves" if g.camera.moving else
-                       "it has a scene of its own (shapes, a target_material or a texture)")
-                raise InputError(f"{src} group {g.name!r}: edge_mode = \"{s['edge_mode']}\" covers the preset targets "
-                                 f"T1..T4 as shipped and a static camera, and {why}; set edge_mode = \"path\" "
-                                 "for this spec")
-    if s["board_mode"] == "frame":  # edgetruth.render.scene.board_frame's scope
-        for g in groups:
-            if g.kind != "target" and (g.camera.moving or g.board_bend_mm is not None):
-                raise InputError(f"{src} group {g.name!r}: board_mode = \"frame\" renders flat boards seen by a "
-                                 "static camera; set board_mode = \"path\" for a curled board or a moving camera")
+    text_sha256 = hashlib.sha256(path.read_bytes()).hexdigest()
+    _resolve_modes(s, data.get("spec", {}), groups, src, text_sha256)
     return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
                 camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"],
                                                                          edge_spp=s["edge_spp"],
@@ -740,5 +793,4 @@ def load_spec(name_or_path: str | Path) -> Spec:
                                                                          shading_step_px=s["shading_step_px"],
                                                                          board_mode=s["board_mode"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
-                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares,
-                circles_grid=circles, charuco=charuco)
+                text_sha256=text_sha256, squares=squares, circles_grid=circles, charuco=charuco)

@@ -49,6 +49,19 @@ count = 15
 tilt_max_deg = 35
 ```
 
+**Render modes when a spec names none.** Target images render with `edge_mode = "frame"` (every pixel
+composited from the exact lens-weighted coverage of the outline and the shading rendered on a grid: no
+Monte-Carlo noise at the edges, and no full-frame render) wherever it is valid: every target group a preset
+target (T1..T4) seen by a static camera.  Board images (checkerboard, squares) render with `board_mode = "frame"`
+wherever every board group is flat and seen by a static camera.  A spec outside that scope -- a target group
+with a scene of its own (shapes, materials, lights, clutter), a moving camera, a curled board -- renders that
+kind with `"path"`, the path tracer, and says so in one line on stderr (once per spec) naming the group, the
+reason and how to silence it.  A spec that names a mode renders with it (`"path"` is the Monte-Carlo reference;
+a named `"frame"` outside its scope is refused), and a mode no image of the spec uses stays `"path"`, so the
+spec's identity is unchanged.  Every shipped spec names the modes its images use.  Each image's JSON records
+the mode that made it (docs/formats.md, `render`).  docs/optics.md has the composites' checks against the
+path tracer.
+
 Units are in the key names or the tables below; lengths are metres unless a name says
 otherwise; image coordinates follow OpenCV (pixel centres at integers).
 This file is generated from the loader's key tables by `python -m edgetruth.render.dataset.spec_doc`.

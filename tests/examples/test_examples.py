@@ -78,3 +78,12 @@ def test_ray_scale_out_gives_the_same_bytes(fast_variant):
     except mod.RayUnavailable as exc:
         pytest.skip(str(exc))
     assert out == {"identical": True, "images": 2}
+
+
+def test_the_readme_python_example_runs(capsys):
+    block = re.search(r"## In Python\n\n```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S).group(1)
+    assert len(block.strip().splitlines()) <= 15
+    exec(compile(block, "README.md", "exec"), {})
+    out = capsys.readouterr().out
+    rmse = float(re.search(r"RMSE ([0-9.]+) px", out).group(1))
+    assert rmse < 0.1  # dynamic 4P on an analytic Ideal edge
