@@ -72,6 +72,18 @@ def algebraic_residual_px(q: np.ndarray, x, y) -> np.ndarray:
     return val / np.maximum(np.linalg.norm(grad, axis=1), 1e-300)
 
 
+def centre_image(conics: np.ndarray, K, normal_cam) -> np.ndarray:
+    """(n, 2) undistorted px: the image of the centre of the circle each image conic (n, 3, 3) is the image of,
+    for a board whose plane has the unit normal ``normal_cam`` (camera frame; R's third column): the pole of the
+    plane's vanishing line l = K^-T n with respect to the conic, Q^-1 l.  Exact for any circle on that plane:
+    the circle's centre is the pole of the board's line at infinity, and poles map with the plane's homography.
+    Only the plane's orientation enters (not its distance or the circle's radius)."""
+    q = np.asarray(conics, np.float64).reshape(-1, 3, 3)
+    line = np.linalg.solve(np.asarray(K, np.float64).T, np.asarray(normal_cam, np.float64).ravel())
+    p = np.linalg.solve(q, np.broadcast_to(line, (len(q), 3))[..., None])[..., 0]
+    return p[:, :2] / p[:, 2:3]
+
+
 def corrected_centres(centres_px: np.ndarray, K, R, t, centres_board_xy: np.ndarray, radius_m: float,
                       z_m: float = 0.0) -> np.ndarray:
     """(n, 2) measured ellipse centres (undistorted px) minus the perspective bias a circle of ``radius_m`` at

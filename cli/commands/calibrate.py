@@ -23,12 +23,20 @@ def register(sub) -> None:
     p.add_argument("photos", nargs="*", metavar="PHOTOS",  # none: our own one-line error, not argparse's usage
                    help="image files, folders (every image inside, sorted), glob patterns (quoted), or the name "
                         "of a shipped photo set (opencv_left)")
-    add_pattern_option(p, "the board the photos show", required=True, kinds=("chessboard", "charuco"))
+    add_pattern_option(p, "the board the photos show", required=True, kinds=("chessboard", "charuco", "circles"))
     add_square_m_option(p, "it scales the board poses only, not K or the distortion")
     p.add_argument("--marker-m", default=None, metavar="METRES",
                    help="a ChArUco board (--pattern charuco:...): the printed side of one marker, its black border "
                         "included (OpenCV's markerLength; required there: OpenCV's detector places the corners "
                         "from the markers)")
+    p.add_argument("--centres", default="blobs", metavar="blobs|conic[:METHOD]|corrected[:METHOD]",
+                   help="a circle grid (--pattern circles:...): how each circle's image point is measured: 'blobs' "
+                        "(default) = cv2.findCirclesGrid's blob centroids; 'conic' = the centre of an ellipse fitted "
+                        "to an edge method's points on the circle (erf4p_fixed11 or METHOD), in the undistorted "
+                        "image; 'corrected' = the image of the circle's centre from that ellipse and the board "
+                        "plane's orientation (free of the perspective bias; docs/patterns.md), both iterated with "
+                        "the calibration's own lens and poses.  --square-m is OpenCV's squareSize: an asymmetric "
+                        "grid's row spacing, half the distance between neighbours in a row")
     p.add_argument("--model", choices=tuple(DIST_MODELS), default=DEFAULT_DIST_MODEL,
                    help="distortion terms to estimate (the others are held at 0): "
                         + "; ".join(f"{k}: {v[1]}" for k, v in DIST_MODELS.items())
@@ -148,6 +156,49 @@ def _charuco(args, board_pattern, square_m: float, window):
     return finder, label, undistort, (board.cols - 1, board.rows - 1)
 
 
+def _run_circles(args: argparse.Namespace, board_pattern, spacing_m: float) -> int:
+    """``calibrate --pattern circles:...``: ``edgetruth.evaluate.board.circles.calibrate_circles``."""
+    from edgetruth import console
+    from edgetruth.errors import InputError
+    from edgetruth.evaluate.board.circles import calibrate_circles, parse_centres
+    from edgetruth.evaluate.calibration import find_photos
+    from edgetruth.fileio import check_output_file, write_json
+    from edgetruth.image_io import read_gray_scaled
+
+    given = [o for o, v, d in (("--marker-m", args.marker_m, None), ("--corners", args.corners, "subpix"),
+                               ("--subpix-window", args.subpix_window, "auto"), ("--line-frame", args.line_frame, None),
+                               ("--board", args.board, "flat")) if v != d]
+    if given:
+        raise InputError(f"{', '.join(given)}: not for a circle grid (--pattern {board_pattern.text}), whose circles are "
+                         "measured as --centres says on a flat board; drop it")
+    parse_centres(args.centres)
+    photos = find_photos(args.photos)
+    out = check_output_file(args.output, "-o", inputs=[path for _, path in photos])
+    read = [read_gray_scaled(path, args.channel) for _, path in photos]
+    views = [(name, image) for (name, _), (image, _) in zip(photos, read)]
+    cal, results, info = calibrate_circles(
+        views, board_pattern, spacing_m, centres=args.centres, model=args.model, full_scales=[s for _, s in read],
+        progress=lambda it: console.track(it, desc="calibrate", unit="photo", enabled=not args.no_progress))
+    doc = cal.to_dict()
+    doc.update({"pattern": board_pattern.to_dict(), "pattern_size": list(board_pattern.size), "square_m": spacing_m,
+                "square_m_meaning": "OpenCV's squareSize s: circle (row i, column j) at ((2 j + i % 2) s, i s) "
+                                    "(asymmetric) or (j s, i s) (symmetric)",
+                "model": args.model, "centres": args.centres, "circle_rounds": info["rounds"],
+                "circle_rounds_moved_px": info["moved_px"], "circle_radius_m": info.get("radius_m"),
+                "blob_rms_px": info["blob_rms_px"], "channel": args.channel,
+                "photos": [r.to_dict() for r in results]})
+    try:
+        write_json(out, doc)
+    except OSError as exc:
+        raise InputError(f"-o {out}: cannot write ({exc.strerror}); choose a writable location") from exc
+    missing = [r.photo for r in results if not r.found]
+    console.say(f"calibrate: grid found in {cal.n_views} of {len(results)} photos"
+                + (f" (not found: {', '.join(missing)})" if missing else "")
+                + f"; RMS {cal.rms_px:.4f} px, fx {cal.fx:.2f} fy {cal.fy:.2f} cx {cal.cx:.2f} cy {cal.cy:.2f} px"
+                + f" ({args.centres}) -> {out}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     from edgetruth import console
     from edgetruth.cli import parse_square_m
@@ -157,8 +208,12 @@ def run(args: argparse.Namespace) -> int:
 
     from edgetruth.evaluate.board.pattern import parse_board_pattern
 
-    board_pattern = parse_board_pattern(args.pattern, kinds=("chessboard", "charuco"))
+    board_pattern = parse_board_pattern(args.pattern, kinds=("chessboard", "charuco", "circles"))
     square_m = parse_square_m(args.square_m)
+    if board_pattern.kind == "circles":
+        return _run_circles(args, board_pattern, square_m)
+    if args.centres != "blobs":
+        raise InputError(f"--centres {args.centres}: only with a circle-grid --pattern (circles:COLSxROWS...); drop it")
     window = _window(args.subpix_window)
     if board_pattern.kind == "charuco":
         finder, corner_label, undistort_lines, pattern = _charuco(args, board_pattern, square_m, window)

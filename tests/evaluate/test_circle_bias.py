@@ -26,6 +26,26 @@ def test_fit_ellipse_recovers_an_exact_ellipse_and_its_centre():
     assert fit_ellipse(x[:5], y[:5]) is None
 
 
+def test_the_pole_of_the_vanishing_line_is_the_image_of_the_centre():
+    """centre_image: Q^-1 K^-T n, from the image conic and the plane's normal alone, is the image of the circle's
+    centre (1e-9 px), at any tilt; the conic's own centre is not."""
+    from edgetruth.evaluate.conic import centre_image
+    from edgetruth.render.optics.camera import load_camera
+    from edgetruth.render.scene.circles_grid import CirclesGrid
+    from edgetruth.render.scene.pose import Pose
+
+    cam, g = load_camera(), CirclesGrid()
+    for tilt in (0.0, 20.0, 45.0, 60.0):
+        pose = Pose(0.7, 0.02, -0.03, 0.6 * tilt, -0.8 * tilt, 15.0)
+        R, t = pose.rotation, pose.translation_m
+        c = g.centres_local(-1e-5)
+        q = cc.image_conic(cc.plane_homography(cam.K, R, t, -1e-5), cc.circle_conics(c[:, :2], g.radius_m))
+        truth = cc.pinhole_px(cam.K, R, t, c)
+        np.testing.assert_allclose(centre_image(q, cam.K, R[:, 2]), truth, atol=1e-9)
+        if tilt >= 20.0:
+            assert np.max(np.abs(cc.conic_centre(q) - truth)) > 0.01
+
+
 def _camera():
     from edgetruth.render.optics.camera import camera_from_dict
 
