@@ -4,6 +4,8 @@ parameters; Returns for a function that returns something; Parameters or Attribu
 from __future__ import annotations
 
 import re
+import tempfile
+from pathlib import Path
 
 import pytest
 
@@ -26,12 +28,18 @@ def documented() -> list[str]:
     return [name for name, _ in directives()]
 
 
-@pytest.fixture(scope="module")
-def package():
+def load_package():
+    """The package as griffe reads it for the site, laid out in a folder of this process's own (the docs
+    build's build/apisrc may be rebuilt by another test worker meanwhile)."""
     hooks = load_tool("tools/docs_hooks.py", "docs_hooks")
-    src = hooks.build_api_tree(out=ROOT / "build" / "apisrc")
+    src = hooks.build_api_tree(out=Path(tempfile.mkdtemp(prefix="edgetruth_apisrc_")) / "apisrc")
     return griffe.load("edgetruth", search_paths=[str(src)], docstring_parser="numpy", resolve_aliases=True,
                        try_relative_path=False)
+
+
+@pytest.fixture(scope="module")
+def package():
+    return load_package()
 
 
 def sections(obj) -> dict:
@@ -59,9 +67,7 @@ def test_the_reference_documents_the_public_api():
 
 def rendered_objects() -> list[str]:
     """Every documented object, and the public methods and properties of every documented class."""
-    hooks = load_tool("tools/docs_hooks.py", "docs_hooks")
-    pkg = griffe.load("edgetruth", search_paths=[str(hooks.build_api_tree(out=ROOT / "build" / "apisrc"))],
-                      docstring_parser="numpy", resolve_aliases=True, try_relative_path=False)
+    pkg = load_package()
     out = []
     for name, members in directives():
         out.append(name)
