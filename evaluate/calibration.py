@@ -178,22 +178,33 @@ class Calibration:
 
     @property
     def fx(self) -> float:
+        """K[0, 0]: the focal length along x, px."""
         return float(self.K[0, 0])
 
     @property
     def fy(self) -> float:
+        """K[1, 1]: the focal length along y, px."""
         return float(self.K[1, 1])
 
     @property
     def cx(self) -> float:
+        """K[0, 2]: the principal point's x, px (OpenCV convention)."""
         return float(self.K[0, 2])
 
     @property
     def cy(self) -> float:
+        """K[1, 2]: the principal point's y, px (OpenCV convention)."""
         return float(self.K[1, 2])
 
     def errors(self) -> dict:
-        """Recovered minus true values (needs ``truth``)."""
+        """Recovered minus true values, for a calibration from renders (needs ``truth``).
+
+        Returns
+        -------
+        dict
+            ``fx_rel_pct``, ``fy_rel_pct`` (%), ``cx_px``, ``cy_px`` (px) and ``dist`` (coefficient differences);
+            empty without ``truth``.
+        """
         if not self.truth:
             return {}
         t = self.truth
@@ -203,6 +214,14 @@ class Calibration:
                 "dist": (self.dist - np.asarray(t["dist_coeffs_opencv"])).tolist()}
 
     def to_dict(self) -> dict:
+        """The ``calibration.json`` form (docs/formats.md), which ``from_dict`` reads back.
+
+        Returns
+        -------
+        dict
+            ``K``, ``fx_px`` ... ``cy_px``, ``dist_coeffs_opencv``, ``image_size``, ``reprojection_rms_px`` and
+            the rest of the fields.
+        """
         return {"method": self.method,
                 "K": self.K.tolist(), "fx_px": self.fx, "fy_px": self.fy, "cx_px": self.cx, "cy_px": self.cy,
                 "dist_coeffs_opencv": self.dist.tolist(), "image_size": list(self.image_size),
@@ -214,7 +233,20 @@ class Calibration:
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "calibration") -> "Calibration":
-        """The inverse of ``to_dict`` (a ``calibration.json`` written by ``edgetruth run``/``evaluate``)."""
+        """The inverse of ``to_dict`` (a ``calibration.json`` written by ``edgetruth calibrate``, ``run``, ``evaluate``).
+
+        Parameters
+        ----------
+        d : dict
+            The JSON's content: at least ``K`` (3 x 3), ``dist_coeffs_opencv`` and ``image_size``.
+        where : str, optional
+            What error messages call it (the file).
+
+        Returns
+        -------
+        Calibration
+            The camera.
+        """
         try:
             K = np.asarray(d["K"], float)
             dist = np.asarray(d["dist_coeffs_opencv"], float).ravel()

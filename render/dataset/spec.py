@@ -348,11 +348,13 @@ class Spec:
 
     @property
     def n_images(self) -> int:
+        """How many images the spec makes (every group's and design cell's)."""
         g = self.groups[-1]
         return g.first_index + g.count
 
     @property
     def jobs(self) -> Jobs:
+        """``spec.jobs[i]``: image i's ``Job`` (name, group, kind, seeds, distance in cm, camera, sensor), made on demand."""
         return Jobs(self)
 
     def group(self, name: str) -> Group:
