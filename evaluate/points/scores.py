@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from edgetruth.evaluate.points.matching import MATCH_RADIUS_PX
+from edgetruth.evaluate.target import is_scene
 
 CORNER_EXCLUSION_PX = 4.0
 BOUND_WINDOW_PX = 11
@@ -95,11 +96,6 @@ def scored_subset(truth, cand, offset) -> tuple[np.ndarray, np.ndarray]:
     keep = np.abs(d) <= MATCH_RADIUS_PX
     keep &= truth.corner_distance(cx, cy) > CORNER_EXCLUSION_PX
     return keep, d[keep]
-
-
-def is_scene(truth) -> bool:
-    """The truth of an image with several outlines (``SceneOutline``: shapes, a ring's two edges, clutter)."""
-    return getattr(truth, "shape", "") == "scene"
 
 
 def scene_candidates(image: np.ndarray, truth, margin_px: int = 12, boundary_tol_px: float = 2.0,
