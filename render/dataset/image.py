@@ -103,7 +103,14 @@ def view_points(spec: Spec, job: Job) -> np.ndarray:
     if job.kind == "target":
         size_m = spec.target_size_m
         return paired_view_outline(spec, size_m) if job.slot is not None else view_outline_local(job.target, size_m)
-    return (spec.squares if job.kind == "squares" else spec.checkerboard).plate_corners_local()
+    return board_of(spec, job.kind).plate_corners_local()
+
+
+def board_of(spec: Spec, kind: str):
+    """The board a board job renders: its squares (a ChArUco board's dark squares and marker cells), or
+    the checkerboard."""
+    return {"squares": spec.squares, "charuco": spec.charuco.squares if spec.charuco else None}.get(
+        kind, spec.checkerboard)
 
 
 def check_views(spec: Spec) -> None:
@@ -201,6 +208,13 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
         pose = job_pose(job, camera, board.plate_corners_local())
         rig, le, bend, sag = _board_state(job, "squares", camera, settings, board, crop, pose, e_render)
         gt = squares_ground_truth(camera, pose, board, bend, sag)
+    elif job.kind == "charuco":  # rendered as its dark squares and marker cells (render.scene.charuco)
+        from edgetruth.render.scene.charuco_truth import charuco_ground_truth
+
+        board = spec.charuco.squares
+        pose = job_pose(job, camera, board.plate_corners_local())
+        rig, le, bend, sag = _board_state(job, "squares", camera, settings, board, crop, pose, e_render)
+        gt = charuco_ground_truth(camera, pose, spec.charuco, bend, sag)
     else:
         board = spec.checkerboard
         if settings.checkerboard_spp:  # the board's own spp; the JSON's render.spp says what was used

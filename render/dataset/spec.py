@@ -39,8 +39,9 @@ from edgetruth.render.schema import REQUIRED, Key, _is_num, parse_table
 from edgetruth.render.sensor.linear_model import SensorModel, sensor_from_dict
 from edgetruth.render.scene.shapes import SCENE_GROUP_KEYS, scene_from_group
 from edgetruth.render.scene.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard, SquareBoard, square_board_from_dict
+from edgetruth.render.scene.charuco import CharucoBoard, charuco_board_from_dict
 
-KINDS = ("target", "checkerboard", "squares")
+KINDS = ("target", "checkerboard", "squares", "charuco")
 SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
 MAX_SPP = 1 << 16
 MAX_IMAGES = 10_000_000
@@ -82,11 +83,13 @@ SPEC_KEYS = [
     Key("squares", "table", {}, "", "the board of dark squares of kind = \"squares\" groups {model, "
         "model_unit_m | rows, cols, side_m, pitch_m; margin_m, plate_size_m, square_reflectance, "
         "board_reflectance}"),
+    Key("charuco", "table", {}, "", "the ChArUco board of kind = \"charuco\" groups {cols, rows, square_m, "
+        "marker_m, dictionary, legacy, margin_m, square_reflectance, board_reflectance} (OpenCV's CharucoBoard)"),
 ]
 GROUP_KEYS = [
     Key("name", "name", REQUIRED, "", "group name (unique in the spec; part of every image name)"),
-    Key("kind", "str", "target", "", "what the images show: a target on a board, a checkerboard, or a board "
-        "of dark squares ([spec] squares)", choices=KINDS),
+    Key("kind", "str", "target", "", "what the images show: a target on a board, a checkerboard, a board "
+        "of dark squares ([spec] squares) or a ChArUco board ([spec] charuco)", choices=KINDS),
     Key("target", "str", "T1", "", "target id (kind = target)", choices=tuple(TARGETS)),
     Key("count", "int", 1, "images", "images over distance_range_cm (one per equal sub-interval)", 1, MAX_IMAGES),
     Key("distance_range_cm", "range2", (150.0, 150.0), "cm", "[near, far] distance of the board centre", 1.0, 1e5),
@@ -104,7 +107,7 @@ GROUP_KEYS = [
     Key("poses", "tables", None, "", "explicit poses [{R = [[r11, r12, r13], [...], [...]], t = [tx, ty, tz]}, "
         "...]: one image per pose, instead of count, distances, lateral_fraction, tilts and roll; "
         "X_cam = R X_board + t (OpenCV camera frame); the board frame: kind squares: the model's frame "
-        "([spec] squares), else centred on the board (x right, y down, z into it); R must be a rotation "
+        "([spec] squares), kind charuco: OpenCV's board frame (origin at its top-left outer corner), else centred on the board (x right, y down, z into it); R must be a rotation "
         f"(R^T R = I within {ROTATION_TOLERANCE:g}, det +1; the nearest rotation is used); t in pose_unit_m"),
     Key("pose_unit_m", "float", 1.0, "m", "unit of the explicit poses' t (1: metres; 0.0254: inches)", 1e-9, 1e3),
     Key("board_bend_mm", "floats", None, "mm", "kind = squares or checkerboard: the board curled, its height "
@@ -313,6 +316,7 @@ class Spec:
     groups: tuple
     text_sha256: str = ""
     squares: SquareBoard | None = None
+    charuco: CharucoBoard | None = None
 
     @property
     def n_images(self) -> int:
@@ -356,6 +360,8 @@ class Spec:
                "checkerboard": asdict(self.checkerboard), "sensor": self.sensor.identity(), "groups": groups}
         if any(g.kind == "squares" for g in self.groups):
             out["squares"] = self.squares.resolved()
+        if any(g.kind == "charuco" for g in self.groups):
+            out["charuco"] = self.charuco.resolved()
         return out
 
     def units(self) -> list[list[int]]:
@@ -501,6 +507,8 @@ def _check_explicit_poses(poses: tuple, g: dict, spec_parts: dict, camera: Camer
     for i, pose in enumerate(poses):
         if g["kind"] == "squares":
             pts = spec_parts["squares"].plate_corners_local()
+        elif g["kind"] == "charuco":
+            pts = spec_parts["charuco"].squares.plate_corners_local()
         elif g["kind"] == "checkerboard":
             pts = spec_parts["checkerboard"].plate_corners_local()
         else:
@@ -571,6 +579,10 @@ def load_spec(name_or_path: str | Path) -> Spec:
     base_sensor = sensor_from_dict(data.get("sensor", {}), where=f"{src} [sensor]")
     groups_raw = data.get("group", [])
     design_cells = _design_cells(data["design"], f"{src} [design]") if "design" in data else []
+    charuco = None  # built (OpenCV's layout) only for a spec that shows or names one
+    if s["charuco"] or any(isinstance(g, dict) and g.get("kind") == "charuco"
+                           for g in list(groups_raw) + [c for c, _ in design_cells]):
+        charuco = charuco_board_from_dict(s["charuco"], f"{src} [spec] charuco")
     if not (isinstance(groups_raw, list) and all(isinstance(g, dict) for g in groups_raw)) or \
             not (groups_raw or design_cells):
         raise InputError(f"{src}: needs at least one [[group]] table or a [design] (see docs/spec.md)")
@@ -618,7 +630,10 @@ def load_spec(name_or_path: str | Path) -> Spec:
             poses = parse_poses(g["poses"], g["pose_unit_m"], where)
             if g["kind"] == "squares":  # model frame -> the rendering's board frame (centred on the squares)
                 poses = tuple(p.moved_origin(squares.centre_model_m) for p in poses)
-            _check_explicit_poses(poses, g, {"squares": squares, "checkerboard": board, "scene": scene,
+            elif g["kind"] == "charuco":  # OpenCV's board frame -> the rendering's (centred on the squares)
+                poses = tuple(p.moved_origin(charuco.squares.centre_model_m) for p in poses)
+            _check_explicit_poses(poses, g, {"squares": squares, "charuco": charuco, "checkerboard": board,
+                                             "scene": scene,
                                              "target_size_m": s["target_size_m"]}, camera, where)
         light = None if "light_position_m" not in raw else tuple(g["light_position_m"])
         unit = unit_e = None
@@ -667,4 +682,5 @@ def load_spec(name_or_path: str | Path) -> Spec:
                                                                          shading_step_px=s["shading_step_px"],
                                                                          board_mode=s["board_mode"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
-                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares)
+                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares,
+                charuco=charuco)

@@ -8,6 +8,7 @@ from edgetruth.render.optics.camera import CAMERA_KEYS, DISTORTION_KEYS
 from edgetruth.render.schema import REQUIRED, Key
 from edgetruth.render.sensor.linear_model import SENSOR_KEYS
 from edgetruth.render.dataset.spec import DESIGN_KEYS, FACTOR_KEYS, GROUP_KEYS, LEVEL_KEYS, SPEC_KEYS
+from edgetruth.render.scene.charuco import CHARUCO_KEYS
 from edgetruth.render.scene.targets import CHECKERBOARD_KEYS, SQUARES_KEYS, TARGETS
 
 INTRO = """# Render specs and cameras
@@ -172,6 +173,24 @@ def spec_markdown() -> str:
              "place the centre of the squares' bounding box.  The ground truth lists every square's corners "
              "(model order) and its exact distorted outline (docs/formats.md).", "",
              table(SQUARES_KEYS), "",
+             "### `[spec] charuco = {...}`", "",
+             "The board of `kind = \"charuco\"` groups: OpenCV's ChArUco board, "
+             "`cv2.aruco.CharucoBoard((cols, rows), square_m, marker_m, cv2.aruco.getPredefinedDictionary("
+             "dictionary))` with `setLegacyPattern(legacy)`: a chessboard of `cols` x `rows` squares whose white "
+             "squares each hold one ArUco marker (ids 0, 1, ... row-major from the top-left; `marker_m` includes "
+             "the marker's one-cell black border).  Which squares are dark, where each marker sits and its "
+             "bitmap are read from OpenCV's own board and dictionary (`Dictionary.generateImageMarker`), so a "
+             "detector sees what it expects: the rendered board is OpenCV's `generateImage`, pixel for pixel, at "
+             "any whole number of pixels per marker cell.  Everything dark is a union of axis-aligned squares "
+             "in the board frame, so the board renders as a board of dark squares with exact edges: the "
+             "chessboard's dark squares and each marker's dark cells merged into rectangles (runs of a row, "
+             "stacked where the rows below repeat them; `edgetruth.render.scene.charuco`), printed flush on "
+             "a white plate `margin_m` wider than the squares.  The board frame is OpenCV's: origin at the "
+             "board's top-left outer corner, x right, y down, z into the board (the frame explicit poses map; "
+             "sampled poses place the board's centre).  The ground truth lists every ChArUco corner and every "
+             "marker's four corners with their ids (docs/formats.md).  `edgetruth calibrate --pattern "
+             "charuco:COLSxROWS:DICT` calibrates from such boards (docs/board.md).", "",
+             table(CHARUCO_KEYS), "",
              "## `[[group]]`", "",
              "A group's images are spread over its distances (one per equal sub-interval, uniform inside it); "
              "lateral offset, tilts and roll are drawn per image from the image's seed, and redrawn "
@@ -184,7 +203,9 @@ def spec_markdown() -> str:
              "rotation `R` (3 x 3, by rows) and a translation `t` (in `pose_unit_m`) with "
              "X_cam = R X_board + t in the OpenCV camera frame (x right, y down, z forward).  For "
              "`kind = \"squares\"` X_board is the model's frame (e.g. a published calibration's extrinsics "
-             "with its model points); for targets and checkerboards the board frame centred on the board.  "
+             "with its model points); for `kind = \"charuco\"` OpenCV's board frame (origin at its top-left outer "
+             "corner, as `cv2.aruco` returns poses); for targets and checkerboards the board frame centred on "
+             "the board.  "
              "`R` is checked to be a rotation and replaced by the nearest one (SVD); the board must lie in "
              "front of the camera, and a target's outline in the image.  Each image's ground truth records "
              "the pose it used (`pose`; for squares also `squares.pose_model`).", "",
