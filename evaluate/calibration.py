@@ -363,10 +363,10 @@ def use_bent_board(cal: Calibration, results: list, model: str = "quadratic") ->
 # --- real photographs ----------------------------------------------------------------------------------
 def parse_pattern(text: str, option: str = "--pattern") -> tuple[int, int]:
     """``"9x6"`` -> (9, 6): inner corners per row x per column (OpenCV's patternSize).  A circle grid or ChArUco
-    pattern (``circles:4x11:asymmetric``; ``edgetruth.evaluate.board.pattern``) is refused, saying this reads a
+    pattern (``circles:4x11:asymmetric``; ``edgetruth.evaluate.pattern``) is refused, saying this reads a
     chessboard."""
     if ":" in str(text):
-        from edgetruth.evaluate.board.pattern import parse_board_pattern
+        from edgetruth.evaluate.pattern import parse_board_pattern
 
         parse_board_pattern(text, option, kinds=("chessboard",))  # raises: a chessboard pattern has no ':'
     parts = str(text).strip().lower().replace("×", "x").split("x")

@@ -7,7 +7,7 @@ each point's error is its signed distance to the exact distorted outline of the 
 (``edgetruth.render.edge_truth.OutlineEdge``: the JSON's dense polyline, chords within 1e-3 px of
 the curve; > 0 on the bright board, as the synthetic study's errors are > 0 on the bright side).
 
-Which candidates are scored (one rule for every method, as ``edgetruth.evaluate.points.matching``):
+Which candidates are scored (one rule for every method, as ``edgetruth.evaluate.matching``):
 
 - *on the edge*: the candidate pixel centre lies within ``MATCH_RADIUS_PX`` (1.5 px) of the outline;
 - *not at a corner*: squares only -- the candidate lies farther than ``CORNER_EXCLUSION_PX`` (4 px)
@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from edgetruth.evaluate.points.matching import MATCH_RADIUS_PX
+from edgetruth.evaluate.matching import MATCH_RADIUS_PX
 from edgetruth.evaluate.target import is_scene
 
 CORNER_EXCLUSION_PX = 4.0
