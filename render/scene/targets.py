@@ -15,8 +15,8 @@ import numpy as np
 from edgetruth.errors import InputError
 from edgetruth.render.schema import Key, parse_table
 # the stand-off and the board's default size live with the shapes (re-exported here)
-from edgetruth.render.scene.shapes import (BOARD_HALF_SIZE_M, TARGET_STANDOFF_M, Shape,  # noqa: F401
-                                           checkerboard_preset, legacy_targets)
+from edgetruth.render.scene.shapes import BOARD_HALF_SIZE_M, TARGET_STANDOFF_M, Shape  # noqa: F401
+from edgetruth.render.scene.target_scene import checkerboard_preset, legacy_targets
 BOARD_REFLECTANCE = 0.8  # white matte board (Lambertian albedo)
 #: the shipped checkerboard preset (``assets/targets.toml [checkerboard]``): kind = "checkerboard" groups show it
 _PRESET, _PRESET_MARGIN_M = checkerboard_preset()
