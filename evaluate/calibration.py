@@ -488,7 +488,7 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     Each photo is read with ``edgetruth.image_io.read_gray(path, channel)``; its corners with
     ``detect_corners(image, pattern_size, window_px)``, or with ``corner_finder(image, pattern_size)`` when given:
     (COLS * ROWS, 2) in OpenCV's order, NaN where it measured none, None when the board is not found (e.g.
-    ``edgetruth.evaluate.board.grid_corners.line_corners``); ``corner_label`` then names it in the calibration's
+    ``edgetruth.evaluate.board.measure.grid_corners.line_corners``); ``corner_label`` then names it in the calibration's
     method line.  ``undistort_lines``: ``corner_finder`` returns a photo's grid (``.corners(lens)``, e.g.
     ``grid_corners.grid_points``) and the corners are refitted with the calibration's own lens, where the grid
     lines are straight, and the camera recalibrated, until no corner moves by ``STRAIGHTEN_TOL_PX``.  Each photo

@@ -96,8 +96,8 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, line
                          "drop one")
     from edgetruth import locate
     from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.board.chessboard import chessboard_model
-    from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD, grid_points, line_corners
+    from edgetruth.evaluate.board.detect.chessboard import chessboard_model
+    from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD, grid_points, line_corners
     from edgetruth.locate.registry import camera_free
 
     spec = spec or DEFAULT_METHOD
@@ -119,7 +119,7 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, line
             return grid_points(image, pattern_size, method, **options)
         return line_corners(image, pattern_size, method, **options)
 
-    label = f"corners where the grid lines of {spec}'s points meet (edgetruth.evaluate.board.grid_corners)"
+    label = f"corners where the grid lines of {spec}'s points meet (edgetruth.evaluate.board.measure.grid_corners)"
     return finder, label, undistort_lines
 
 
