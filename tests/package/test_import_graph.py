@@ -173,6 +173,45 @@ def test_the_sideways_check_finds_a_sideways_import():
             {**base, "edgetruth.evaluate.ranging.main": {"edgetruth.evaluate.threshold_calibration"}})
 
 
+#: the board study's rooms, one per stage, bottom to top: each imports the rooms below it and the board's shared
+#: modules (model, reference, inputs), never a room above it, the study that drives them, or the twin
+BOARD = "edgetruth.evaluate.board"
+BOARD_ROOMS = ("sides", "detect", "calibrate", "measure", "tone", "report")
+BOARD_SHARED = ("model", "reference", "inputs")
+
+
+def _board_room(m: str) -> str | None:
+    if not m.startswith(BOARD + "."):
+        return None
+    part = m.split(".")[3]
+    return part if part in BOARD_ROOMS or part in BOARD_SHARED else ("twin" if part == "twin" else "study")
+
+
+def test_board_rooms_import_downwards(graph):
+    rooms = {_board_room(m) for m in graph}
+    assert set(BOARD_ROOMS) <= rooms
+    bad = []
+    for m, ts in graph.items():
+        a = _board_room(m)
+        if a not in BOARD_ROOMS:
+            continue
+        for t in sorted(ts):
+            b = _board_room(t)
+            if b is None or b == a or b in BOARD_SHARED:
+                continue
+            if b not in BOARD_ROOMS or BOARD_ROOMS.index(b) > BOARD_ROOMS.index(a):
+                bad.append(f"{m} ({a}) imports {t} ({b})")
+    assert not bad, "board rooms importing upwards:\n" + "\n".join(bad)
+
+
+def test_the_board_check_finds_an_upward_import():
+    ok = {f"{BOARD}.measure.rows": {f"{BOARD}.sides.lines", f"{BOARD}.model"}}
+    test_board_rooms_import_downwards({**ok, **{f"{BOARD}.{r}.x": set() for r in BOARD_ROOMS}})
+    with pytest.raises(AssertionError, match=r"board.sides.lines \(sides\) imports edgetruth.evaluate.board.tone.fit"):
+        test_board_rooms_import_downwards({**ok, **{f"{BOARD}.{r}.x": set() for r in BOARD_ROOMS},
+                                           f"{BOARD}.sides.lines": {f"{BOARD}.tone.fit"}})
+
+
 def test_the_graph_check_finds_a_cycle():
     """The check itself can fail: a two-module cycle is reported."""
     with pytest.raises(AssertionError, match="a <-> b"):
