@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup run test test-fast bench clean
+.PHONY: setup run test test-fast bench docs gallery tables clean
 
 $(STAMP): pyproject.toml setup.py
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 10), "edgetruth needs python >= 3.10"'
@@ -33,6 +33,17 @@ test-fast: $(STAMP)
 bench: $(STAMP)
 	$(VENV)/bin/edgetruth bench
 
+# The docs site into site/ (offline, strict: a broken link, page or docstring fails; tests/package/test_docs_build.py
+# runs the same build); the gallery's pictures (renders under runs/gallery/); the tables quoted from docs/results/.
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict
+
+gallery: $(STAMP)
+	$(PY) tools/gallery.py
+
+tables: $(STAMP)
+	$(PY) tools/results_tables.py
+
 clean:
-	rm -rf $(VENV) runs .pytest_cache
+	rm -rf $(VENV) runs .pytest_cache site build/apisrc
 	find . -not -path "./$(VENV)/*" -name "*.nb[ic]" -delete  # numba JIT caches

@@ -130,7 +130,35 @@ def detect_corners(image: np.ndarray, pattern_size: tuple[int, int], window_px: 
 
 @dataclass
 class Calibration:
-    """A calibrated camera (OpenCV conventions) and how well it was determined."""
+    """A calibrated camera (OpenCV conventions) and how well it was determined.
+
+    Attributes
+    ----------
+    K : numpy.ndarray
+        (3, 3) intrinsics, px: fx, fy, cx, cy (``fx``, ``fy``, ``cx``, ``cy`` properties).
+    dist : numpy.ndarray
+        (5,) distortion (k1, k2, p1, p2, k3), OpenCV's model.
+    image_size : tuple of int
+        (width, height), px.
+    rms_px : float
+        Reprojection RMS, px.
+    n_views : int
+        Boards used.
+    per_view_rms_px : list of float
+        Reprojection RMS per view, px.
+    used, rejected : list of str
+        The images used, and those left out (board not found).
+    corner_error_px : dict
+        Renders only: detected against true corners, px.
+    truth : dict or None
+        Renders only: the true intrinsics (``errors()`` compares).
+    method : str
+        How it was determined, in words.
+    residual_structure : dict
+        Photos: whether the residuals are noise or a smooth field per view.
+    board_bend : dict
+        Photos: the calibration refitted with a bent board.
+    """
 
     K: np.ndarray
     dist: np.ndarray  # (k1, k2, p1, p2, k3)
@@ -150,22 +178,33 @@ class Calibration:
 
     @property
     def fx(self) -> float:
+        """K[0, 0]: the focal length along x, px."""
         return float(self.K[0, 0])
 
     @property
     def fy(self) -> float:
+        """K[1, 1]: the focal length along y, px."""
         return float(self.K[1, 1])
 
     @property
     def cx(self) -> float:
+        """K[0, 2]: the principal point's x, px (OpenCV convention)."""
         return float(self.K[0, 2])
 
     @property
     def cy(self) -> float:
+        """K[1, 2]: the principal point's y, px (OpenCV convention)."""
         return float(self.K[1, 2])
 
     def errors(self) -> dict:
-        """Recovered minus true values (needs ``truth``)."""
+        """Recovered minus true values, for a calibration from renders (needs ``truth``).
+
+        Returns
+        -------
+        dict
+            ``fx_rel_pct``, ``fy_rel_pct`` (%), ``cx_px``, ``cy_px`` (px) and ``dist`` (coefficient differences);
+            empty without ``truth``.
+        """
         if not self.truth:
             return {}
         t = self.truth
@@ -175,6 +214,14 @@ class Calibration:
                 "dist": (self.dist - np.asarray(t["dist_coeffs_opencv"])).tolist()}
 
     def to_dict(self) -> dict:
+        """The ``calibration.json`` form (docs/formats.md), which ``from_dict`` reads back.
+
+        Returns
+        -------
+        dict
+            ``K``, ``fx_px`` ... ``cy_px``, ``dist_coeffs_opencv``, ``image_size``, ``reprojection_rms_px`` and
+            the rest of the fields.
+        """
         return {"method": self.method,
                 "K": self.K.tolist(), "fx_px": self.fx, "fy_px": self.fy, "cx_px": self.cx, "cy_px": self.cy,
                 "dist_coeffs_opencv": self.dist.tolist(), "image_size": list(self.image_size),
@@ -186,7 +233,20 @@ class Calibration:
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "calibration") -> "Calibration":
-        """The inverse of ``to_dict`` (a ``calibration.json`` written by ``edgetruth run``/``evaluate``)."""
+        """The inverse of ``to_dict`` (a ``calibration.json`` written by ``edgetruth calibrate``, ``run``, ``evaluate``).
+
+        Parameters
+        ----------
+        d : dict
+            The JSON's content: at least ``K`` (3 x 3), ``dist_coeffs_opencv`` and ``image_size``.
+        where : str, optional
+            What error messages call it (the file).
+
+        Returns
+        -------
+        Calibration
+            The camera.
+        """
         try:
             K = np.asarray(d["K"], float)
             dist = np.asarray(d["dist_coeffs_opencv"], float).ravel()
@@ -206,7 +266,26 @@ class Calibration:
 
 
 def load_calibration(ref: str | Path, progress: bool = False) -> Calibration:
-    """A calibration from a JSON file (``calibration.json``) or from a dataset of checkerboard renders."""
+    """A calibration from a JSON file or from a dataset of checkerboard renders (calibrated then).
+
+    Parameters
+    ----------
+    ref : str or pathlib.Path
+        A ``calibration.json`` (written by ``edgetruth calibrate``, ``run`` or ``evaluate``: at least ``K``,
+        ``dist_coeffs_opencv``, ``image_size``) or a rendered dataset's folder.
+    progress : bool, optional
+        A progress bar while calibrating a dataset.
+
+    Returns
+    -------
+    Calibration
+        The camera.
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        Not a calibration, or a dataset without enough boards.
+    """
     from edgetruth.fileio import read_json
 
     p = Path(ref)

@@ -34,11 +34,29 @@ def _jacobian(mu, s, window, B=1.0):
 
 def position_std_bound(blur_px: float, noise_rel: float, window: int = 11, mu_px: float = 0.0,
                        unknowns: str = "4p") -> float:
-    """Lower bound on std(mu) in px for noise sigma_n / B = ``noise_rel``.
+    """Cramér-Rao bound on the SD of an edge's position from one row of pixels across an axis-aligned edge.
 
-    ``unknowns``: "4p" (A, B, mu, s unknown), "mu" (only mu unknown),
-    "2p" (mu, s unknown).  ``window``: number of pixels in the row (use a
-    large odd number, e.g. 201, for an unlimited row).
+    The pixel-integrated blurred step A + B Phi(d / s) sampled at ``window`` pixels, Gaussian noise. This
+    is the 11-sample reference figure of the reports; on oblique or curved edges use the per-point
+    footprint bound (``footprint_bounds``; docs/bound.md).
+
+    Parameters
+    ----------
+    blur_px : float
+        The edge's Gaussian blur s, px.
+    noise_rel : float
+        Noise SD / contrast B.
+    window : int, optional
+        Pixels in the row (default 11; a large odd number, e.g. 201, for an unlimited row).
+    mu_px : float, optional
+        The edge's offset from the row's centre pixel, px.
+    unknowns : str, optional
+        ``"4p"`` (A, B, mu, s unknown; default), ``"2p"`` (mu, s) or ``"mu"`` (only mu).
+
+    Returns
+    -------
+    float
+        The least SD of an unbiased position estimate, px.
     """
     return float(position_std_bound_many(blur_px, noise_rel, mu_px, window, unknowns))
 

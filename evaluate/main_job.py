@@ -295,7 +295,41 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
                  calib_limit: int | None = None, methods=None, variant: str | None = None,
                  skip_synthetic: bool = False, progress: bool = True, thresholds=None,
                  workers: int | None = None, camera_thresholds=None, undistort: str = "image") -> tuple[Path, int]:
-    """The whole study in one call (``edgetruth run``); returns (report path, exit code)."""
+    """The main job in one call, as ``edgetruth run``: render, calibrate, locate, range, score, report.
+
+    Parameters
+    ----------
+    study : str, optional
+        ``"quick"`` (default; ``make run``) or ``"full"`` (the reference study of docs/results/ranging_full).
+    out : str or pathlib.Path, optional
+        The run folder (default ``runs/<UTC stamp>``); an earlier run's folder resumes it.
+    limit : int, optional
+        Render and evaluate at most this many target images per group.
+    calib_limit : int, optional
+        At most this many calibration boards (>= 4).
+    methods : list of str, optional
+        Method ids (with ``:key=value`` options); default every registered method.
+    variant : str, optional
+        Mitsuba's variant (default: the fastest that runs here).
+    skip_synthetic : bool, optional
+        Leave out the synthetic study's quick preset.
+    progress : bool, optional
+        Progress bars (on a terminal).
+    thresholds : str or pathlib.Path, optional
+        An entropy-thresholds file for the dynamic methods (default: the shipped one).
+    workers : int, optional
+        Render and evaluation worker processes (default: one per core).
+    camera_thresholds : str or pathlib.Path, optional
+        Thresholds calibrated for the camera; default: calibrated by the run on its threshold renders.
+    undistort : str, optional
+        ``"image"`` (default: remap the image, every method refines it) or ``"points"`` (refine the raw
+        image and undistort the points).
+
+    Returns
+    -------
+    tuple
+        (path of ``report.md``, exit code: 0, or 1 when a check of the run failed).
+    """
     from contextlib import nullcontext
 
     from edgetruth.backends import default_workers, numba_threads, worker_threads

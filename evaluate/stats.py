@@ -17,6 +17,19 @@ SUMMARY_KEYS = ("n", "mae", "rmse", "sd", "median", "iqr", "max")
 
 
 def summary(errors) -> dict:
+    """The error statistics every table prints, over the finite errors.
+
+    Parameters
+    ----------
+    errors : array_like
+        Signed errors (px, cm, ...); NaN and inf are left out.
+
+    Returns
+    -------
+    dict
+        ``n``, and of abs(e): ``mae``, ``sd`` (ddof 1), ``median``, ``iqr``, ``max``; ``rmse`` of e; in the
+        errors' unit (NaN when there are none).
+    """
     e = np.asarray(errors, float)
     e = e[np.isfinite(e)]
     if e.size == 0:
@@ -34,7 +47,20 @@ def relative_errors_pct(estimate, truth) -> np.ndarray:
 
 
 def wilcoxon_paired(a, b, alpha: float = 0.05) -> dict:
-    """Two-sided Wilcoxon signed-rank of paired samples a vs b (e.g. per-image MAE)."""
+    """Two-sided Wilcoxon signed-rank test of paired samples (e.g. two methods' per-image MAE).
+
+    Parameters
+    ----------
+    a, b : array_like
+        Paired samples; pairs with a non-finite member are left out.
+    alpha : float, optional
+        The significance level (default 0.05).
+
+    Returns
+    -------
+    dict
+        ``n_pairs``, ``median_difference`` (median of a - b), ``statistic``, ``p_value``, ``significant``.
+    """
     a = np.asarray(a, float)
     b = np.asarray(b, float)
     ok = np.isfinite(a) & np.isfinite(b)
@@ -157,8 +183,29 @@ def holm(p_values) -> np.ndarray:
 
 
 def bootstrap_ci(statistic, *samples, n_boot: int = 2000, alpha: float = 0.05, seed: int = 0) -> tuple[float, float]:
-    """Percentile bootstrap CI of ``statistic(*samples)``; paired samples are resampled together
-    (the same indices for every sample, so pairs stay pairs)."""
+    """Percentile bootstrap CI of ``statistic(*samples)``; paired samples are resampled together.
+
+    The same indices serve every sample, so pairs stay pairs; the draws are
+    ``Generator(PCG64(seed)).integers(0, n, (n_boot, n))``, the same for every report.
+
+    Parameters
+    ----------
+    statistic : callable
+        ``statistic(*resampled) -> float``.
+    *samples : array_like
+        Samples of equal length n >= 2.
+    n_boot : int, optional
+        Resamples (default 2000).
+    alpha : float, optional
+        1 - the CI's level (default 0.05: a 95 % interval).
+    seed : int, optional
+        The generator's seed (default 0).
+
+    Returns
+    -------
+    tuple of float
+        (low, high); NaN for fewer than 2 or unequal samples.
+    """
     arrs = [np.asarray(s, float) for s in samples]
     n = arrs[0].size
     if n < 2 or any(a.size != n for a in arrs):
@@ -173,6 +220,18 @@ def bootstrap_ci(statistic, *samples, n_boot: int = 2000, alpha: float = 0.05, s
 
 
 def rmse(e) -> float:
+    """Root mean square of the finite values of ``e``.
+
+    Parameters
+    ----------
+    e : array_like
+        Signed errors.
+
+    Returns
+    -------
+    float
+        In the errors' unit; NaN when none is finite.
+    """
     e = np.asarray(e, float)
     e = e[np.isfinite(e)]
     return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
@@ -213,7 +272,24 @@ def _bootstrap_rmse(sq_a: np.ndarray, sq_b: np.ndarray | None, n_boot: int, alph
 
 
 def rmse_ci(errors, n_boot: int = 2000, alpha: float = 0.05, seed: int = 0) -> tuple[float, float]:
-    """Bootstrap CI of the RMSE of ``errors`` (the finite ones)."""
+    """Percentile bootstrap CI of the RMSE of ``errors`` (the finite ones; the draws of ``bootstrap_ci``).
+
+    Parameters
+    ----------
+    errors : array_like
+        Signed errors.
+    n_boot : int, optional
+        Resamples (default 2000).
+    alpha : float, optional
+        1 - the CI's level (default 0.05).
+    seed : int, optional
+        The generator's seed (default 0).
+
+    Returns
+    -------
+    tuple of float
+        (low, high), in the errors' unit.
+    """
     e = np.asarray(errors, float)
     e = e[np.isfinite(e)]
     return _bootstrap_rmse(e * e, None, n_boot, alpha, seed)

@@ -77,6 +77,7 @@ class TargetRegion:
     polarity: str = "dark"  # "dark" target on a light board or "light" target on a darker background
     score: float = float("nan")  # local contrast against the surroundings, > 0 (auto keeps the larger)
     scores: dict | None = None  # auto polarity: the score of each polarity tried (nan: nothing found)
+    finder: dict | None = None  # the declared-target finder's choice, runners-up and closeness (target_finder)
 
     def crop_box(self, shape, margin_px: int) -> tuple[int, int, int, int]:
         """(x0, y0, x1, y1) exclusive, the bbox grown by ``margin_px`` and clipped to the image."""
@@ -278,13 +279,16 @@ class TargetCandidates:
 
 
 def target_candidates(image: np.ndarray, valid: np.ndarray | None = None, margin_px: int = 12,
-                      boundary_tol_px: float = 2.0, sigma_px: float = 1.0, polarity: str = "dark") -> TargetCandidates:
-    """Find the target, crop around it, run Canny there and keep the candidates on its boundary
-    (their dark -> bright normal points out of a dark target, into a light one)."""
+                      boundary_tol_px: float = 2.0, sigma_px: float = 1.0, polarity: str = "dark",
+                      region: TargetRegion | None = None) -> TargetCandidates:
+    """Find the target (or take ``region``, found elsewhere: ``target_finder.find_region``), crop around it,
+    run Canny there and keep the candidates on its boundary (their dark -> bright normal points out of a dark
+    target, into a light one)."""
     from edgetruth import locate
 
     img = np.asarray(image, np.float64)
-    region = find_target(img, valid, polarity)
+    if region is None:
+        region = find_target(img, valid, polarity)
     x0, y0, x1, y1 = region.crop_box(img.shape, margin_px)
     crop = np.ascontiguousarray(img[y0:y1, x0:x1])
     cand = locate.candidates(crop, sigma_px=sigma_px)

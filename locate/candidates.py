@@ -30,14 +30,29 @@ MASK_MARGIN_PX = 3
 
 @dataclass(frozen=True)
 class Candidates:
-    """Pixel-level edge candidates of one image (OpenCV coordinates).
+    """Pixel-level edge candidates of one image (OpenCV coordinates), shared by every method.
 
-    x, y   : float64 (N,), integer-valued pixel centres
-    nx, ny : float64 (N,), unit gradient direction (dark -> bright)
-    magnitude : float64 (N,), smoothed gradient magnitude, gray levels / px
-    grad_x, grad_y : float64 (H, W), smoothed gradient fields the normals came from
-    smoothed : float64 (H, W), the Gaussian-smoothed image
-    sigma_px : smoothing scale used
+    A candidate is a Canny edge pixel whose 11-sample normal profile (t = -5..5 px) and 7x7 neighbourhood
+    lie inside the image.
+
+    Attributes
+    ----------
+    x, y : numpy.ndarray
+        float64 (N,): integer-valued pixel centres (x = column, y = row).
+    nx, ny : numpy.ndarray
+        float64 (N,): the unit gradient direction, dark to bright.
+    magnitude : numpy.ndarray
+        float64 (N,): smoothed gradient magnitude, gray levels per px.
+    shape : tuple of int
+        (H, W) of the image.
+    sigma_px : float
+        The Gaussian smoothing used, px.
+    grad_x, grad_y : numpy.ndarray
+        float64 (H, W): the smoothed gradient fields the normals came from.
+    smoothed : numpy.ndarray
+        float64 (H, W): the Gaussian-smoothed image.
+    thresholds : tuple of float
+        Canny's (low, high) hysteresis thresholds used, gray levels per px.
     """
 
     x: np.ndarray
@@ -56,6 +71,18 @@ class Candidates:
         return int(self.x.shape[0])
 
     def subset(self, mask_or_index) -> "Candidates":
+        """The candidates selected by a boolean mask or an index array (the image fields are shared).
+
+        Parameters
+        ----------
+        mask_or_index : numpy.ndarray
+            (N,) bool, or integer indices.
+
+        Returns
+        -------
+        Candidates
+            The selected candidates, in the order given.
+        """
         sel = np.asarray(mask_or_index)
         return Candidates(
             self.x[sel], self.y[sel], self.nx[sel], self.ny[sel], self.magnitude[sel],
@@ -104,10 +131,27 @@ def candidates(
     high: float | None = None,
     name: str = "image",
 ) -> Candidates:
-    """Canny candidates of ``image`` with unit normals from the smoothed gradient.
+    """Stage 1: Canny candidates of ``image`` with unit normals from the smoothed gradient.
 
-    ``low``/``high``: hysteresis thresholds on the smoothed gradient magnitude
-    in gray levels per pixel (defaults: see ``_default_thresholds``).
+    Canny (OpenCV, L2 gradient) on the image smoothed by a Gaussian of ``sigma_px``; the normal is the
+    smoothed gradient's direction. A candidate is dropped when any method would read outside the image.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        A 2-D image (H, W): uint8, uint16 or float gray levels.
+    sigma_px : float, optional
+        The Gaussian smoothing, px (0.3-10; default 1).
+    low, high : float, optional
+        Hysteresis thresholds on the smoothed gradient magnitude, gray levels per px. Default:
+        high = max(0.3 max|g|, 6 sigma_g) with sigma_g the gradient's noise scale from its median, low = high / 3.
+    name : str, optional
+        What error messages call the image.
+
+    Returns
+    -------
+    Candidates
+        The candidates, in raster order.
     """
     img = as_float_image(image, name)
     try:

@@ -35,7 +35,20 @@ _entry_points_loaded = False
 
 
 def load_entry_points() -> list[str]:
-    """Import every ``edgetruth.methods`` entry point once; returns their names."""
+    """Import every ``edgetruth.methods`` entry point once and register each function under its name.
+
+    ``import edgetruth.locate`` calls this, so an installed package's methods are there in every process.
+
+    Returns
+    -------
+    list of str
+        The entry points' names (the method ids they register).
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        An entry point that does not load (naming it and the package to fix).
+    """
     global _entry_points_loaded
     names = []
     for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
@@ -54,7 +67,24 @@ def load_entry_points() -> list[str]:
 
 
 def load_plugin(ref: str):
-    """Import ``ref`` (a module name, or a path to a .py file) once; its ``register`` calls run."""
+    """Import a plug-in once, as ``--plugin REF`` does: its ``register`` calls add its methods.
+
+    Parameters
+    ----------
+    ref : str
+        A module name (imported from the current folder first, as ``python -m`` does) or a path to a
+        ``.py`` file.
+
+    Returns
+    -------
+    module
+        The imported module (the same object on later calls).
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        No such file or module, or a module whose own import fails (the two are told apart).
+    """
     if ref in _loaded:
         return _loaded[ref]
     p = Path(ref)

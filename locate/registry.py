@@ -17,6 +17,29 @@ from edgetruth.locate.result import EdgePoints, Refinement
 
 @dataclass(frozen=True)
 class Method:
+    """A registered edge-localisation method: what ``METHODS`` holds for each id.
+
+    Attributes
+    ----------
+    id : str
+        The method id (``"dynamic_erf_4p"``): 1-64 lowercase letters, digits and ``_``.
+    label : str
+        The name tables print (the seed study's, e.g. ``"ProposedDynamicERF_4P"``; the id for user methods
+        registered without one).
+    family : str
+        ``"proposed"``, ``"erf-fixed"``, ``"baseline"`` or ``"user"``.
+    fn : callable
+        ``fn(image, cand, **options) -> Refinement``: ``image`` float64 (H, W), ``cand`` the shared
+        ``Candidates``.
+    summary : str
+        One line on what it does (the function's first docstring line by default).
+    footprint : callable or None
+        ``footprint(cand, **options) -> (N, SIZE, SIZE) bool``: the pixels it reads per candidate
+        (``edgetruth.locate.footprints``), used by the per-point Cramér-Rao bound; None: not declared.
+    needs_camera : bool
+        It needs options only a camera model gives (``patch_esf_fit``); studies without one leave it out.
+    """
+
     id: str
     label: str  # the seed study's name (the id for user methods without one)
     family: str  # "proposed", "erf-fixed", "baseline" or "user"
@@ -31,7 +54,20 @@ class Method:
     needs_camera: bool = False
 
     def footprint_masks(self, cand: Candidates, **options) -> np.ndarray:
-        """The pixels the method reads for each candidate (its declaration, or the whole neighbourhood)."""
+        """The pixels the method reads for each candidate (its declaration, or the whole neighbourhood).
+
+        Parameters
+        ----------
+        cand : Candidates
+            The candidates.
+        **options
+            The method's options (a window size changes the footprint).
+
+        Returns
+        -------
+        numpy.ndarray
+            (N, SIZE, SIZE) bool, centred on each candidate pixel.
+        """
         from edgetruth.locate import footprints
 
         fp = self.footprint or footprints.neighbourhood
@@ -47,6 +83,8 @@ _ID = re.compile(r"^[a-z][a-z0-9_]{0,63}$")
 
 #: Every method id -> Method.  ``list(METHODS)`` gives the ids, in ``CANONICAL_ORDER``.
 METHODS: dict[str, Method] = {}
+"""Every registered method: id -> ``Method``, built-in methods first in their presentation order, then plug-ins
+(alphabetically). ``list(METHODS)`` gives the ids; ``METHODS[id].label`` the name tables print."""
 
 #: Presentation order: the seed's baselines, then the ERF family (2P, then 4P) ending in the proposed method.
 CANONICAL_ORDER = (
@@ -67,15 +105,41 @@ def sort_registry() -> None:
 
 def register(method_id: str, label: str | None = None, family: str = "user", summary: str = "",
              footprint: Callable[..., np.ndarray] | None = None, needs_camera: bool = False):
-    """Decorator: register ``fn(image, cand, **options) -> Refinement`` under ``method_id``.
+    """Decorator: register ``fn(image, cand, **options) -> Refinement`` as an edge-localisation method.
 
-    ``image`` is the float64 (H, W) image, ``cand`` the shared ``Candidates``; return one
-    ``Refinement`` entry per candidate (``Refinement.from_offset(cand, mu_px)`` for an offset
-    along each normal).  Keyword options after ``cand`` become the method's options.
-    Registering the same function again under its id is a no-op (a module imported twice);
-    another function under a taken id is an error.  ``footprint``: the pixels the method reads
-    (``edgetruth.locate.footprints``), used by the per-point Cramér-Rao bound.  ``needs_camera``: the
-    method needs options only a camera model gives (studies without one leave it out: ``camera_free``)."""
+    ``image`` is the float64 (H, W) image, ``cand`` the shared ``Candidates``; the method returns one
+    ``Refinement`` entry per candidate (``Refinement.from_offset(cand, offsets_px)`` for an offset along
+    each normal, in px, > 0 towards the bright side). Keyword parameters after ``cand`` become the
+    method's options (``-m my_method:window=9`` on the command line). Registering the same function again
+    under its id is a no-op (a module imported twice); another function under a taken id is an error.
+
+    Parameters
+    ----------
+    method_id : str
+        The id: 1-64 lowercase letters, digits and ``_``, starting with a letter.
+    label : str, optional
+        The name tables print (default: the id).
+    family : str, optional
+        ``"user"`` (default) for methods outside edgetruth.
+    summary : str, optional
+        One line for ``edgetruth methods`` (default: the function's first docstring line).
+    footprint : callable, optional
+        ``footprint(cand, **options) -> (N, SIZE, SIZE) bool``, the pixels the method reads per candidate
+        (``edgetruth.locate.footprints``); the per-point Cramér-Rao bound counts exactly those. Default:
+        the whole neighbourhood (the bound can then only be lower).
+    needs_camera : bool, optional
+        The method needs options only a camera model gives; studies without one leave it out.
+
+    Returns
+    -------
+    callable
+        The decorator; it returns ``fn`` unchanged.
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        A malformed id, or another function already registered under it.
+    """
     if not (isinstance(method_id, str) and _ID.match(method_id)):
         raise InputError(f"method id {method_id!r}: use 1-64 lowercase letters, digits and '_', starting with a letter")
 
@@ -103,6 +167,23 @@ def camera_free(ids=None) -> list[str]:
 
 
 def get_method(method: str) -> Method:
+    """The registered method ``method``.
+
+    Parameters
+    ----------
+    method : str
+        A method id (``list(METHODS)``).
+
+    Returns
+    -------
+    Method
+        Its registry record.
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        An unknown id (the message lists the registered ones).
+    """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of: {', '.join(METHODS)}")
     return METHODS[method]
@@ -279,11 +360,35 @@ def check_refinement(m: Method, r, n: int) -> None:
 
 
 def refine(image, cand: Candidates, method: str = "dynamic_erf_4p", **options) -> EdgePoints:
-    """Refine the candidates ``cand`` of ``image`` with ``method``.
+    """Stage 2: refine the candidates ``cand`` of ``image`` with ``method``.
 
-    Points whose refinement failed or left the image keep the candidate pixel
-    and are flagged ``converged=False``, so every output point is finite and
-    inside the image.
+    Every method refines the same candidates, so their points pair one to one. A point whose refinement
+    failed or left the image keeps its candidate pixel and is flagged ``converged=False``: every output
+    point is finite and inside the image.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        The (H, W) image the candidates came from: uint8, uint16 or float (read as float64 gray levels).
+    cand : Candidates
+        The result of ``candidates(image)``.
+    method : str, optional
+        A method id (``list(METHODS)``); default ``"dynamic_erf_4p"``.
+    **options
+        The method's options (its keyword parameters, e.g. ``tau=(0.75, 0.83, 0.89)`` for the dynamic
+        fits, ``psf_sigma_px=`` for ``patch_psf_fit``); unknown ones are refused.
+
+    Returns
+    -------
+    EdgePoints
+        One point per candidate, in candidate order: ``x``, ``y`` (px, OpenCV convention), the unit normal
+        ``nx``, ``ny`` (dark to bright), ``converged``, and the method's extras (e.g. ``s``, ``se``, px).
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        An unknown method or option, candidates of another image's shape, or a method that breaks the
+        one-entry-per-candidate contract.
     """
     m = get_method(method)
     img = as_float_image(image)
@@ -318,7 +423,33 @@ def refine(image, cand: Candidates, method: str = "dynamic_erf_4p", **options) -
 
 
 def locate(image, method: str = "dynamic_erf_4p", sigma_px: float = 1.0, low=None, high=None, **options) -> EdgePoints:
-    """Canny candidates + refinement with ``method`` in one call."""
+    """Subpixel edge points of ``image``: Canny candidates (stage 1) refined by ``method`` (stage 2).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        A 2-D image (H, W): uint8, uint16 or float gray levels; pixel (r, c) has its centre at x = c, y = r.
+    method : str, optional
+        A method id (``list(METHODS)``); default ``"dynamic_erf_4p"``.
+    sigma_px : float, optional
+        The Gaussian smoothing of the candidate stage, px (0.3-10; default 1).
+    low, high : float, optional
+        Canny's hysteresis thresholds on the smoothed gradient magnitude, gray levels per px (default:
+        from the image's gradient statistics).
+    **options
+        The method's options, as for ``refine``.
+
+    Returns
+    -------
+    EdgePoints
+        One point per candidate (see ``refine``).
+
+    Examples
+    --------
+    >>> from edgetruth import locate
+    >>> pts = locate.locate(image, method="dynamic_erf_4p")   # doctest: +SKIP
+    >>> pts.x, pts.y, pts.nx, pts.ny, pts.converged            # doctest: +SKIP
+    """
     get_method(method)
     img = as_float_image(image)
     cand = _candidates(img, sigma_px=sigma_px, low=low, high=high)

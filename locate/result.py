@@ -11,11 +11,18 @@ import numpy as np
 
 @dataclass
 class Refinement:
-    """A method's answer for every candidate it was given (same order, same length).
+    """A method's answer: one entry per candidate it was given, in the same order.
 
-    x, y : refined positions (OpenCV convention); converged : bool per point.
-    nx, ny : the method's own normal if it estimates one (else the candidate's).
-    extras : per-point float/int arrays (e.g. A, B, s, window, entropy, se).
+    Attributes
+    ----------
+    x, y : numpy.ndarray
+        (N,) refined positions, px, OpenCV convention.
+    converged : numpy.ndarray
+        (N,) bool: False where the method declined the candidate (the point then stays at its pixel).
+    nx, ny : numpy.ndarray or None
+        (N,) the method's own unit normal, dark to bright, if it estimates one (else the candidate's).
+    extras : dict of str to numpy.ndarray
+        Per-point arrays (e.g. ``A``, ``B``, ``s``, ``window``, ``entropy``, ``se``), written as CSV columns.
     """
 
     x: np.ndarray
@@ -27,7 +34,24 @@ class Refinement:
 
     @classmethod
     def from_offset(cls, cand, offset_px, converged=None, **extras) -> "Refinement":
-        """Points p + offset * n along each candidate's normal."""
+        """Points p + offset n along each candidate's normal.
+
+        Parameters
+        ----------
+        cand : Candidates
+            The candidates the offsets belong to.
+        offset_px : array_like
+            (N,) offsets along each normal, px, > 0 towards the bright side.
+        converged : array_like, optional
+            (N,) bool (default: all True).
+        **extras
+            Per-point arrays to carry along (as ``Refinement.extras``; ``offset`` is added).
+
+        Returns
+        -------
+        Refinement
+            The refined points.
+        """
         mu = np.asarray(offset_px, dtype=np.float64)
         conv = np.ones(mu.shape, bool) if converged is None else np.asarray(converged, bool)
         return cls(cand.x + mu * cand.nx, cand.y + mu * cand.ny, conv, extras={"offset": mu, **extras})
@@ -35,14 +59,24 @@ class Refinement:
 
 @dataclass
 class EdgePoints:
-    """Refined edge points of one image.
+    """Refined edge points of one image, what ``locate`` and ``refine`` return.
 
-    x, y : float64 (N,), OpenCV convention (pixel centres at integers)
-    nx, ny : unit normal (dark -> bright)
-    converged : bool (N,); points that did not converge keep the candidate pixel
-    candidate_index : index of each point in the ``Candidates`` it came from
-    extras : per-point arrays, also reachable as attributes (``pts.s``, ``pts.se``)
-    elapsed_s : wall time of the refinement stage (after Canny)
+    Attributes
+    ----------
+    method : str
+        The method id.
+    x, y : numpy.ndarray
+        float64 (N,), px, OpenCV convention (pixel centres at integers).
+    nx, ny : numpy.ndarray
+        float64 (N,): the unit normal, dark to bright.
+    converged : numpy.ndarray
+        bool (N,): points that did not converge keep the candidate pixel.
+    candidate_index : numpy.ndarray
+        The index of each point in the ``Candidates`` it came from.
+    extras : dict of str to numpy.ndarray
+        Per-point arrays, also reachable as attributes (``pts.s``, ``pts.se``, px).
+    elapsed_s : float
+        Wall time of the refinement stage (after Canny), s.
     """
 
     method: str
@@ -65,13 +99,26 @@ class EdgePoints:
         raise AttributeError(f"EdgePoints has no field {name!r}; extras are {sorted(extras)}")
 
     def columns(self) -> dict[str, np.ndarray]:
+        """The CSV's columns: ``x``, ``y``, ``nx``, ``ny``, ``converged`` (0/1), then the extras.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            Column name -> (N,) values.
+        """
         cols = {"x": self.x, "y": self.y, "nx": self.nx, "ny": self.ny,
                 "converged": self.converged.astype(np.int8)}
         cols.update(self.extras)
         return cols
 
     def to_csv(self, path) -> None:
-        """Write one row per point with a header (columns: docs/formats.md), atomically."""
+        """Write one row per point with a header (columns: docs/formats.md), atomically.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The CSV file (replaced whole; a failed write leaves the old one).
+        """
         from edgetruth.fileio import atomic_write_text
 
         cols = self.columns()

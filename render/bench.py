@@ -6,7 +6,8 @@ directory (wall time includes pose, ground truth, sensor model, EXR/PNG/JSON wri
 and hashing; the ratio shows how much of it is spent outside ``mi.render``), then
 one full-resolution target image of the default camera with and without its PSF (the frame at
 ``spp`` and the edge band at ``edge_spp``, medians of 3), a board image path-traced and composited
-(``board_mode = "frame"``: ``board_frame_lines``), then a small window on every other
+(``board_mode = "frame"``: ``board_frame_lines``), a user's own spec rendered with the default mode and with
+``edge_mode = "path"`` (``default_mode_lines``), then a small window on every other
 working variant for a per-variant throughput figure.
 
 Then the dataset-scale figures: the fixed cost of a tiny image (40x32 px, 1 spp, one
@@ -113,6 +114,73 @@ def board_frame_lines(spec_name: str = "opencv_left_twin", images: int = 3) -> l
             f"{med['path']:.2f} s, board_mode = \"frame\" {med['frame']:.2f} s: {med['path'] / med['frame']:.2f}x"]
 
 
+#: the new user's spec of issue 49: 9 full-resolution T1 images at 0.5 / 1.5 / 2.5 m at the study's settings; no
+#: edge_mode key (``{mode}`` adds one)
+DEFAULT_MODE_SPEC = """[spec]
+name = "own_t1"
+camera = "default"
+spp = 64
+edge_spp = 4096
+{mode}
+""" + "".join(f"""
+[[group]]
+name = "z{cm}"
+target = "T1"
+distance_range_cm = [{cm}, {cm}]
+count = 3
+lateral_fraction = 0.3
+tilt_max_deg = 3
+""" for cm in (50, 150, 250))
+
+
+def _render_cold(spec_path: Path, out: Path) -> tuple[float, float, dict]:
+    """``edgetruth render SPEC`` in a fresh process (as a user runs it): (wall s, CPU s of the process and its
+    workers, image 0's JSON)."""
+    import json
+    import os
+
+    t0, c0 = time.perf_counter(), os.times()
+    r = subprocess.run([sys.executable, "-m", "edgetruth", "render", str(spec_path), "-o", str(out), "--no-progress"],
+                       capture_output=True, text=True)
+    wall, c1 = time.perf_counter() - t0, os.times()
+    if r.returncode != 0:
+        raise RuntimeError(f"render {spec_path} exited {r.returncode}: {r.stderr[-800:]}")
+    cpu = (c1.children_user - c0.children_user) + (c1.children_system - c0.children_system)
+    first = sorted(out.glob("0000_*.json"))[0]
+    return wall, cpu, json.loads(first.read_text())
+
+
+def default_mode_lines(distances_m=(0.5, 1.5, 2.5), window_px: int = 96) -> list[str]:
+    """The same user spec (``DEFAULT_MODE_SPEC``) rendered cold with no ``edge_mode`` key (the default: "frame")
+    and with ``edge_mode = "path"``: seconds, the ratio, the mode each image's JSON names, and the Monte-Carlo
+    noise of the pixels within 1 px of the outline (``edge_mc_noise``, two seeds, on a ``window_px`` crop across
+    a side) per distance, against a quarter of the default sensor's dark noise."""
+    from edgetruth.render.dataset.spec import load_spec
+    from edgetruth.render.mc_noise import edge_mc_noise
+    from edgetruth.render.sensor.linear_model import SensorModel
+
+    res, lines = {}, []
+    with tempfile.TemporaryDirectory(prefix="bench-default-mode-", dir=_scratch_dir()) as tmp:
+        for label, mode in (("default", ""), ("path", 'edge_mode = "path"')):
+            d = Path(tmp) / label
+            d.mkdir()
+            (d / "own_t1.toml").write_text(DEFAULT_MODE_SPEC.format(mode=mode))
+            spec = load_spec(d / "own_t1.toml")
+            wall, cpu, gt = _render_cold(d / "own_t1.toml", d / "out")
+            named = gt["render"].get("edge_mode", "path"), (gt["render"]["edge_band"] or {}).get("mode")
+            dark = SensorModel().dark_noise_e
+            noise = [edge_mc_noise(spec.camera, spec.render, z, window_px=window_px)[(0.0, 1.0)][0] / dark
+                     for z in distances_m]
+            res[label] = wall
+            lines.append(f"render bench: own spec, 9 T1 images at {'/'.join(f'{z:g}' for z in distances_m)} m "
+                         f"(default camera, spp {spec.render.spp}, edge_spp {spec.render.edge_spp}), "
+                         f"{'no edge_mode key' if label == 'default' else mode}: {wall:.1f} s wall ({cpu:.1f} s CPU), "
+                         f"JSON render.edge_mode {named[0]!r}, edge_band.mode {named[1]!r}; edge-pixel (|d| < 1 px) "
+                         f"MC noise / dark noise {', '.join(f'{v:.3f}' for v in noise)} (goal <= 0.25)")
+    lines.append(f"render bench: own spec, default against edge_mode = \"path\": {res['path'] / res['default']:.2f}x "
+                 "faster (goal >= 4.5x)")
+    return lines
+
 def run_bench(spec_name: str = "quick") -> list[str]:
     """Printable lines: quick-spec images/s and wall/render ratio on the best variant; per-variant
     throughput; the dataset-scale figures and the capacity plan computed from them."""
@@ -140,6 +208,7 @@ def run_bench(spec_name: str = "quick") -> list[str]:
                  f"incl. scene loading and JIT warm-up: {total / inside:.3f}")
     lines += psf_cost_lines()
     lines += board_frame_lines()
+    lines += default_mode_lines()
     rates = {}
     for v in ORDER:
         ok, reason = probe(v)

@@ -24,7 +24,7 @@ name = "tiny"
 camera = "{camera}"
 spp = {spp}
 edge_spp = {edge_spp}
-sampler = "multijitter"
+{modes}sampler = "multijitter"
 checkerboard = {{ cols = 6, rows = 5, square_m = 0.03, margin_m = 0.03 }}
 
 [[group]]
@@ -46,25 +46,33 @@ irradiance_w_m2 = 0.0044
 """
 
 
-def write_tiny_spec(tmp_path: Path, spp: int = 16, edge_spp: int = 64) -> Path:
-    """Write a 64×48-pixel camera and a 3-image spec (2 circles, 1 checkerboard) into ``tmp_path``."""
+#: the tiny spec's ``[spec]`` lines naming the path tracer (the reference) for targets and boards: the tests
+#: written on it assert path-traced renders; a spec that names no mode gets the composites (docs/spec.md)
+PATH_MODES = 'edge_mode = "path"\nboard_mode = "path"\n'
+
+
+def write_tiny_spec(tmp_path: Path, spp: int = 16, edge_spp: int = 64, modes: str = PATH_MODES) -> Path:
+    """Write a 64×48-pixel camera and a 3-image spec (2 circles, 1 checkerboard) into ``tmp_path``; ``modes``:
+    its ``[spec]`` lines naming edge_mode and board_mode (default: both "path"; "" names none)."""
     cam = tmp_path / "tiny_cam.toml"
     cam.write_text(TINY_CAMERA)
     spec = tmp_path / "tiny.toml"
-    spec.write_text(TINY_SPEC.format(camera=cam, spp=spp, edge_spp=edge_spp))
+    spec.write_text(TINY_SPEC.format(camera=cam, spp=spp, edge_spp=edge_spp, modes=modes))
     return spec
 
 
 def tiny_spec_pair(tmp_path: Path, settings: str, spp: int = 16, edge_spp: int = 64):
-    """(spec, reference): the tiny spec (``write_tiny_spec``) with the ``[spec]`` lines ``settings`` added, and
-    without them -- the same name, so the same seeds and poses."""
+    """(spec, reference): the tiny spec (``write_tiny_spec``) with the ``[spec]`` lines ``settings`` added (a
+    mode they do not name stays "path"), and the path-traced reference without them -- the same name, so the
+    same seeds and poses."""
     from edgetruth.render.dataset.spec import load_spec
 
-    path = write_tiny_spec(tmp_path, spp=spp, edge_spp=edge_spp)
+    named = [ln for ln in PATH_MODES.splitlines() if ln.split(" =")[0] not in settings]
+    path = write_tiny_spec(tmp_path, spp=spp, edge_spp=edge_spp, modes="".join(f"{ln}\n" for ln in named))
     text = path.read_text()
     path.write_text(text.replace("sampler = ", settings.rstrip("\n") + "\nsampler = ", 1))
     spec = load_spec(path)
-    path.write_text(text)
+    path = write_tiny_spec(tmp_path, spp=spp, edge_spp=edge_spp)
     return spec, load_spec(path)
 
 
@@ -80,5 +88,6 @@ def write_patch_spec(tmp_path: Path, n_images: int, name: str = "patches") -> Pa
                           # 32x32-binned pixels collect 1024x the light: the study's 1.2 W/m^2 / 1024
                           "irradiance_w_m2 = 0.0012\n")
     spec = Path(tmp_path) / f"{name}.toml"
-    spec.write_text(f'[spec]\nname = "{name}"\ncamera_scale = 32\nspp = 1\n\n' + "\n".join(groups))
+    # path-traced: the figures are the fixed cost of an image around one small mi.render
+    spec.write_text(f'[spec]\nname = "{name}"\ncamera_scale = 32\nspp = 1\nedge_mode = "path"\n\n' + "\n".join(groups))
     return spec

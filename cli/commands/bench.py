@@ -15,17 +15,19 @@ def register(sub) -> None:
                                    "tree (a temporary git worktree) and both timed in one run, alternating: the "
                                    "main job `edgetruth run` per stage (cold caches, as a fresh clone) and the "
                                    "full study's rendering per image; medians and ratios baseline / working.")
-    p.add_argument("--only", choices=["startup", "locate", "calibrate", "render", "run"], default=None,
-                   help="run one part only (run: with --against only, the main job)")
+    p.add_argument("--only", choices=["startup", "locate", "calibrate", "render", "modes", "run"], default=None,
+                   help="run one part only (modes: a user's own spec with the default edge_mode against \"path\", "
+                        "also part of render; run: make run and the full study, cold, against their goals; with "
+                        "--against, the main job side by side)")
     p.add_argument("--repeats", type=positive_int, default=None,
                    help="timed repeats per figure (medians; default 7, with --against 1)")
     p.add_argument("--against", metavar="REV", default=None,
                    help="time this working tree against commit REV side by side (e.g. 70b0339, the issue-19 "
                         "baseline); needs a git checkout")
     p.add_argument("--limit", metavar="N", type=positive_int, default=None,
-                   help="--against: pass --limit N to both main jobs (N target images per group)")
+                   help="run: pass --limit N to the main jobs (N target images per group)")
     p.add_argument("--skip-synthetic", action="store_true",
-                   help="--against: pass --skip-synthetic to both main jobs")
+                   help="run: pass --skip-synthetic to the main jobs")
     p.add_argument("--study-images", metavar="N", type=positive_int, default=3,
                    help="--against: full-study images rendered per side (default 3: near, middle, far)")
     p.add_argument("--json", metavar="FILE", default=None, help="--against: write every measurement to FILE")
@@ -33,12 +35,13 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from edgetruth.errors import InputError
-
     if args.against is not None:
         return run_against(args)
-    if args.only == "run":
-        raise InputError("--only run: the main job is timed with --against REV only (e.g. --against 70b0339)")
+    if args.only == "modes":
+        from edgetruth.render.bench import default_mode_lines
+
+        print("\n".join(default_mode_lines()), flush=True)
+        return 0
     repeats = args.repeats or 7
     if args.only in (None, "startup"):
         from edgetruth.cli.startup_bench import run_bench as startup_bench
@@ -56,6 +59,12 @@ def run(args) -> int:
         from edgetruth.render.bench import run_bench as render_bench
 
         print("\n".join(render_bench()), flush=True)
+    if args.only in (None, "run"):
+        from edgetruth.cli.commands.bench_run import run_alone
+
+        run_args = (["--limit", str(args.limit)] if args.limit else []) + (["--skip-synthetic"] if args.skip_synthetic
+                                                                           else [])
+        run_alone(run_args=run_args, say=lambda s: print(s, flush=True))
     return 0
 
 

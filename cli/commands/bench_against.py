@@ -185,10 +185,10 @@ def _run(cmd: list[str], env: dict, cwd: Path) -> tuple[float, str]:
     return wall, text
 
 
-def main_job_once(tree: Path, scratch: Path, run_args: list[str]) -> dict:
+def main_job_once(tree: Path, scratch: Path, run_args: list[str], study: str = "quick") -> dict:
     env = side_env(tree, scratch)
     out = scratch / "run"
-    wall, text = _run([sys.executable, "-m", "edgetruth", "run", "--study", "quick", "--no-progress", "-o", str(out),
+    wall, text = _run([sys.executable, "-m", "edgetruth", "run", "--study", study, "--no-progress", "-o", str(out),
                        *run_args], env, scratch)
     res = parse_run_line(text)
     res["wall_s"] = wall

@@ -23,8 +23,12 @@ def register(sub) -> None:
     p.add_argument("photos", nargs="*", metavar="PHOTOS",  # none: our own one-line error, not argparse's usage
                    help="image files, folders (every image inside, sorted), glob patterns (quoted), or the name "
                         "of a shipped photo set (opencv_left)")
-    add_pattern_option(p, "the board the photos show", required=True)
+    add_pattern_option(p, "the board the photos show", required=True, kinds=("chessboard", "charuco"))
     add_square_m_option(p, "it scales the board poses only, not K or the distortion")
+    p.add_argument("--marker-m", default=None, metavar="METRES",
+                   help="a ChArUco board (--pattern charuco:...): the printed side of one marker, its black border "
+                        "included (OpenCV's markerLength; required there: OpenCV's detector places the corners "
+                        "from the markers)")
     p.add_argument("--model", choices=tuple(DIST_MODELS), default=DEFAULT_DIST_MODEL,
                    help="distortion terms to estimate (the others are held at 0): "
                         + "; ".join(f"{k}: {v[1]}" for k, v in DIST_MODELS.items())
@@ -123,6 +127,27 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, line
     return finder, label, undistort_lines
 
 
+def _charuco(args, board_pattern, square_m: float, window):
+    """A ChArUco board's corner finder (``edgetruth.evaluate.board.charuco``) -> (finder, label, undistort_lines,
+    the inner corners' pattern size)."""
+    from edgetruth.errors import InputError
+    from edgetruth.evaluate.board import charuco
+
+    if args.marker_m is None:
+        raise InputError(f"--pattern {board_pattern.text}: give --marker-m, the printed side of one marker in metres "
+                         "(its black border included), as OpenCV's CharucoBoard takes it")
+    try:
+        marker_m = float(args.marker_m)
+    except ValueError:
+        marker_m = float("nan")
+    if window is not None:
+        raise InputError("--subpix-window: a ChArUco board's corners use OpenCV's detector's own cornerSubPix window; "
+                         "drop it")
+    board = charuco.board_of(board_pattern, square_m, marker_m)
+    finder, label, undistort = charuco.corner_finder(board, args.corners, args.line_frame)
+    return finder, label, undistort, (board.cols - 1, board.rows - 1)
+
+
 def run(args: argparse.Namespace) -> int:
     from edgetruth import console
     from edgetruth.cli import parse_square_m
@@ -130,10 +155,19 @@ def run(args: argparse.Namespace) -> int:
     from edgetruth.evaluate.calibration import calibrate_photos, find_photos, parse_pattern
     from edgetruth.fileio import check_output_file, write_json
 
-    pattern = parse_pattern(args.pattern)
+    from edgetruth.evaluate.board.pattern import parse_board_pattern
+
+    board_pattern = parse_board_pattern(args.pattern, kinds=("chessboard", "charuco"))
     square_m = parse_square_m(args.square_m)
     window = _window(args.subpix_window)
-    finder, corner_label, undistort_lines = _corner_finder(args.corners, pattern, window, args.line_frame)
+    if board_pattern.kind == "charuco":
+        finder, corner_label, undistort_lines, pattern = _charuco(args, board_pattern, square_m, window)
+    else:
+        if args.marker_m is not None:
+            raise InputError(f"--marker-m: only with a ChArUco --pattern (charuco:COLSxROWS:DICT), not "
+                             f"{args.pattern!r}; drop it")
+        pattern = parse_pattern(args.pattern)
+        finder, corner_label, undistort_lines = _corner_finder(args.corners, pattern, window, args.line_frame)
     photos = find_photos(args.photos)
     out = check_output_file(args.output, "-o", inputs=[path for _, path in photos])
     cal, results = calibrate_photos(
@@ -145,6 +179,11 @@ def run(args: argparse.Namespace) -> int:
 
         cal = use_bent_board(cal, results, "quadratic" if args.board == "bent" else "common")
     doc = cal.to_dict()
+    if board_pattern.kind == "charuco":
+        doc["charuco"] = {"pattern": board_pattern.text, "squares": list(board_pattern.size),
+                          "marker_m": float(args.marker_m), "dictionary": board_pattern.dictionary,
+                          "object_points": "inner corner k = r (cols - 1) + c at (c, r) * square_m (OpenCV's own "
+                                           "board frame less one square: the same K and distortion)"}
     doc.update({"pattern_size": list(pattern), "square_m": square_m, "model": args.model, "board": args.board,
                 "subpix_window": "auto" if window is None else window, "corners": args.corners,
                 "undistort_lines": undistort_lines,

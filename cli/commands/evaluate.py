@@ -40,6 +40,15 @@ def register(sub) -> None:
                         "from these): the dynamic methods also run with them, as '(camera τ)' rows")
     p.add_argument("-o", "--output", metavar="DIR", type=Path, default=None,
                    help="report directory (default ./runs/<UTC stamp>-evaluate)")
+    p.add_argument("--reference-photo", metavar="IMAGE[=DISTANCE_CM]", action="append", default=[],
+                   help="with --photos, instead of (or with) --calibration: a photo at a known distance sets the focal "
+                        "length, fx = Z·l/S for each method, and is left out of the error tables; IMAGE is a row of "
+                        "the CSV (its distance is used; a different =DISTANCE_CM is refused) or another photo of the "
+                        "same target (=DISTANCE_CM needed); repeatable (the CSV's reference column does the same)")
+    p.add_argument("--exif-focal-length", action="store_true",
+                   help="with --photos, instead of --calibration: fx of each photo from its EXIF (FocalLength with "
+                        "FocalPlaneXResolution or FocalLengthIn35mmFilm; approximate, the report says so); the "
+                        "principal point at the image centre, no distortion")
     add_undistort_option(p)
     add_backend_options(p, "worker processes (default: the cores)")
     add_image_options(p)
@@ -121,7 +130,8 @@ def run_photos(args: argparse.Namespace, methods) -> int:
     from edgetruth.backends import default_workers
     from edgetruth.errors import InputError
     from edgetruth.evaluate.calibration import load_calibration
-    from edgetruth.evaluate.ranging.photos import check_photos, evaluate_photos, read_distances, unlisted_photos
+    from edgetruth.evaluate.ranging.photos import (camera_without_board, check_photos, evaluate_photos, read_distances,
+                                                   resolve_references, unlisted_photos)
     from edgetruth.evaluate.run_dir import check_run_dir, prepare_run_dir, utc_stamp
     from edgetruth.fileio import check_input_file, write_json
     from edgetruth.resources import default_runs_dir
@@ -133,33 +143,67 @@ def run_photos(args: argparse.Namespace, methods) -> int:
     if args.distances is None:
         raise InputError("--photos needs --distances FILE.csv (one row per photo; docs/formats.md, "
                          "\"Distances CSV for real photos\")")
-    if args.calibration is None:
-        raise InputError("--photos needs --calibration FILE|DIR (a calibration.json of this camera, or a dataset "
-                         "of checkerboard renders)")
+    if args.exif_focal_length and args.calibration is not None:
+        raise InputError("--exif-focal-length and --calibration both set the focal length; give one")
     if not args.photos.is_dir():
         raise InputError(f"--photos {args.photos}: not a directory; pass the folder that holds the photos")
     records = read_distances(args.distances, args.photos)
-    cal_path = Path(args.calibration)
-    if not cal_path.is_dir():
-        check_input_file(cal_path, "calibration JSON")
+    if args.reference_photo:
+        records = resolve_references(records, args.reference_photo, args.photos, args.distances)
+    has_ref = any(r.reference for r in records)
+    if args.exif_focal_length and has_ref:
+        raise InputError("--exif-focal-length and reference photos both set the focal length; give one")
+    if args.calibration is None and not has_ref and not args.exif_focal_length:
+        raise InputError("--photos needs --calibration FILE|DIR (a calibration.json of this camera, or a dataset "
+                         "of checkerboard renders), --reference-photo IMAGE or --exif-focal-length")
+    cal = cals = None
+    focal = ""
+    if args.calibration is not None:
+        cal_path = Path(args.calibration)
+        if not cal_path.is_dir():
+            check_input_file(cal_path, "calibration JSON")
     out = check_run_dir(args.output or default_runs_dir() / f"{utc_stamp()}-evaluate", "evaluate")
-    cal = load_calibration(cal_path, progress=not args.no_progress)
-    check_photos(records, cal.image_size, args.distances, channel=args.channel, progress=not args.no_progress)
+    if args.calibration is not None:
+        cal = load_calibration(cal_path, progress=not args.no_progress)
+    size = check_photos(records, cal.image_size if cal else None, args.distances, channel=args.channel,
+                        progress=not args.no_progress)
+    if has_ref:
+        refs = ", ".join(r.image for r in records if r.reference)
+        if cal is None:
+            cal = camera_without_board(float(max(size)), size, f"no board: fx from the reference photo(s) {refs}")
+            focal = (f"from the reference photo(s) {refs}, per method (fx = Z·l/S); principal point at the image "
+                     "centre, no distortion (no calibration given)")
+        else:
+            focal = (f"from the reference photo(s) {refs}, per method (fx = Z·l/S); principal point and distortion "
+                     f"from {args.calibration}")
+    elif args.exif_focal_length:
+        from edgetruth.evaluate.ranging.focal_length import exif_fx
+
+        found = [exif_fx(r.path, size[0], size[1], f"{args.distances} line {r.line} ({r.image})") for r in records]
+        cals = [camera_without_board(fx, size, f"no board: {src}") for fx, src in found]
+        cal = cals[0]
+        fxs = sorted({round(fx, 2) for fx, _ in found})
+        focal = (f"from each photo's EXIF (approximate): {found[0][1]}; fx = "
+                 + (f"{fxs[0]:.2f} px" if len(fxs) == 1 else f"{fxs[0]:.2f}-{fxs[-1]:.2f} px over the photos")
+                 + "; principal point at the image centre, no distortion")
     extra = unlisted_photos(records, args.photos)
     out = prepare_run_dir(out, "evaluate", {"photos": str(args.photos), "distances": str(args.distances),
-                                            "calibration": str(args.calibration), "methods": methods,
-                                            "channel": args.channel, "thresholds": args.thresholds,
+                                            "calibration": args.calibration, "methods": methods,
+                                            "reference_photos": args.reference_photo,
+                                            "exif_focal_length": args.exif_focal_length, "channel": args.channel,
+                                            "thresholds": args.thresholds,
                                             "camera_thresholds": args.camera_thresholds, "undistort": args.undistort})
     write_json(out / "calibration.json", cal.to_dict())
     header = {"photos": f"{args.photos} ({len(records)} in {args.distances.name}"
                         + (f"; {len(extra)} more image files there are not in the CSV and were not evaluated"
                            if extra else "") + ")",
-              "distances": str(args.distances), "calibration": str(args.calibration),
+              "distances": str(args.distances),
+              "calibration": str(args.calibration) if args.calibration else "none (" + focal.split(";")[0] + ")",
               "gray from colour": args.channel, "UTC": utc_stamp()}
     report = evaluate_photos(records, cal, out, args.photos, methods=methods, thresholds=args.thresholds,
                              camera_thresholds=args.camera_thresholds, channel=args.channel,
                              progress=not args.no_progress, backend=args.backend,
                              workers=args.workers or default_workers(), address=args.address, header=header,
-                             undistort=args.undistort)
+                             undistort=args.undistort, cals=cals, focal_source=focal)
     console.say(f"evaluate: report {report}")
     return 0

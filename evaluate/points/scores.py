@@ -59,7 +59,29 @@ _AIRY_GAUSS = 0.42  # σ of the Gaussian that best fits the Airy core, in units 
 
 @dataclass
 class PointScores:
-    """One image: its scored candidates and every method's signed errors on them (px)."""
+    """One image's per-point scores: its scored candidates and every method's signed errors on them.
+
+    Attributes
+    ----------
+    n_candidates : int
+        Boundary candidates before the on-edge and corner rules.
+    bound_px : float
+        The image's 11-pixel-row reference figure (a reference column, not a floor on oblique edges).
+    candidate_distance : numpy.ndarray
+        (N,) signed distance of each scored candidate's pixel centre to the exact outline, px.
+    errors : dict of str to numpy.ndarray
+        Method label -> (N,) signed error of its point along the true normal, px (> 0 on the bright board).
+    converged : dict of str to numpy.ndarray
+        Method label -> (N,) bool.
+    windows : dict of str to numpy.ndarray
+        Dynamic methods' label -> (N,) window size chosen (samples).
+    optical_offset, optical_offset_50 : numpy.ndarray or None
+        (N,) the optical edge's centroid and 50 % level offsets at each candidate, px.
+    bounds : dict of str to numpy.ndarray
+        Method label -> (N,) exact per-point Cramér-Rao bound over its footprint under the camera's PSF, px.
+    points : dict
+        Transient: label -> (x, y, nx, ny) of the refined points (emptied before results leave a worker).
+    """
 
     n_candidates: int  # boundary candidates before the on-edge and corner rules
     bound_px: float  # the 11-pixel-row reference figure of the image (module docstring), not a floor
@@ -195,7 +217,30 @@ def camera_options(gt: dict, x, y) -> dict:
 
 def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict | None = None,
                 radiance: np.ndarray | None = None) -> PointScores:
-    """Refine the target's boundary candidates of the raw ``image`` with every method and score them."""
+    """Refine a rendered target image's boundary candidates with every method and score them against the truth.
+
+    Candidates within 1.5 px of the exact distorted outline (a square's farther than 4 px from a corner;
+    a scene of several outlines: along every visible edge, each against the nearest) are refined by each
+    method on the raw image, and each point's error is its signed distance to the exact outline.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        The raw sensor image (``Sample.image``), (H, W).
+    gt : dict
+        Its ground-truth JSON (``Sample.truth``).
+    methods : list of str
+        Method ids, with options as ``"id:key=value"`` (``edgetruth.evaluate.method_order``).
+    options : dict, optional
+        Options per method label, added to the studies' own.
+    radiance : numpy.ndarray, optional
+        The image's radiance (``Sample.radiance``); given, each point also gets its exact bound.
+
+    Returns
+    -------
+    PointScores
+        The scored candidates and every method's errors, px.
+    """
     from edgetruth import locate
     from edgetruth.evaluate.method_order import resolve
     from edgetruth.render.scene.ground_truth import image_outline

@@ -47,6 +47,7 @@ class ImageResult:
     error: str = ""
     scores: object = None  # the per-point study's scores of the raw image (range_image's score; None: not scored)
     record: dict = field(default_factory=dict)  # the image's design fields (for the per-point tables)
+    fits: dict = field(default_factory=dict)  # keep_points: method -> its size fit's geometry (overlays)
 
 
 #: the target shapes ranging knows: l is the side (square), the width (rectangle), the diameter (circle)
@@ -131,6 +132,17 @@ def size_of(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float, K=None, s
         except InputError:
             out["z_pose_m"] = float("nan")
     return out
+
+
+def fit_geometry(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float) -> dict:
+    """What the size step fitted, for pictures: a square's or rectangle's side lines (n, d: n . p = d) and
+    corners, or a circle's centre and radius (px of the image the points are in)."""
+    if shape in ("square", "rectangle"):
+        fit = fit_square(x, y, nx, ny)
+        return {"lines": {k: (ln.n.tolist(), float(ln.d)) for k, ln in fit.lines.items()},
+                "corners": fit.corners.tolist(), "l_px": fit.width_px}
+    fit = fit_circle(x, y, aspect=fx / fy, cy_px=cy)
+    return {"circle": (fit.cx, fit.cy, fit.r), "l_px": fit.diameter_px}
 
 
 def outline_pose_distance(gt: dict, points_px, K) -> float:
@@ -272,20 +284,28 @@ def process_image(image: np.ndarray, gt: dict, cal, undistorter, methods: list[s
 def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m: float, cal, methods: list[str],
                       base: dict, keep_points: bool = False, name: str = "image", options: dict | None = None,
                       l_true_px: float = float("nan"), polarity: str = "dark",
-                      height_m: float | None = None, points_undistorter=None) -> ImageResult:
+                      height_m: float | None = None, points_undistorter=None,
+                      finder: dict | None = None) -> ImageResult:
     """Steps 2-5 on an undistorted image: find the target (``polarity``: see target_finding), refine
     its boundary with every method, size it and range it; errors against ``z_ref_m`` (the truth of a
     render, or a photo's reference distance), size errors against ``l_true_px`` when it is known.
     ``base``: the fields every row of this image starts from.  With ``points_undistorter`` the image is
     the RAW one (``valid`` None): every method refines it, and its points are undistorted before the size
-    and pose fits (``Undistorter.undistort_points``), so no resampling touches the pixels."""
+    and pose fits (``Undistorter.undistort_points``), so no resampling touches the pixels.  With ``finder``
+    (the priors of a photo's CSV row: shape, aspect, polarity, roi, point) the declared-target finder
+    (``target_finder.find_region``) finds the target instead of the render's dark-region finder."""
     from edgetruth import locate
     from edgetruth.evaluate.method_order import resolve
     from edgetruth.evaluate.target import target_candidates
 
     fx, fy, cy = cal.fx, cal.fy, cal.cy
     try:
-        tc = target_candidates(und, valid, polarity=polarity)
+        region = None
+        if finder is not None:
+            from edgetruth.evaluate.ranging.target_finder import find_region
+
+            region = find_region(und, valid, K=cal.K, **finder)
+        tc = target_candidates(und, valid, polarity=polarity, region=region)
     except InputError as exc:
         return ImageResult(name, [dict(base, method=m, status=f"no target: {exc}", z_hat_m=float("nan"),
                                        error_cm=float("nan"), rel_error_pct=float("nan")) for m in methods],
@@ -295,7 +315,8 @@ def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m
                       {"bbox": list(tc.region.bbox), "solidity": tc.region.solidity,
                        "shape_guess": tc.region.shape_guess, "interior_ratio": tc.region.interior_ratio,
                        "polarity": tc.region.polarity, "contrast": tc.region.score,
-                       **({"contrast_by_polarity": tc.region.scores} if tc.region.scores else {})},
+                       **({"contrast_by_polarity": tc.region.scores} if tc.region.scores else {}),
+                       **({"finder": tc.region.finder} if tc.region.finder else {})},
                       crop=(x0, y0, tc.crop.shape[1], tc.crop.shape[0]))
     if keep_points:
         res.points["_canny_all"] = (tc.all_candidates.x + x0, tc.all_candidates.y + y0)
@@ -316,6 +337,7 @@ def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m
                        size_error_px=s["size_px"] - l_true_px, error_pose_cm=100.0 * (s["z_pose_m"] - z_ref_m))
             if keep_points:
                 res.points[m] = (x, y)
+                res.fits[m] = fit_geometry(shape, x, y, nx, ny, fx, fy, cy)
         except InputError as exc:
             row.update(status=f"size failed: {exc}", z_hat_m=float("nan"), error_cm=float("nan"),
                        rel_error_pct=float("nan"))

@@ -39,7 +39,7 @@ from edgetruth.evaluate.design import interval_label
 from edgetruth.evaluate.ranging.images import SHAPES, ImageResult
 
 REQUIRED_COLUMNS = ("image", "distance_cm", "size_m", "shape", "group")
-OPTIONAL_COLUMNS = ("height_m", "polarity", "note")
+OPTIONAL_COLUMNS = ("height_m", "polarity", "roi_px", "point_px", "reference", "note")
 PHOTO_POLARITIES = ("dark", "light", "auto")
 #: a physical size above this is almost surely centimetres typed into a metres column
 MAX_SIZE_M = 10.0
@@ -61,6 +61,14 @@ class PhotoRecord:
     group: str
     polarity: str = "auto"
     height_m: float | None = None
+    roi_px: tuple[int, int, int, int] | None = None  # x, y, w, h: the target lies inside this box
+    point_px: tuple[float, float] | None = None  # x, y: a point inside the target
+    reference: bool = False  # a reference photo: sets fx (fx = Z l / S), not ranged
+
+    def finder_priors(self) -> dict:
+        """What the row tells the declared-target finder (``target_finder.find_region``)."""
+        return {"shape": self.shape, "aspect": self.size_m / self.height_m if self.height_m else 1.0,
+                "polarity": self.polarity, "roi": self.roi_px, "point": self.point_px}
 
 
 def _number(text: str, where: str, column: str, unit_hint: str) -> float:
@@ -71,6 +79,21 @@ def _number(text: str, where: str, column: str, unit_hint: str) -> float:
     if not math.isfinite(v) or v <= 0:
         raise InputError(f"{where}: {column} {text!r} must be a positive finite number ({unit_hint})")
     return v
+
+
+def _numbers(text: str, n: int, where: str, column: str, hint: str) -> tuple[float, ...]:
+    """``n`` numbers separated by commas, semicolons or spaces (a comma-separated field is quoted in the CSV)."""
+    parts = [t for t in text.replace(";", " ").replace(",", " ").split() if t]
+    try:
+        vals = tuple(float(t) for t in parts)
+    except ValueError:
+        vals = ()
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
+        raise InputError(f"{where}: {column} {text!r} is not {n} numbers; give {hint}")
+    return vals
+
+
+REFERENCE_WORDS = {"": False, "no": False, "0": False, "false": False, "yes": True, "1": True, "true": True}
 
 
 def _resolve(image: str, where: str, photos_dir: Path | None, csv_dir: Path) -> Path:
@@ -155,6 +178,19 @@ def read_distances(csv_path: str | Path, photos_dir: str | Path | None = None) -
         if polarity not in PHOTO_POLARITIES:
             raise InputError(f"{where}: polarity {row['polarity']!r} is unknown; choose one of "
                              f"{', '.join(PHOTO_POLARITIES)} (or leave it empty: auto)")
+        roi = point = None
+        if row.get("roi_px"):
+            roi = _numbers(row["roi_px"], 4, where, "roi_px", '"x,y,w,h" in pixels of the photo, e.g. "120,80,300,240"')
+            if roi[2] <= 0 or roi[3] <= 0:
+                raise InputError(f"{where}: roi_px {row['roi_px']!r} has a width or height <= 0; give \"x,y,w,h\" "
+                                 "with w, h > 0")
+            roi = tuple(int(round(v)) for v in roi)
+        if row.get("point_px"):
+            point = _numbers(row["point_px"], 2, where, "point_px", '"x,y" in pixels of the photo, inside the target')
+        ref = (row.get("reference") or "").lower()
+        if ref not in REFERENCE_WORDS:
+            raise InputError(f"{where}: reference {row['reference']!r}; write yes for a reference photo (its distance "
+                             "sets the focal length) or leave it empty")
         group = row["group"]
         if not group:
             raise InputError(f"{where}: the group column is empty; name the photo's group (any text)")
@@ -163,19 +199,23 @@ def read_distances(csv_path: str | Path, photos_dir: str | Path | None = None) -
         if key in seen:
             raise InputError(f"{where}: the same photo as line {seen[key]}; one row per photo")
         seen[key] = line
-        out.append(PhotoRecord(line, image, str(path), distance_cm, size_m, shape, group, polarity, height_m))
+        out.append(PhotoRecord(line, image, str(path), distance_cm, size_m, shape, group, polarity, height_m,
+                               roi, point, REFERENCE_WORDS[ref]))
     if not out:
         raise InputError(f"{csv_path}: no rows; add one row per photo under the header")
     return out
 
 
-def check_photos(records: list[PhotoRecord], image_size: tuple[int, int], csv_path="distances CSV",
-                 channel: str = "luma", progress: bool = True) -> None:
-    """Decode every photo and check it against the calibration's image size (before anything is written)."""
+def check_photos(records: list[PhotoRecord], image_size: tuple[int, int] | None, csv_path="distances CSV",
+                 channel: str = "luma", progress: bool = True) -> tuple[int, int]:
+    """Decode every photo and check it against the calibration's image size (before anything is written);
+    ``image_size`` None (no calibration): every photo must have the first one's size.  Returns the size."""
     from edgetruth import console
     from edgetruth.image_io import read_gray
 
-    w, h = (int(v) for v in image_size)
+    w = h = None if image_size is None else 0
+    if image_size is not None:
+        w, h = (int(v) for v in image_size)
     for r in console.track(records, "check photos", "photo", enabled=progress):
         where = f"{csv_path} line {r.line} ({r.image})"
         try:
@@ -184,11 +224,85 @@ def check_photos(records: list[PhotoRecord], image_size: tuple[int, int], csv_pa
             raise InputError(f"{where}: {exc}") from None
         if img.ndim != 2:
             raise InputError(f"{where}: not a 2-D gray image (shape {img.shape}); save it as a gray or colour photo")
+        if w is None:
+            w, h, first = img.shape[1], img.shape[0], r
         if (img.shape[1], img.shape[0]) != (w, h):
+            if image_size is None:
+                raise InputError(f"{where}: {img.shape[1]} x {img.shape[0]} px, {first.image} is {w} x {h} px; "
+                                 "without a calibration every photo must come from one camera at one resolution "
+                                 "and orientation")
             raise InputError(f"{where}: {img.shape[1]} x {img.shape[0]} px, the calibration is for {w} x {h} px; "
                              "calibrate with photos of the same camera at the same resolution and orientation")
         if not np.all(np.isfinite(img)):
             raise InputError(f"{where}: holds NaN or infinite pixels; re-export the photo")
+        check_pointers(r, img.shape, where)
+    return int(w), int(h)
+
+
+def resolve_references(records: list[PhotoRecord], specs: list[str], photos_dir, csv_path) -> list[PhotoRecord]:
+    """``--reference-photo IMAGE[=DISTANCE_CM]``: mark the CSV's row of IMAGE as a reference photo (with a
+    distance, it must agree with the row's), or add IMAGE as one (then the distance is needed and the CSV's
+    rows must share one shape and size).  At least one test row must remain."""
+    import dataclasses
+
+    out = list(records)
+    by_path = {os.path.realpath(r.path): k for k, r in enumerate(out)}
+    for spec in specs:
+        image, _, dist = spec.partition("=")
+        where = f"--reference-photo {spec}"
+        d = _number(dist, where, "distance", "IMAGE=DISTANCE_CM, e.g. ref.jpg=100") if dist else None
+        path = _resolve(image, where, Path(photos_dir) if photos_dir else None, Path(csv_path).parent)
+        k = by_path.get(os.path.realpath(path))
+        if k is not None:
+            r = out[k]
+            if d is not None and abs(d - r.distance_cm) > 1e-9 * max(d, 1.0):
+                raise InputError(f"{where}: {csv_path} line {r.line} lists {r.image} as a test photo at "
+                                 f"{r.distance_cm:g} cm, not {d:g} cm; give one distance (drop =DISTANCE_CM to use "
+                                 "the CSV's)")
+            out[k] = dataclasses.replace(r, reference=True)
+            continue
+        if d is None:
+            raise InputError(f"{where}: {image} is not in {csv_path}; give its distance as IMAGE=DISTANCE_CM")
+        kinds = {(r.shape, r.size_m, r.height_m) for r in records}
+        if len(kinds) != 1:
+            raise InputError(f"{where}: {image} is not in {csv_path}, whose rows hold several targets; add it to "
+                             "the CSV as a row with reference = yes")
+        r0 = records[0]
+        out.append(PhotoRecord(0, image, str(path), d, r0.size_m, r0.shape, "reference", r0.polarity, r0.height_m,
+                               reference=True))
+        by_path[os.path.realpath(path)] = len(out) - 1
+    if all(r.reference for r in out):
+        raise InputError(f"{csv_path}: every photo is a reference photo; keep at least one to range")
+    return out
+
+
+def camera_without_board(fx_px: float, image_size: tuple[int, int], method: str):
+    """A calibration with no board: fx = fy = ``fx_px``, the principal point at the image centre, no distortion."""
+    from edgetruth.evaluate.calibration import Calibration
+
+    w, h = image_size
+    K = np.array([[fx_px, 0.0, (w - 1) / 2.0], [0.0, fx_px, (h - 1) / 2.0], [0.0, 0.0, 1.0]])
+    return Calibration(K=K, dist=np.zeros(5), image_size=(int(w), int(h)), rms_px=float("nan"), n_views=0,
+                       method=method)
+
+
+def check_pointers(r: PhotoRecord, shape, where: str) -> None:
+    """The row's roi_px and point_px lie inside the photo (``shape`` (H, W)) and agree with each other."""
+    h, w = shape
+    if r.roi_px is not None:
+        x, y, bw, bh = r.roi_px
+        if x < 0 or y < 0 or x + bw > w or y + bh > h:
+            raise InputError(f"{where}: roi_px {x},{y},{bw},{bh} leaves the {w} x {h} px photo; give a box inside it "
+                             "(x, y from the top-left corner, 0-based)")
+    if r.point_px is not None:
+        px, py = r.point_px
+        if not (0 <= px <= w - 1 and 0 <= py <= h - 1):
+            raise InputError(f"{where}: point_px {px:g},{py:g} is outside the {w} x {h} px photo; give a point on the "
+                             "target")
+        if r.roi_px is not None:
+            x, y, bw, bh = r.roi_px
+            if not (x <= px <= x + bw and y <= py <= y + bh):
+                raise InputError(f"{where}: point_px {px:g},{py:g} is outside its roi_px; give a point inside the box")
 
 
 def unlisted_photos(records: list[PhotoRecord], photos_dir: str | Path) -> list[str]:
@@ -219,7 +333,7 @@ def range_photo(image: np.ndarray, record: PhotoRecord, cal, methods: list[str],
     und = undistorter or from_calibration(cal)
     raw = np.asarray(image, np.float64)
     kw = dict(keep_points=keep_points, name=record.image, options=options, polarity=record.polarity,
-              height_m=record.height_m)
+              height_m=record.height_m, finder=record.finder_priors())
     args = (record.shape, record.size_m, record.distance_cm / 100.0, cal, methods, photo_base(record))
     if check_undistort(undistort) == "points":
         return range_undistorted(raw, None, *args, points_undistorter=und, **kw)
@@ -229,8 +343,10 @@ def range_photo(image: np.ndarray, record: PhotoRecord, cal, methods: list[str],
 _undistorters: dict = {}
 
 
-def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options, channel, undistort="image"):
-    """One photo (a pure function of its arguments; runs in worker processes)."""
+def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options, channel, undistort="image",
+                figures_dir=None):
+    """One photo (a pure function of its arguments; runs in worker processes); with ``figures_dir`` it also
+    writes the photo's overlay there (``overlays.write_photo_overlay``)."""
     from edgetruth.evaluate.ranging.undistort import from_calibration
     from edgetruth.image_io import read_gray
 
@@ -238,15 +354,43 @@ def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options,
     if key not in _undistorters:
         _undistorters[key] = from_calibration(cal)
     image = read_gray(record.path, channel=channel)
-    return k, range_photo(image, record, cal, methods, keep_points, options, _undistorters[key], undistort)
+    res = range_photo(image, record, cal, methods, keep_points or figures_dir is not None, options,
+                      _undistorters[key], undistort)
+    if figures_dir is not None and not res.error and res.fits:
+        write_overlay(figures_dir, record, res, _undistorters[key](np.asarray(image, np.float64)))
+    if not keep_points:
+        res.points, res.fits = {}, {}
+    return k, res
+
+
+def overlay_method(res: ImageResult) -> str:
+    """The method an overlay shows: the reference method where it ranged, else the first that did."""
+    from edgetruth.evaluate.ranging.images import REFERENCE_METHOD
+
+    return REFERENCE_METHOD if REFERENCE_METHOD in res.fits else next(iter(res.fits))
+
+
+def write_overlay(figures_dir, record: PhotoRecord, res: ImageResult, und: np.ndarray) -> None:
+    from edgetruth.evaluate.ranging.overlays import overlay_name, write_photo_overlay
+
+    m = overlay_method(res)
+    row = next(r for r in res.rows if r["method"] == m)
+    write_photo_overlay(Path(figures_dir) / overlay_name(record.image), und, res.region, res.fits[m],
+                        res.points.get(m), m, float(row.get("z_hat_m", float("nan"))), record.distance_cm / 100.0)
+    res.region["overlay"] = f"figures/{overlay_name(record.image)}"
+    res.region["overlay_method"] = m
 
 
 def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir: str | Path | None = None,
                       methods: list[str] | None = None, options: dict | None = None, channel: str = "luma",
                       progress: bool = True, backend: str = "local", workers: int | None = 1,
-                      address: str | None = None, figure_examples: int = 3, undistort: str = "image") -> dict:
+                      address: str | None = None, figure_examples: int = 3, undistort: str = "image",
+                      cals: list | None = None) -> dict:
     """Range every photo with every method; write ``ranging_rows.csv`` and ``ranging_images.json``.
-    Returns {"rows", "examples", "per_image", "methods"} (as ``ranging.run_ranging``)."""
+    ``cals``: one calibration per record (fx from each photo's EXIF) instead of ``cal`` for all.
+    Reference rows (``PhotoRecord.reference``) set each method's fx (``focal_length.reference_fx``) and
+    leave the error tables; the others are re-ranged with it.
+    Returns {"rows", "examples", "per_image", "methods", "reference_fx"} (as ``ranging.run_ranging``)."""
     from edgetruth import console, locate
     from edgetruth.backends import make_backend
     from edgetruth.evaluate.ranging.images import write_rows
@@ -261,7 +405,10 @@ def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir
         if len(keep) < figure_examples and r.shape not in shown:
             keep.add(k)
             shown.add(r.shape)
-    tasks = [(k, r, cal, methods, k in keep, options or {}, channel, undistort) for k, r in enumerate(records)]
+    figures = out_dir / "figures"
+    figures.mkdir(exist_ok=True)
+    tasks = [(k, r, cals[k] if cals else cal, methods, k in keep, options or {}, channel, undistort, str(figures))
+             for k, r in enumerate(records)]
     n_workers = min(1 if workers is None else int(workers), max(1, len(tasks)))
     init, initargs = plugins.backend_initializer(backend, n_workers, methods)
     results: dict = {}
@@ -281,10 +428,21 @@ def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir
                           "shape": rec.shape, "size_m": rec.size_m, "height_m": rec.height_m,
                           "distance_cm": rec.distance_cm, "polarity_requested": rec.polarity,
                           "n_candidates": res.n_candidates, "n_boundary": res.n_boundary, **res.region,
-                          "methods_ok": sum(row.get("status") == "ok" for row in res.rows), "error": res.error})
+                          "methods_ok": sum(row.get("status") == "ok" for row in res.rows), "error": res.error,
+                          "reference": rec.reference,
+                          **({"fx_px": (cals[k] if cals else cal).fx} if cals else {})})
+    ref_fx = None
+    if any(r.reference for r in records):
+        from edgetruth.evaluate.ranging.focal_length import apply_fx, reference_fx
+
+        refs = {r.image for r in records if r.reference}
+        size_of_image = {r.image: r.size_m for r in records}
+        ref_fx = reference_fx([row for row in rows if row["image"] in refs], size_of_image)
+        rows = apply_fx([row for row in rows if row["image"] not in refs], ref_fx, size_of_image)
+        write_json(out_dir / "reference_fx.json", ref_fx)
     write_rows(out_dir / "ranging_rows.csv", rows)
     write_json(out_dir / "ranging_images.json", per_image)
-    return {"rows": rows, "examples": examples, "per_image": per_image, "methods": methods}
+    return {"rows": rows, "examples": examples, "per_image": per_image, "methods": methods, "reference_fx": ref_fx}
 
 
 def photo_section(per_image: list[dict]) -> list[str]:
@@ -299,8 +457,20 @@ def photo_section(per_image: list[dict]) -> list[str]:
         found = p.get("shape_guess", "")
         flag = "" if not found or found == p["shape"] else f" (looks like a {found})"
         size = f"{p['size_m']:g}" + (f" × {p['height_m']:g}" if p.get("height_m") else "")
+        fin = p.get("finder") or {}
+        if not fin:
+            choice = "—"
+        elif fin.get("close"):
+            choice = f"**close**: {fin['chosen']['score']:.2f} vs {fin['runners_up'][0]['score']:.2f}"
+        else:
+            nxt = fin["runners_up"][0]["score"] if fin.get("runners_up") else 0.0
+            choice = f"{fin['chosen']['score']:.2f} (next {nxt:.2f})"
+        pic = f"[overlay]({p['overlay']})" if p.get("overlay") else "—"
+        status = p["error"] or ("ok; reference: sets fx" if p.get("reference") else "ok")
         body.append([p["image"], p["group"], p["shape"] + flag, size, f"{p['distance_cm']:g}", pol,
-                     num(p.get("contrast", float("nan")), 2), p["n_boundary"], p["methods_ok"], p["error"] or "ok"])
+                     num(p.get("contrast", float("nan")), 2), choice, p["n_boundary"], p["methods_ok"],
+                     status, pic])
+    n_close = sum(bool((p.get("finder") or {}).get("close")) for p in per_image)
     n_light = sum(p.get("polarity") == "light" for p in per_image)
     n_dark = sum(p.get("polarity") == "dark" for p in per_image)
     n_none = len(per_image) - n_dark - n_light
@@ -312,15 +482,23 @@ def photo_section(per_image: list[dict]) -> list[str]:
             "outside and inside, sign flipped for a light target).  l is the side of a square, the "
             "diameter of a circle and the *width* (left/right side lines) of a rectangle, with size_m its "
             "horizontal side.  No per-point tables: a photo has no exact outline to score points against.", "",
-            table(["image", "group", "shape", "size (m)", "distance (cm)", "polarity", "contrast",
-                   "boundary candidates", "methods ranged", "target finding"], body),
+            table(["image", "group", "shape", "size (m)", "distance (cm)", "polarity", "contrast", "choice",
+                   "boundary candidates", "methods ranged", "target finding", "picture"], body),
+            "", "Choice: the score (0-1) of the region kept and of the best runner-up (shape fit × convexity × "
+            "aspect ratio rectified with the camera matrix × contrast all round its boundary; docs/formats.md); "
+            "**close** where the runner-up scores within 80 % of it: look at the overlay, and point at the target "
+            "with `roi_px` or `point_px` if the wrong one was kept.  Overlay: the found outline (green), the "
+            "fitted side lines or circle (magenta), the refined points of one method (red; dynamic_erf_4p where it "
+            "ranged) with its l and Z, the runners-up (faint yellow); drawn on the undistorted photo."
+            + (f"  {n_close} of {len(per_image)} choices were close." if n_close else ""),
             "", "A method that did not range a photo says why in `ranging_rows.csv` (`status`)."]
 
 
 def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_dir: str | Path | None = None,
                     methods=None, thresholds=None, camera_thresholds=None, channel: str = "luma",
                     progress: bool = True, backend: str = "local", workers: int | None = 1,
-                    address: str | None = None, header: dict | None = None, undistort: str = "image") -> Path:
+                    address: str | None = None, header: dict | None = None, undistort: str = "image",
+                    cals: list | None = None, focal_source: str = "") -> Path:
     """Range every photo of ``records`` with every method and write ``report.md`` into ``out``
     (Tables 13-17, paired tests and verdicts against the reference distances)."""
     from edgetruth import locate
@@ -335,7 +513,7 @@ def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_d
             v for v in mo.variant_labels(options) if options[v]["method"] in (methods or free)])
     result = run_photo_ranging(records, calibration, out, photos_dir, methods=methods, options=options,
                                channel=channel, progress=progress, backend=backend, workers=workers, address=address,
-                               undistort=undistort)
+                               undistort=undistort, cals=cals)
     head = dict(header or {})
     head.setdefault("photos", len(records))
     from edgetruth.evaluate.ranging.images import UNDISTORT_LINES
@@ -347,5 +525,29 @@ def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_d
         ct = mo.thresholds_in_use(camera_thresholds)
         head["entropy thresholds for this camera (camera τ)"] = (
             f"2P {tuple(ct['2p'])}, 4P {tuple(ct['4p'])} (from {Path(camera_thresholds).name})")
+    if focal_source:
+        head["focal length"] = focal_source
+    sections = photo_section(result["per_image"]) + focal_section(records, result.get("reference_fx"), focal_source)
     return write_report(out, result["rows"], result["methods"], calibration, result["examples"], head,
-                        title="photo ranging report", reference=REFERENCE, sections=photo_section(result["per_image"]))
+                        title="photo ranging report", reference=REFERENCE, sections=sections)
+
+
+def focal_section(records: list[PhotoRecord], ref_fx: dict | None, source: str) -> list[str]:
+    """The report's "Focal length" section: where fx came from and what that means for the figures."""
+    from edgetruth.evaluate.report_format import num, table
+
+    if not source:
+        return []
+    out = ["", "## Focal length", "", source + "."]
+    if ref_fx:
+        refs = [r for r in records if r.reference]
+        out += ["", f"fx = Z·l/S on the reference photo(s) ({', '.join(f'{r.image} at {r.distance_cm:g} cm' for r in refs)}), "
+                "each method with its own l, so each method has its own fx: a method that measures every l a "
+                "little large (or small) gets an fx as much larger, and its scale error cancels: its Z is exact at "
+                "the reference distance, and elsewhere its errors are those of the *ratio* l_ref / l (what changes "
+                "with distance: blur, sampling, the tilt's share) plus the reference distance's own error, which "
+                "scales every Z alike.  The reference photos are not in the error tables.  The pose estimate needs "
+                "the whole camera matrix and is left out (nan).", "",
+                table(["method", "fx (px)", "reference photos"],
+                      [[m, num(v.get("fx_px", float("nan")), 2), v.get("n", 0)] for m, v in ref_fx.items()])]
+    return out

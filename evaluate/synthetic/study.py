@@ -621,8 +621,36 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
 def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: bool = True,
                         images_per_scenario: int | None = None, backend: str = "local", workers: int = 1,
                         address: str | None = None, thresholds=None, timing_note: str = "") -> Path:
-    """Run (or resume) the synthetic study into ``out_dir``; returns the path of its report.md.  ``timing_note``:
-    a sentence the report adds to its note on the times per point (how the machine was loaded)."""
+    """Run (or resume) the synthetic study, as ``edgetruth study synthetic``: Tables 3-9, Figures 4-7, verdicts.
+
+    Parameters
+    ----------
+    out_dir : str or pathlib.Path
+        The study folder (new, empty, or an earlier study's, resumed).
+    preset : str, optional
+        ``"quick"`` (default) or ``"full"`` (200 images per scenario, the reference in docs/results).
+    methods : list of str, optional
+        Method ids; default every registered method that needs no camera model.
+    progress : bool, optional
+        Progress bars (on a terminal).
+    images_per_scenario : int, optional
+        Override the preset's count (>= 2).
+    backend : str, optional
+        ``"local"`` (default) or ``"ray"``.
+    workers : int, optional
+        Local worker processes (default 1: this process).
+    address : str, optional
+        A Ray cluster's address.
+    thresholds : str or pathlib.Path, optional
+        An entropy-thresholds file for the dynamic methods.
+    timing_note : str, optional
+        A sentence the report adds to its note on the times per point (how the machine was loaded).
+
+    Returns
+    -------
+    pathlib.Path
+        The study's ``report.md``.
+    """
     if preset not in PRESETS:
         raise InputError(f"preset {preset!r}: choose one of {', '.join(PRESETS)}")
     n_per = PRESETS[preset]["images_per_scenario"] if images_per_scenario is None else int(images_per_scenario)

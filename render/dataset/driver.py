@@ -116,19 +116,51 @@ def render_spec(spec: Spec | str | Path, out_dir: str | Path, variant: str | Non
                 files: str = "auto", window: int | None = None, pool: "RenderPool | None" = None) -> ManifestView:
     """Render every image of ``spec`` into ``out_dir`` (resumable) and return the manifest.
 
-    ``only`` restricts to those job indices; ``timings`` (a dict) accumulates ``render_s``
-    (inside ``mi.render``, summed over workers), ``stage_s`` (per stage of a task, summed),
-    ``journal_s``, ``wall_s``, ``n_rendered``, ``reused`` (images whose radiance a worker reused from
-    another cell of their design slot), ``n_written_by_driver`` (images whose file bytes came
-    back to this process), ``n_complete`` and, on Ray, ``tasks_per_node`` (node id -> images).
+    Each image is a pure function of (spec, index), written atomically (``NAME.exr`` radiance, ``NAME.png``
+    sensor image, ``NAME.json`` ground truth) and recorded by this (driver) process in a journal that is
+    compacted into ``manifest.json``. Whatever the backend, an image's files are identical, and an
+    interrupted run -- even ``kill -9`` -- resumes where it stopped.
 
-    ``backend``/``workers``/``address``: where images render (see ``edgetruth.backends``);
-    the default renders in this process.  ``files``: who writes the image files (see
-    ``FILE_WRITERS``).  ``window``: tasks in flight (default: a few per worker).  Whatever
-    the backend, the files of an image are identical, only this (driver) process writes
-    the journal and ``manifest.json``, and an interrupted run -- even ``kill -9`` -- resumes
-    where it stopped.  ``pool``: a ``RenderPool`` whose workers render this spec (one of the specs it was
-    made for) and stay up for the caller's next call, instead of a pool started for this call.
+    Parameters
+    ----------
+    spec : Spec or str or pathlib.Path
+        A loaded spec, a shipped spec's name or a TOML path.
+    out_dir : str or pathlib.Path
+        The dataset folder: new, empty, or an earlier render of the same spec (resumed).
+    variant : str, optional
+        Mitsuba's variant (default: the fastest that runs here: ``cuda_ad_rgb``, ``llvm_ad_rgb``, ``scalar_rgb``).
+    progress : bool, optional
+        Draw a progress bar (on a terminal only).
+    only : list of int, optional
+        Render only these image indices.
+    timings : dict, optional
+        Accumulates ``render_s`` (inside ``mi.render``, summed over workers), ``stage_s``, ``journal_s``,
+        ``wall_s``, ``n_rendered``, ``reused``, ``n_written_by_driver``, ``n_complete`` and, on Ray,
+        ``tasks_per_node`` (node id -> images).
+    announce : callable, optional
+        Receives the one-line notes (the variant chosen, ...); default ``print``.
+    backend : str, optional
+        ``"local"`` (default: this process, or a pool of ``workers``) or ``"ray"`` (``edgetruth.backends``).
+    workers : int or None, optional
+        Local worker processes (1: this process; None: one per core).
+    address : str, optional
+        A Ray cluster's address (``HOST:6379`` or ``ray://HOST:10001``); default: a local Ray instance.
+    files : str, optional
+        Who writes the image files: ``"auto"``, ``"driver"`` or ``"workers"`` (``FILE_WRITERS``).
+    window : int, optional
+        Tasks in flight (default: a few per worker).
+    pool : RenderPool, optional
+        A pool made for this spec whose workers stay up for the caller's next call.
+
+    Returns
+    -------
+    ManifestView
+        The dataset's manifest (every image with the SHA-256 of each file).
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        A bad spec, backend, variant or output folder, before anything is written.
     """
     from edgetruth.backends import check_backend_args
     from edgetruth.render import variants  # noqa: F401 -- before Mitsuba: points Dr.Jit at the pip libLLVM

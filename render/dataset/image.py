@@ -107,10 +107,10 @@ def view_points(spec: Spec, job: Job) -> np.ndarray:
 
 
 def board_of(spec: Spec, kind: str):
-    """The board a board job renders: its squares (a ChArUco board's dark squares and marker cells), or
-    the checkerboard."""
-    return {"squares": spec.squares, "charuco": spec.charuco.squares if spec.charuco else None}.get(
-        kind, spec.checkerboard)
+    """The board a board job renders: its squares (a ChArUco board's dark squares and marker cells), its circle
+    grid, or the checkerboard."""
+    return {"squares": spec.squares, "charuco": spec.charuco.squares if spec.charuco else None,
+            "circles_grid": spec.circles_grid}.get(kind, spec.checkerboard)
 
 
 def check_views(spec: Spec) -> None:
@@ -208,6 +208,13 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
         pose = job_pose(job, camera, board.plate_corners_local())
         rig, le, bend, sag = _board_state(job, "squares", camera, settings, board, crop, pose, e_render)
         gt = squares_ground_truth(camera, pose, board, bend, sag)
+    elif job.kind == "circles_grid":
+        from edgetruth.render.scene.circles_truth import circles_ground_truth
+
+        board = spec.circles_grid
+        pose = job_pose(job, camera, board.plate_corners_local())
+        rig, le, bend, sag = _board_state(job, "circles_grid", camera, settings, board, crop, pose, e_render)
+        gt = circles_ground_truth(camera, pose, board)
     elif job.kind == "charuco":  # rendered as its dark squares and marker cells (render.scene.charuco)
         from edgetruth.render.scene.charuco_truth import charuco_ground_truth
 

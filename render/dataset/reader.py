@@ -56,7 +56,32 @@ def load_manifest(d: str | Path, scan: JournalScan | None = None) -> dict:
 
 @dataclass
 class Sample:
-    """One rendered image of a dataset; pixels are read when first asked for."""
+    """One rendered image of a dataset with its exact ground truth; pixels are read when first asked for.
+
+    Attributes
+    ----------
+    dataset : Dataset
+        The dataset it belongs to.
+    name : str
+        The image's name (``"0015_G1_T1"``): its files are ``NAME.png``, ``NAME.exr``, ``NAME.json``.
+    index : int
+        Its index in the spec (``spec.jobs[index]``).
+    kind : str
+        ``"target"``, ``"checkerboard"`` or ``"squares"``.
+    group : str
+        The spec group (or design cell) it belongs to.
+    truth : dict
+        The ground-truth JSON (docs/formats.md).
+    outline : OutlineEdge or SceneOutline or None
+        The exact distorted truth of every visible edge (target images): ``signed_distance(x, y)`` in px,
+        > 0 on the bright board.
+    optical_outline : OpticalOutline or None
+        The edge the optics form, beside the geometric outline.
+    image : numpy.ndarray
+        The sensor image, uint16 (H, W), raw DN.
+    radiance : numpy.ndarray
+        The linear radiance, float32 (H, W), W m^-2 sr^-1.
+    """
 
     dataset: "Dataset" = field(repr=False)
     name: str
@@ -118,7 +143,23 @@ class Sample:
 
 
 class Dataset:
-    """A rendered dataset directory: ``len``, iteration and indexing over its complete images."""
+    """A rendered dataset folder: ``len``, iteration and indexing over its complete images.
+
+    ``ds[0]`` (index order), ``ds["0015_G1_T1"]`` (name), ``for s in ds``; ``targets()``,
+    ``checkerboards()``, ``square_boards()`` select by kind.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``-o`` folder of ``edgetruth render`` (or ``render_spec``).
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The folder.
+    manifest : dict
+        The manifest with the journal's entries merged in (``images``: name -> entry with file hashes).
+    """
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
@@ -131,6 +172,7 @@ class Dataset:
 
     @property
     def spec_name(self) -> str:
+        """The name of the spec the dataset was rendered from."""
         return str(self.manifest.get("spec", ""))
 
     @property
@@ -139,6 +181,13 @@ class Dataset:
         return int(self.manifest["n_images"])
 
     def names(self) -> list[str]:
+        """The complete images' names, in index order.
+
+        Returns
+        -------
+        list of str
+            E.g. ``["0000_calib", "0015_G1_T1", ...]``.
+        """
         return [s.name for s in self._samples]
 
     def __len__(self) -> int:
@@ -155,13 +204,33 @@ class Dataset:
         return self._samples[key]
 
     def targets(self) -> list[Sample]:
+        """The target images (``kind = "target"``), in index order.
+
+        Returns
+        -------
+        list of Sample
+            Each with its ``outline``.
+        """
         return [s for s in self._samples if s.kind == "target"]
 
     def checkerboards(self) -> list[Sample]:
+        """The checkerboard images (``kind = "checkerboard"``: calibration boards), in index order.
+
+        Returns
+        -------
+        list of Sample
+            Their truth holds the inner corners.
+        """
         return [s for s in self._samples if s.kind == "checkerboard"]
 
     def square_boards(self) -> list[Sample]:
-        """Images of boards of squares (``kind = "squares"``; their truth's ``squares`` block)."""
+        """Images of boards of squares (``kind = "squares"``; their truth's ``squares`` block), in index order.
+
+        Returns
+        -------
+        list of Sample
+            The board images.
+        """
         return [s for s in self._samples if s.kind == "squares"]
 
     def __repr__(self) -> str:
@@ -169,6 +238,29 @@ class Dataset:
 
 
 def open_dataset(path: str | Path) -> Dataset:
+    """Open a rendered dataset for reading (also while it renders, or after a killed run).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``-o`` folder of ``edgetruth render``.
+
+    Returns
+    -------
+    Dataset
+        Its complete images, in index order, each a ``Sample``.
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        Not a folder, no ``manifest.json``, or a damaged record.
+
+    Examples
+    --------
+    >>> ds = open_dataset("runs/quick")                      # doctest: +SKIP
+    >>> s = ds["0015_G1_T1"]                                 # doctest: +SKIP
+    >>> s.image, s.truth["true_distance_m"], s.outline       # doctest: +SKIP
+    """
     """A rendered dataset (the ``-o`` directory of ``edgetruth render``)."""
     return Dataset(path)
 

@@ -39,9 +39,11 @@ from edgetruth.render.schema import REQUIRED, Key, _is_num, parse_table
 from edgetruth.render.sensor.linear_model import SensorModel, sensor_from_dict
 from edgetruth.render.scene.target_scene import SCENE_GROUP_KEYS, scene_from_group
 from edgetruth.render.scene.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard, SquareBoard, square_board_from_dict
+from edgetruth.render.scene.circles_grid import CirclesGrid, circles_grid_from_dict
+
 from edgetruth.render.scene.charuco import CharucoBoard, charuco_board_from_dict
 
-KINDS = ("target", "checkerboard", "squares", "charuco")
+KINDS = ("target", "checkerboard", "squares", "charuco", "circles_grid")
 SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
 MAX_SPP = 1 << 16
 MAX_IMAGES = 10_000_000
@@ -60,17 +62,18 @@ SPEC_KEYS = [
     Key("edge_spp", "int", RenderSettings.edge_spp, "samples/px", "samples per pixel near a target's outline "
         "(within the PSF, defocus and motion reach; the rest of the frame uses spp; a power of two, of four for multijitter and stratified); 0 = spp "
         "everywhere", 0, MAX_SPP),
-    Key("edge_mode", "str", RenderSettings.edge_mode, "", "the edge band: path = path-traced at edge_spp (the "
-        "reference); analytic = the board and the target's material rendered without an edge at edge_spp and "
-        "composited with the exact lens-weighted coverage (no Monte-Carlo noise from the edge; preset targets, "
-        "static camera; docs/optics.md); frame = that composite over every pixel, the board and the target's "
-        "material rendered at edge_spp on every shading_step_px-th pixel and interpolated (no full-frame "
-        "render: target images cost a fraction)", choices=("path", "analytic", "frame")),
-    Key("board_mode", "str", RenderSettings.board_mode, "", "board images (checkerboard, squares): path = the "
-        "full frame path-traced (the reference); frame = the plate's shading rendered at the board's spp on every "
-        "shading_step_px-th pixel and composited with the plate's and the squares' exact lens-weighted coverage "
-        "(no Monte-Carlo noise at edges or in the squares; flat boards, static camera; docs/optics.md)",
-        choices=("path", "frame")),
+    Key("edge_mode", "str", "frame", "", "target images: path = the frame path-traced at spp and the edge band at "
+        "edge_spp (the reference); analytic = the board and the target's material rendered without an edge at "
+        "edge_spp and composited with the exact lens-weighted coverage (no Monte-Carlo noise from the edge; preset "
+        "targets, static camera; docs/optics.md); frame = that composite over every pixel, the board and the "
+        "target's material rendered at edge_spp on every shading_step_px-th pixel and interpolated (no full-frame "
+        "render: target images cost a fraction). Not given: frame where it is valid (preset targets T1..T4, a "
+        "static camera), else path, said in one line on stderr", choices=("path", "analytic", "frame")),
+    Key("board_mode", "str", "frame", "", "board images (checkerboard, squares): path = the full frame path-traced "
+        "(the reference); frame = the plate's shading rendered at the board's spp on every shading_step_px-th pixel "
+        "and composited with the plate's and the squares' exact lens-weighted coverage (no Monte-Carlo noise at "
+        "edges or in the squares; flat boards, static camera; docs/optics.md). Not given: frame where it is valid, "
+        "else path, said in one line on stderr", choices=("path", "frame")),
     Key("shading_step_px", "int", RenderSettings.shading_step_px, "px", "edge_mode = \"frame\" and board_mode = "
         "\"frame\": the spacing of the shading grid's nodes", 2, 256),
     Key("checkerboard_spp", "int", 0, "samples/px", "samples per pixel of the checkerboard images (their corners "
@@ -83,13 +86,17 @@ SPEC_KEYS = [
     Key("squares", "table", {}, "", "the board of dark squares of kind = \"squares\" groups {model, "
         "model_unit_m | rows, cols, side_m, pitch_m; margin_m, plate_size_m, square_reflectance, "
         "board_reflectance}"),
+    Key("circles_grid", "table", {}, "", "the circle grid of kind = \"circles_grid\" groups {cols, rows, spacing_m, "
+        "diameter_m, asymmetric, margin_m}: dark circles on a white plate in OpenCV's findCirclesGrid layout "
+        "(edgetruth.render.scene.circles_grid)"),
     Key("charuco", "table", {}, "", "the ChArUco board of kind = \"charuco\" groups {cols, rows, square_m, "
         "marker_m, dictionary, legacy, margin_m, square_reflectance, board_reflectance} (OpenCV's CharucoBoard)"),
 ]
 GROUP_KEYS = [
     Key("name", "name", REQUIRED, "", "group name (unique in the spec; part of every image name)"),
     Key("kind", "str", "target", "", "what the images show: a target on a board, a checkerboard, a board "
-        "of dark squares ([spec] squares) or a ChArUco board ([spec] charuco)", choices=KINDS),
+        "of dark squares ([spec] squares), a ChArUco board ([spec] charuco) or a circle grid ([spec] circles_grid)",
+        choices=KINDS),
     Key("target", "str", "T1", "", "target id (kind = target)", choices=tuple(TARGETS)),
     Key("count", "int", 1, "images", "images over distance_range_cm (one per equal sub-interval)", 1, MAX_IMAGES),
     Key("distance_range_cm", "range2", (150.0, 150.0), "cm", "[near, far] distance of the board centre", 1.0, 1e5),
@@ -107,7 +114,9 @@ GROUP_KEYS = [
     Key("poses", "tables", None, "", "explicit poses [{R = [[r11, r12, r13], [...], [...]], t = [tx, ty, tz]}, "
         "...]: one image per pose, instead of count, distances, lateral_fraction, tilts and roll; "
         "X_cam = R X_board + t (OpenCV camera frame); the board frame: kind squares: the model's frame "
-        "([spec] squares), kind charuco: OpenCV's board frame (origin at its top-left outer corner), else centred on the board (x right, y down, z into it); R must be a rotation "
+        "([spec] squares), kind charuco: OpenCV's board frame (origin at its top-left outer corner), kind "
+        "circles_grid: the frame of OpenCV's object points (circle 0 at its origin), else centred on the board "
+        "(x right, y down, z into it); R must be a rotation "
         f"(R^T R = I within {ROTATION_TOLERANCE:g}, det +1; the nearest rotation is used); t in pose_unit_m"),
     Key("pose_unit_m", "float", 1.0, "m", "unit of the explicit poses' t (1: metres; 0.0254: inches)", 1e-9, 1e3),
     Key("board_bend_mm", "floats", None, "mm", "kind = squares or checkerboard: the board curled, its height "
@@ -301,7 +310,25 @@ class Jobs:
 
 @dataclass(frozen=True)
 class Spec:
-    """A parsed, validated spec."""
+    """A parsed, validated render spec (``load_spec``): what every image of a dataset is made from.
+
+    Attributes
+    ----------
+    name : str
+        The spec's name; it seeds every random draw, so two specs of different names share no seed.
+    description : str
+        Free text from ``[spec] description``.
+    path : pathlib.Path or None
+        The TOML file it was read from.
+    camera : edgetruth.render.optics.camera.Camera
+        The spec's camera (binned by ``camera_scale``); groups may override per-group keys.
+    groups : tuple
+        The ``[[group]]`` tables (and a ``[design]``'s cells), each a run of consecutive images.
+    n_images : int
+        How many images the spec makes.
+    jobs : sequence of Job
+        ``spec.jobs[i]`` is image i: its name, group, kind, seeds, distance (cm), pose draw, camera, sensor.
+    """
 
     name: str
     description: str
@@ -316,15 +343,18 @@ class Spec:
     groups: tuple
     text_sha256: str = ""
     squares: SquareBoard | None = None
+    circles_grid: CirclesGrid | None = None
     charuco: CharucoBoard | None = None
 
     @property
     def n_images(self) -> int:
+        """How many images the spec makes (every group's and design cell's)."""
         g = self.groups[-1]
         return g.first_index + g.count
 
     @property
     def jobs(self) -> Jobs:
+        """``spec.jobs[i]``: image i's ``Job`` (name, group, kind, seeds, distance in cm, camera, sensor), made on demand."""
         return Jobs(self)
 
     def group(self, name: str) -> Group:
@@ -360,6 +390,8 @@ class Spec:
                "checkerboard": asdict(self.checkerboard), "sensor": self.sensor.identity(), "groups": groups}
         if any(g.kind == "squares" for g in self.groups):
             out["squares"] = self.squares.resolved()
+        if any(g.kind == "circles_grid" for g in self.groups):
+            out["circles_grid"] = self.circles_grid.resolved()
         if any(g.kind == "charuco" for g in self.groups):
             out["charuco"] = self.charuco.resolved()
         return out
@@ -511,6 +543,8 @@ def _check_explicit_poses(poses: tuple, g: dict, spec_parts: dict, camera: Camer
             pts = spec_parts["charuco"].squares.plate_corners_local()
         elif g["kind"] == "checkerboard":
             pts = spec_parts["checkerboard"].plate_corners_local()
+        elif g["kind"] == "circles_grid":
+            pts = spec_parts["circles_grid"].plate_corners_local()
         else:
             pts = view_outline_local(spec_parts["scene"] or g["target"], spec_parts["target_size_m"])
         cam_pts = pose.to_camera(pts)
@@ -550,8 +584,91 @@ def _check_sample_counts(s: dict, where: str) -> None:
                              "renders byte-identical whatever the number of threads and workers")
 
 
+def _edge_frame_obstacle(groups) -> tuple[str, str] | None:
+    """(group name, why) where ``edge_mode = "frame"`` (or "analytic") cannot render a group's target images, or
+    None: their scope is ``edgetruth.render.scene.edge_band.band_coverage``'s, the preset targets T1..T4 and a
+    static camera."""
+    for g in groups:
+        if g.kind == "target" and (g.camera.moving or not isinstance(g.target, str)):
+            return g.name, ("its camera moves" if g.camera.moving else
+                            "it has a scene of its own (shapes, a target_material or a texture)")
+    return None
+
+
+#: the board kinds ``board_mode = "frame"`` composites (boards of dark squares: ``render.scene.board_frame``)
+BOARD_FRAME_KINDS = ("checkerboard", "squares", "charuco", "circles_grid")
+
+
+def _board_frame_obstacle(groups) -> tuple[str, str] | None:
+    """(group name, why) where ``board_mode = "frame"`` (``edgetruth.render.scene.board_frame``: flat boards of
+    dark squares, a static camera) cannot render a group's boards, or None."""
+    for g in groups:
+        if g.kind != "target" and (g.camera.moving or g.board_bend_mm is not None or g.kind not in BOARD_FRAME_KINDS):
+            return g.name, ("its camera moves" if g.camera.moving else "its board is curled"
+                            if g.board_bend_mm is not None else f"it shows a {g.kind} board")
+    return None
+
+
+#: (spec path, text SHA-256) whose fall-back to "path" this process has said: once per spec, not per image
+_FALLBACK_SAID: set = set()
+
+
+def _resolve_modes(s: dict, given: dict, groups, src: str, text_sha256: str) -> None:
+    """Set ``s["edge_mode"]`` and ``s["board_mode"]``.  A mode the spec names renders as named (one outside its
+    scope is refused); a mode it does not name is "frame" where that is valid for every group it applies to,
+    "path" where no group is of its kind (so the spec's identity is the one it always had), and otherwise "path",
+    said in one line on stderr (``console.warn``)."""
+    fallback = []
+    edge, board = _edge_frame_obstacle(groups), _board_frame_obstacle(groups)
+    if "edge_mode" in given:
+        if s["edge_mode"] in ("analytic", "frame") and edge:
+            raise InputError(f"{src} group {edge[0]!r}: edge_mode = \"{s['edge_mode']}\" covers the preset targets "
+                             f"T1..T4 as shipped and a static camera, and {edge[1]}; set edge_mode = \"path\" "
+                             "for this spec")
+    elif not any(g.kind == "target" for g in groups) or edge:
+        s["edge_mode"] = "path"
+        if edge:
+            fallback.append(f"edge_mode = \"path\" (group {edge[0]!r}: {edge[1]}; \"frame\" takes the preset "
+                            "targets T1..T4 and a static camera)")
+    if "board_mode" in given:
+        if s["board_mode"] == "frame" and board:
+            raise InputError(f"{src} group {board[0]!r}: board_mode = \"frame\" renders flat boards of squares seen "
+                             f"by a static camera, and {board[1]}; set board_mode = \"path\" for this spec")
+    elif all(g.kind == "target" for g in groups) or board:
+        s["board_mode"] = "path"
+        if board:
+            fallback.append(f"board_mode = \"path\" (group {board[0]!r}: {board[1]}; \"frame\" takes flat boards "
+                            "and a static camera)")
+    said = (src, text_sha256)
+    if fallback and said not in _FALLBACK_SAID:
+        from edgetruth import console
+
+        _FALLBACK_SAID.add(said)
+        console.warn(f"{src}: renders with {' and '.join(fallback)}: the Monte-Carlo reference, not the noise-free "
+                     "composite; name the mode in [spec] to silence this (docs/spec.md)")
+
 def load_spec(name_or_path: str | Path) -> Spec:
-    """Parse and validate a spec (a shipped name or a TOML path) into a ``Spec``, in one pass."""
+    """Parse and validate a render spec in one pass.
+
+    Every key is checked against the loader's key tables (docs/spec.md is generated from them).
+
+    Parameters
+    ----------
+    name_or_path : str or pathlib.Path
+        A shipped spec's name (``"quick"``, ``"study"``, ``"calibration"``, ...; ``edgetruth render --help``
+        lists them) or a path to a TOML file; a camera it names by a relative path is read from the
+        spec's folder.
+
+    Returns
+    -------
+    Spec
+        The typed spec; ``spec.jobs[i]`` is image i.
+
+    Raises
+    ------
+    edgetruth.errors.InputError
+        A missing file, an unknown table or key, or a bad value: one line naming the key and the fix.
+    """
     path = resolve_spec_path(name_or_path)
     data = read_toml(path)
     src = str(path)
@@ -566,6 +683,7 @@ def load_spec(name_or_path: str | Path) -> Spec:
     check_value(SPEC_KEYS[0], name, f"{src} [spec] (default name from the file name)")
     board = Checkerboard(**parse_table(s["checkerboard"], CHECKERBOARD_KEYS, f"{src} [spec] checkerboard"))
     squares = square_board_from_dict(s["squares"], path.parent, f"{src} [spec] squares")
+    circles = circles_grid_from_dict(s["circles_grid"], f"{src} [spec] circles_grid")
     try:
         base_camera = load_camera(s["camera"], base_dir=path.parent)
     except InputError as exc:
@@ -599,6 +717,9 @@ def load_spec(name_or_path: str | Path) -> Spec:
         names.add(g["name"])
         if g["kind"] != "target" and "target" in raw:
             raise InputError(f"{where}: target = {raw['target']!r}: a {g['kind']} group has no target; remove it")
+        if g["kind"] == "circles_grid" and g.get("board_bend_mm") is not None:
+            raise InputError(f"{where}: board_bend_mm: a circle grid renders flat (its circles' truth is planar); "
+                             "bend a squares or checkerboard group, or remove it")
         if g["kind"] == "target" and g.get("board_bend_mm") is not None:
             raise InputError(f"{where}: board_bend_mm: a target scene's board is flat (its edge band and "
                              "shadows are planar); bend a squares or checkerboard group, or remove it")
@@ -632,7 +753,10 @@ def load_spec(name_or_path: str | Path) -> Spec:
                 poses = tuple(p.moved_origin(squares.centre_model_m) for p in poses)
             elif g["kind"] == "charuco":  # OpenCV's board frame -> the rendering's (centred on the squares)
                 poses = tuple(p.moved_origin(charuco.squares.centre_model_m) for p in poses)
+            elif g["kind"] == "circles_grid":  # the object points' frame -> the board frame (centred on the circles)
+                poses = tuple(p.moved_origin(circles.centre_model_m) for p in poses)
             _check_explicit_poses(poses, g, {"squares": squares, "charuco": charuco, "checkerboard": board,
+                                             "circles_grid": circles,
                                              "scene": scene,
                                              "target_size_m": s["target_size_m"]}, camera, where)
         light = None if "light_position_m" not in raw else tuple(g["light_position_m"])
@@ -661,19 +785,8 @@ def load_spec(name_or_path: str | Path) -> Spec:
                             board_bend_mm=g.get("board_bend_mm")))
         first += n
     _check_sample_counts(s, f"{src} [spec]")
-    if s["edge_mode"] in ("analytic", "frame"):  # edgetruth.render.scene.edge_band.band_coverage's scope
-        for g in groups:
-            if g.kind == "target" and (g.camera.moving or not isinstance(g.target, str)):
-                why = ("its camera moves" if g.camera.moving else
-                       "it has a scene of its own (shapes, a target_material or a texture)")
-                raise InputError(f"{src} group {g.name!r}: edge_mode = \"{s['edge_mode']}\" covers the preset targets "
-                                 f"T1..T4 as shipped and a static camera, and {why}; set edge_mode = \"path\" "
-                                 "for this spec")
-    if s["board_mode"] == "frame":  # edgetruth.render.scene.board_frame's scope
-        for g in groups:
-            if g.kind != "target" and (g.camera.moving or g.board_bend_mm is not None):
-                raise InputError(f"{src} group {g.name!r}: board_mode = \"frame\" renders flat boards seen by a "
-                                 "static camera; set board_mode = \"path\" for a curled board or a moving camera")
+    text_sha256 = hashlib.sha256(path.read_bytes()).hexdigest()
+    _resolve_modes(s, data.get("spec", {}), groups, src, text_sha256)
     return Spec(name=name, description=s["description"], path=path, camera=base_camera, camera_ref=s["camera"],
                 camera_scale=s["camera_scale"], render=RenderSettings(spp=s["spp"], sampler=s["sampler"],
                                                                          edge_spp=s["edge_spp"],
@@ -682,5 +795,4 @@ def load_spec(name_or_path: str | Path) -> Spec:
                                                                          shading_step_px=s["shading_step_px"],
                                                                          board_mode=s["board_mode"]),
                 target_size_m=s["target_size_m"], checkerboard=board, sensor=base_sensor, groups=tuple(groups),
-                text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(), squares=squares,
-                charuco=charuco)
+                text_sha256=text_sha256, squares=squares, circles_grid=circles, charuco=charuco)

@@ -8,6 +8,7 @@ from edgetruth.render.optics.camera import CAMERA_KEYS, DISTORTION_KEYS
 from edgetruth.render.schema import REQUIRED, Key
 from edgetruth.render.sensor.linear_model import SENSOR_KEYS
 from edgetruth.render.dataset.spec import DESIGN_KEYS, FACTOR_KEYS, GROUP_KEYS, LEVEL_KEYS, SPEC_KEYS
+from edgetruth.render.scene.circles_grid import CIRCLES_GRID_KEYS
 from edgetruth.render.scene.charuco import CHARUCO_KEYS
 from edgetruth.render.scene.targets import CHECKERBOARD_KEYS, SQUARES_KEYS, TARGETS
 
@@ -47,6 +48,19 @@ distance_range_cm = [55, 110]
 count = 15
 tilt_max_deg = 35
 ```
+
+**Render modes when a spec names none.** Target images render with `edge_mode = "frame"` (every pixel
+composited from the exact lens-weighted coverage of the outline and the shading rendered on a grid: no
+Monte-Carlo noise at the edges, and no full-frame render) wherever it is valid: every target group a preset
+target (T1..T4) seen by a static camera.  Board images (checkerboard, squares) render with `board_mode = "frame"`
+wherever every board group is flat and seen by a static camera.  A spec outside that scope -- a target group
+with a scene of its own (shapes, materials, lights, clutter), a moving camera, a curled board -- renders that
+kind with `"path"`, the path tracer, and says so in one line on stderr (once per spec) naming the group, the
+reason and how to silence it.  A spec that names a mode renders with it (`"path"` is the Monte-Carlo reference;
+a named `"frame"` outside its scope is refused), and a mode no image of the spec uses stays `"path"`, so the
+spec's identity is unchanged.  Every shipped spec names the modes its images use.  Each image's JSON records
+the mode that made it (docs/formats.md, `render`).  docs/optics.md has the composites' checks against the
+path tracer.
 
 Units are in the key names or the tables below; lengths are metres unless a name says
 otherwise; image coordinates follow OpenCV (pixel centres at integers).
@@ -174,6 +188,18 @@ def spec_markdown() -> str:
              "place the centre of the squares' bounding box.  The ground truth lists every square's corners "
              "(model order) and its exact distorted outline (docs/formats.md).", "",
              table(SQUARES_KEYS), "",
+             "### `[spec] circles_grid = {...}`", "",
+             "The board of `kind = \"circles_grid\"` groups: dark circles (black matte, 0.04) printed flush on a "
+             "white plate, in OpenCV's `cv2.findCirclesGrid` layout: `cols` circles in each of `rows` rows "
+             "(its patternSize), symmetric (circle (row i, column j) at (j s, i s)) or asymmetric (at "
+             "((2 j + i % 2) s, i s), OpenCV's calibration sample: s is the row spacing and half the distance "
+             "between neighbours in a row), s = `spacing_m`.  Explicit poses map the object points' frame "
+             "(circle 0 at the origin); sampled poses place the centre of the circles' bounding box.  "
+             "`board_mode = \"frame\"` covers each circle's exact outline; `\"path\"` path-traces each as a "
+             "258-gon of its area (within 1e-4 of its radius).  The truth gives per circle the image of its "
+             "centre, its pinhole image ellipse's centre (the perspective bias) and its exact distorted outline "
+             "(docs/formats.md, docs/patterns.md).", "",
+             table(CIRCLES_GRID_KEYS), "",
              "### `[spec] charuco = {...}`", "",
              "The board of `kind = \"charuco\"` groups: OpenCV's ChArUco board, "
              "`cv2.aruco.CharucoBoard((cols, rows), square_m, marker_m, cv2.aruco.getPredefinedDictionary("

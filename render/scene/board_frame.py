@@ -1,6 +1,7 @@
 """A board image without Monte-Carlo edges: ``board_mode = "frame"``.
 
-A board image (kind ``checkerboard`` or ``squares``) is a white plate with dark squares printed on it
+A board image (kind ``checkerboard``, ``squares`` or ``circles_grid``) is a white plate with dark squares (or
+circles: their exact outlines, ``circles_grid.CirclesGrid.dark_curves``) printed on it
 (10 µm in front of it), both diffuse, lit by one small area light, in a black room.  A diffuse surface's
 radiance is its reflectance times the irradiance it gets over π, so the squares' radiance is the
 plate's times ρ_s / ρ_b where they lie, and every pixel is
@@ -138,6 +139,20 @@ def _box(points_px: np.ndarray, pad: float, frame) -> tuple[int, int, int, int] 
     return (x0, y0, x1, y1) if x1 > x0 and y1 > y0 else None
 
 
+def _dark_outlines(camera, pose, board):
+    """(curve, points (n, 2) px whose box bounds it) per dark print: a square's polygon and its projected corners;
+    a circle grid's exact circles (``dark_curves``) and their polylines."""
+    from edgetruth.render.scene.outline import OutlineCurve
+    from edgetruth.render.scene.shapes import TARGET_STANDOFF_M
+
+    if hasattr(board, "dark_curves"):
+        for curve in board.dark_curves(camera, pose, -TARGET_STANDOFF_M):
+            yield curve, curve.polyline()
+        return
+    for quad in board.black_quads_local(-TARGET_STANDOFF_M):
+        yield OutlineCurve.polygon(camera, pose, quad), camera.project(pose.to_camera(quad))
+
+
 def render_board_frame(camera, settings, board, pose, frame: tuple[int, int, int, int], seed: int,
                        irradiance_w_m2: float, light_position_m=None) -> tuple[np.ndarray, dict]:
     """The radiance (h, w) float32 of ``frame`` = (x0, y0, w, h) of ``board`` (a flat ``Checkerboard`` or
@@ -149,7 +164,6 @@ def render_board_frame(camera, settings, board, pose, frame: tuple[int, int, int
     from edgetruth.render.scene.outline import OutlineCurve
     from edgetruth.render.scene.shading_frame import SHADING_STEP_PX, _render_grid, axis_nodes, interpolate, \
         nodes_for
-    from edgetruth.render.scene.shapes import TARGET_STANDOFF_M
 
     if camera.moving:
         raise ValueError("board_mode = 'frame' needs a static camera (a moving outline sweeps); use 'path'")
@@ -182,9 +196,8 @@ def render_board_frame(camera, settings, board, pose, frame: tuple[int, int, int
     rho_s, rho_b = reflectances(board)
     dark = 1.0 - rho_s / rho_b
     n_sq = 0
-    for quad in board.black_quads_local(-TARGET_STANDOFF_M):
-        curve = OutlineCurve.polygon(camera, pose, quad)
-        sb = _box(camera.project(pose.to_camera(quad)), reach + 2.0, (bx0, by0, w, h))
+    for curve, extent_px in _dark_outlines(camera, pose, board):
+        sb = _box(extent_px, reach + 2.0, (bx0, by0, w, h))
         if sb is None:
             continue
         sx0, sy0, sx1, sy1 = sb

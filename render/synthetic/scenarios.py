@@ -32,13 +32,39 @@ DEFAULT_SHAPE = (64, 64)
 
 @dataclass
 class SyntheticImage:
+    """An analytic edge image with its exact truth (``synthetic_image``).
+
+    Attributes
+    ----------
+    image : numpy.ndarray
+        float64 (H, W) gray levels: exact pixel means of the blurred step (plus slope or texture), then noise.
+    truth : StraightEdge or CircleEdge
+        The true edge: ``signed_distance(x, y)`` in px along the true normal, > 0 on the bright side.
+    scenario : str
+        ``"ideal"``, ``"slope"``, ``"texture"`` or ``"asymmetric"``.
+    params : dict
+        The drawn parameters: ``blur_px``, ``A``, ``B`` (gray levels), ``noise_rel`` (noise SD / B),
+        ``s_dark``, ``s_bright`` (px), ``kind``, ``split``, ``index`` and the scenario's own.
+    """
+
     image: np.ndarray  # float64 (H, W), gray levels
     truth: object  # StraightEdge | CircleEdge
     scenario: str
     params: dict = field(default_factory=dict)
 
     def errors(self, x, y) -> np.ndarray:
-        """Signed distance (px) of points (x, y) to the true edge, along the true normal."""
+        """Signed distance of points to the true edge, along the true normal: each point's error.
+
+        Parameters
+        ----------
+        x, y : array_like
+            Points, px, OpenCV convention.
+
+        Returns
+        -------
+        numpy.ndarray
+            px, > 0 on the bright side.
+        """
         return self.truth.signed_distance(x, y)
 
 
@@ -82,8 +108,32 @@ def random_edge(rng: np.random.Generator, shape, kind: str):
 
 def synthetic_image(scenario: str, index: int, split: str = "test", shape=DEFAULT_SHAPE,
                     kind: str | None = None, **overrides) -> SyntheticImage:
-    """Image ``index`` of ``scenario`` in ``split``; ``overrides`` fix any drawn parameter
-    (blur_px, A, B, noise_rel, ...).  ``kind`` None alternates line/circle with the index."""
+    """Image ``index`` of a synthetic scenario: an analytic edge integrated exactly over each pixel, with noise.
+
+    Images are pure functions of (split, scenario, index); the splits never share a random stream. Drawn:
+    blur U(0.5, 2) px, background A U(20, 60), contrast B U(60, 180) gray levels, noise SD / B U(0.005, 0.03),
+    and the edge's position and angle (a line) or centre and radius (a circle).
+
+    Parameters
+    ----------
+    scenario : str
+        ``"ideal"``, ``"slope"``, ``"texture"`` or ``"asymmetric"``.
+    index : int
+        The image's index in its split.
+    split : str, optional
+        ``"test"`` (default), ``"calibration"``, ``"bench"`` or ``"unit"``.
+    shape : tuple of int, optional
+        (H, W) in px (default 64 x 64).
+    kind : str, optional
+        ``"line"`` or ``"circle"``; default: a line at even indices, a circle at odd ones.
+    **overrides
+        Fix any drawn parameter (``blur_px``, ``A``, ``B``, ``noise_rel``, ...; ``edge`` an edge object).
+
+    Returns
+    -------
+    SyntheticImage
+        ``image`` (float64 gray levels), ``truth`` (the exact edge), ``scenario`` and ``params``.
+    """
     rng = np.random.default_rng(seed_sequence(split, scenario, index))
     kind = kind or ("line" if index % 2 == 0 else "circle")
     edge = overrides.pop("edge", None) or random_edge(rng, shape, kind)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -67,7 +68,26 @@ def test_unknown_revision_is_a_one_line_input_error(capsys, tmp_path, monkeypatc
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--against no-such-rev-19" in err
     assert list(tmp_path.iterdir()) == []  # no temporary folder left behind
-    assert main(["bench", "--only", "run"]) == 2  # the main job is timed against a baseline only
+
+
+def test_only_run_times_both_main_jobs_cold_against_their_goals(monkeypatch, capsys):
+    """``bench --only run`` without --against (issue 49: it used to refuse): ``make run`` and the full study, each
+    from a fresh copy of the tree, with --limit/--skip-synthetic passed on, and a line per job with its goal."""
+    from edgetruth.cli.commands import bench_run
+
+    calls = []
+
+    def fake_job(tree, scratch, run_args, study="quick"):
+        calls.append((Path(tree).name, study, list(run_args)))
+        assert (Path(tree) / "pyproject.toml").is_file() and not list(Path(tree).rglob("__pycache__"))
+        return {"total_s": 1.0, "render_s": 0.5, "wall_s": 1.5}
+
+    monkeypatch.setattr(bench_run, "main_job_once", fake_job)
+    assert main(["bench", "--only", "run", "--limit", "1", "--skip-synthetic"]) == 0
+    assert calls == [("working", "quick", ["--limit", "1", "--skip-synthetic"]),
+                     ("working", "full", ["--limit", "1", "--skip-synthetic"])]
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 2 and "goal <= 60 s" in out[0] and "goal <= 180 s" in out[1] and "render_s 0.5" in out[0]
 
 
 @pytest.mark.slow

@@ -26,10 +26,9 @@ def test_edge_mode_frame_names_why_a_group_is_out_of_its_scope(tmp_path):
     "covers preset targets (T1..T4)" to a user whose group names T2."""
     from edgetruth.render.dataset.spec import load_spec
 
-    spec = write_tiny_spec(tmp_path)
-    text = spec.read_text().replace('target = "T2"\n', 'target = "T2"\ntarget_material = { type = "diffuse", '
-                                                      'albedo = 0.1 }\n', 1)
-    spec.write_text(text.replace('sampler = "multijitter"', 'sampler = "multijitter"\nedge_mode = "frame"'))
+    spec = write_tiny_spec(tmp_path, modes='edge_mode = "frame"\n')
+    spec.write_text(spec.read_text().replace('target = "T2"\n', 'target = "T2"\ntarget_material = { type = '
+                                                                '"diffuse", albedo = 0.1 }\n', 1))
     with pytest.raises(InputError, match=r"group 'T2': edge_mode = \"frame\" covers the preset targets T1..T4 as "
                                          r"shipped and a static camera, and it has a scene of its own \(shapes, "
                                          r"a target_material or a texture\)"):

@@ -80,6 +80,7 @@ camera = "default"
 camera_scale = 4
 spp = 4
 edge_spp = 16
+edge_mode = "path"
 
 [[group]]
 name = "T1"

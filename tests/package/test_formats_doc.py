@@ -62,6 +62,7 @@ name = "tinyscene"
 camera = "{camera}"
 spp = 4
 edge_spp = 16
+edge_mode = "path"
 
 [[group]]
 name = "own"

@@ -18,6 +18,8 @@ GROUP_SPEC = """
 [spec]
 name = "x"
 camera_scale = 16
+edge_mode = "path"
+board_mode = "path"
 [[group]]
 name = "g"
 {extra}

@@ -29,8 +29,9 @@ def test_shipped_twins_are_the_packaged_derivation(tool):
     extra = [ln for ln in bent.splitlines() if ln not in flat.splitlines()]
     assert sum(ln.startswith("board_bend_mm = ") for ln in extra) == 13
     assert {ln.split(" =")[0] for ln in extra if not ln.startswith("#")} == {
-        "board_bend_mm", "name", "description", "k0_dn_per_e", "dark_noise_e", "irradiance_w_m2"}
-    assert 'board_mode = "frame"' in flat and "board_mode" not in bent.replace('(board_mode = "frame" takes', "")
+        "board_bend_mm", "name", "description", "k0_dn_per_e", "dark_noise_e", "irradiance_w_m2", "board_mode"}
+    assert 'board_mode = "frame"' in flat and 'board_mode = "frame"' not in bent.replace('(board_mode = "frame" takes', "")
+    assert 'board_mode = "path"' in bent  # named: a curled board is outside the composite's scope
 
 
 def test_bent_twin_is_what_calibrate_measures(tmp_path):

@@ -110,7 +110,7 @@ def _board_mode(bend: bool) -> str:
     """The spec's ``board_mode`` line(s): a flat board's composite (no Monte-Carlo noise: the darks' noise is the
     photos' alone), a curled board's path-traced frame."""
     if bend:
-        return "# a curled board renders path-traced (board_mode = \"frame\" takes flat boards)\n"
+        return "board_mode = \"path\"       # a curled board renders path-traced (board_mode = \"frame\" takes flat boards)\n"
     return ("board_mode = \"frame\"      # the plate's shading on a grid, the squares' coverage exact: no Monte-Carlo "
             "noise\n                          # at the edges or in the squares (docs/optics.md)\n")
 

@@ -30,3 +30,30 @@ def test_sony_hx5v_board_is_found_with_all_its_dark_squares(photo):
     view = find_squares(img, model)
     assert view is not None and len(model) == 8
     assert view.squares.found.all()  # every dark square, none cut by the border
+
+
+def test_sony_hx5v_circles_is_boofcvs_10x8_circle_grid_and_plain_opencv_calibrates_it():
+    """Plain OpenCV on the shipped circle-grid set (assets/real/README.md): the grid found in 4 of 6 photos and
+    its calibration as stated there (3 digits)."""
+    import cv2
+    import numpy as np
+
+    folder = real_set("sony_hx5v_circles")
+    assert "Attribution 4.0 International" in (folder / "LICENSE-BoofCV-Data").read_text()
+    assert "CC by 4.0" in (folder / "README-BoofCV-Data.TXT").read_text()
+    assert "CIRCLE_GRID" in (folder / "calibration_target.yaml").read_text()
+    grid = np.zeros((80, 3), np.float32)
+    grid[:, :2] = np.mgrid[0:10, 0:8].T.reshape(-1, 2) * 0.025
+    found, obj, img = [], [], []
+    for k in range(6):
+        gray = cv2.imread(str(folder / f"image{k:05d}.jpg"), cv2.IMREAD_GRAYSCALE)
+        ok, centres = cv2.findCirclesGrid(gray, (10, 8), flags=cv2.CALIB_CB_SYMMETRIC_GRID)
+        if ok:
+            found.append(k)
+            obj.append(grid)
+            img.append(centres)
+    assert found == [1, 2, 3, 5]
+    rms, k_mat, dist, _, _ = cv2.calibrateCamera(obj, img, (640, 480), None, None)
+    assert rms == pytest.approx(0.450, abs=5e-4)
+    np.testing.assert_allclose([k_mat[0, 0], k_mat[1, 1], k_mat[0, 2], k_mat[1, 2]],
+                               [454.10, 451.93, 322.47, 242.45], atol=0.01)

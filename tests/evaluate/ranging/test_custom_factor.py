@@ -16,6 +16,8 @@ name = "fsweep"
 camera = "{camera}"
 spp = 4
 edge_spp = 64
+edge_mode = "path"
+board_mode = "path"
 sampler = "multijitter"
 
 [design]

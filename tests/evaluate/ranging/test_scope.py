@@ -50,6 +50,8 @@ camera = "mid.toml"
 spp = 16
 edge_spp = 64
 checkerboard_spp = 16
+edge_mode = "path"
+board_mode = "path"
 checkerboard = { cols = 8, rows = 6, square_m = 0.03, margin_m = 0.02 }
 
 [[group]]

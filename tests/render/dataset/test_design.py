@@ -14,6 +14,8 @@ name = "paired"
 camera = "cam.toml"
 spp = 4
 edge_spp = 16             # the band around the targets is part of a unit's radiance
+edge_mode = "path"
+board_mode = "path"
 
 [design]
 mode = "{mode}"

@@ -180,6 +180,7 @@ name = "curl"
 camera = "default"
 camera_scale = 8
 spp = 4
+board_mode = "path"
 squares = { rows = 3, cols = 4, side_m = 0.02, pitch_m = 0.03 }
 
 [[group]]
@@ -242,6 +243,7 @@ name = "curl_sweep"
 camera = "default"
 camera_scale = 8
 spp = 4
+board_mode = "path"
 
 [design]
 kind = "checkerboard"

@@ -173,7 +173,7 @@ def test_board_mode_in_a_spec(tmp_path, fast_variant):
     # the target images render as before
     np.testing.assert_array_equal(render_job(frame, frame.jobs[0])[0], render_job(reference, reference.jobs[0])[0])
     # a curled board is not flat: refused, named
-    path.write_text(text.replace("sampler = ", 'board_mode = "frame"\nsampler = ', 1).replace(
+    path.write_text(text.replace('board_mode = "path"', 'board_mode = "frame"', 1).replace(
         'kind = "checkerboard"', 'kind = "checkerboard"\nboard_bend_mm = [1.0, 0.0, 0.5]', 1))
     with pytest.raises(InputError, match="board_mode"):
         load_spec(path)

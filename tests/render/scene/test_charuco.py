@@ -5,7 +5,8 @@ Without Mitsuba: the board's layout and bitmaps are OpenCV's (its object points 
 tables are refused.  Against Mitsuba (llvm): OpenCV's ``CharucoDetector`` finds every marker id and every
 ChArUco corner of the renders, its corners within its own error of the truth (measured here, 400 x 320 px,
 squares ~30 px, 16 spp: ChArUco corners 0.05-0.12 px RMS; marker corners 0.7 px RMS, ~0.55 px inside the
-marker: its contour corners sit inside the dark region).
+marker: its contour corners sit inside the dark region); the rendered square and marker sides lie on their exact
+distorted outline within 0.01 px.
 """
 from __future__ import annotations
 
@@ -35,6 +36,7 @@ SPEC = """[spec]
 name = "charuco_tiny"
 camera = "cam.toml"
 spp = 16
+board_mode = "path"
 sampler = "multijitter"
 charuco = {{ cols = 5, rows = 7, square_m = 0.04, marker_m = 0.03, dictionary = "DICT_4X4_50" {extra}}}
 
@@ -163,3 +165,54 @@ def test_opencv_finds_every_marker_and_corner(renders):
               f"{np.sqrt(np.mean(np.sum(e ** 2, -1))):.3f} px, outward {radial.mean():+.3f} px")
         assert rms < 0.2 and np.abs(d).max() < 0.5
         assert -1.0 < radial.mean() < -0.2 and np.sqrt(np.mean(np.sum(e ** 2, -1))) < 1.0
+
+
+# --- edges: an in-focus pinhole camera with distortion, no PSF, close up (a marker cell ~13 px) ---------------------
+EDGE_CAMERA = dict(width_px=320, height_px=240, pitch_um=15.0, focal_length_mm=8.0, f_number=0.0, focus_distance_m=0.3,
+                   distortion=(-0.08, 0.03, 2e-4, -1e-4, 0.0), diffraction_wavelength_nm=0.0, natural_vignetting=False)
+
+
+@pytest.mark.slow  # ~10 s of CPU (a 256-spp render and 34 sides measured); longer on shared cores
+def test_rendered_square_and_marker_sides_lie_on_the_exact_outline(fast_variant):
+    """Every chessboard square's and marker's outer side in view (17 + 17 here): a line fit to (measured - exact)
+    along it within 0.01 px at both ends (measured 0.003 px at worst, 256 spp), measured as
+    tests/render/scene/test_shapes_edges.py does (the bright part of each pixel column or row summed across
+    the edge: exact for box pixels without a PSF), away from every other edge (the marker's inner cells lie at
+    least one cell inside its border)."""
+    import mitsuba as mi
+
+    from edgetruth.render.optics.camera import Camera
+    from edgetruth.render.scene.mitsuba_scene import CheckerRig, RenderSettings
+    from edgetruth.render.scene.outline import OutlineCurve
+    from edgetruth.render.scene.pose import Pose
+    from tests.render.scene.test_shapes_edges import TOL_PX, measure_piece
+
+    mi.set_variant(fast_variant)
+    cam, board = Camera(**EDGE_CAMERA), CharucoBoard(marker_m=0.03)
+    pose = Pose(0.22, -0.02, 0.035, 4.0, -3.0, 2.0)
+    rig = CheckerRig(cam, RenderSettings(spp=256, sampler="multijitter"), board=board.squares)
+    rig.set_state(pose, 0.05, None)
+    img = rig.render(7).astype(np.float64)
+    squares = board.squares.black_quads_local(-TARGET_STANDOFF_M)[:len(board._layout["dark_squares"])]
+    markers = board.marker_object_points() - board.squares.centre_model_m
+    markers[..., 2] = -TARGET_STANDOFF_M
+    cell = board.marker_m / board._layout["bits"]
+    inset = markers + np.array([[cell, cell, 0], [-cell, cell, 0], [-cell, -cell, 0], [cell, -cell, 0]])
+    outer = [("square", q) for q in squares] + [("marker", q) for q in markers]
+    curves = [OutlineCurve.polygon(cam, pose, q) for _, q in outer]
+    dense = [c.points(np.linspace(0, 1, 4000)) for c in curves + [OutlineCurve.polygon(cam, pose, q) for q in inset]]
+    worst = {"square": [], "marker": []}
+    for j, ((kind, _), curve) in enumerate(zip(outer, curves)):
+        for k in range(4):
+            t0, t1 = k / 4 + 1e-6, (k + 1) / 4 - 1e-6
+            side = curve.points(np.linspace(t0, t1, 200))
+            lo, hi = side.min(0) - 15, side.max(0) + 15
+            others = [d[np.all((d >= lo) & (d <= hi), axis=1)] for i, d in enumerate(dense) if i != j]
+            rest = curve.points(np.linspace(t1 + 1e-5, t0 + 1 - 1e-5, 4000))
+            pos, r = measure_piece(img, curve, t0, t1, [o for o in others if len(o)] + [rest])
+            if len(r) >= 4:
+                b, a = np.polyfit(pos, r, 1)
+                worst[kind].append(max(abs(a - b), abs(a + b)))
+    print({k: (len(v), round(max(v), 4)) for k, v in worst.items()})
+    assert len(worst["square"]) >= 12 and len(worst["marker"]) >= 12
+    assert max(worst["square"] + worst["marker"]) <= TOL_PX

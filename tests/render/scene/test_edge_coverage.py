@@ -465,8 +465,8 @@ def test_analytic_mode_refuses_a_moving_camera(tmp_path):
     from edgetruth.render.dataset.spec import load_spec
     from edgetruth.render.testing import write_tiny_spec
 
-    path = write_tiny_spec(tmp_path)
-    text = path.read_text().replace("sampler = ", 'edge_mode = "analytic"\nsampler = ', 1)
+    path = write_tiny_spec(tmp_path, modes='edge_mode = "analytic"\n')
+    text = path.read_text()
     path.write_text(text.replace('irradiance_w_m2 = 0.0044\n', 'irradiance_w_m2 = 0.0044\ncamera = { velocity_m_s = '
                                  '[0.1, 0.0, 0.0] }\n', 1))
     with pytest.raises(InputError, match="edge_mode"):

@@ -161,6 +161,56 @@ def test_frame_mode_through_render_job(tmp_path, fast_variant):
     assert render_job(frame, frame.jobs[2])[2]["render"]["edge_band"] is None
 
 
+
+def test_default_mode_agrees_with_the_path_tracer_on_the_edge_pixels(tmp_path, fast_variant):
+    """The benchmark's own spec (``render.bench.DEFAULT_MODE_SPEC``: T1 at 0.5, 1.5 and 2.5 m, default camera, 64
+    spp; here one image per distance and 1,024 spp at the edges) naming no edge_mode (the default: "frame") against
+    the same spec naming "path", on the same poses, a 48 x 48 crop across a side of each: on the pixels within
+    1.5 px of the outline the two differ by the path render's own Monte-Carlo noise (from two path seeds) and no
+    more, and the default's own noise there is a small part of it."""
+    from dataclasses import replace
+
+    from edgetruth.render.bench import DEFAULT_MODE_SPEC
+    from edgetruth.render.dataset.image import render_job, target_pose
+    from edgetruth.render.dataset.spec import load_spec
+    from edgetruth.render.scene.outline import OutlineCurve
+
+    specs = {}
+    for label, mode in (("default", ""), ("path", 'edge_mode = "path"')):
+        (tmp_path / label).mkdir()
+        p = tmp_path / label / "own_t1.toml"
+        p.write_text(DEFAULT_MODE_SPEC.format(mode=mode).replace("count = 3", "count = 1")
+                     .replace("edge_spp = 4096", "edge_spp = 1024"))
+        specs[label] = load_spec(p)
+    default, path = specs["default"], specs["path"]
+    assert (default.render.edge_mode, path.render.edge_mode) == ("frame", "path")
+    rms = lambda v: float(np.sqrt(np.mean(np.asarray(v, np.float64) ** 2)))  # noqa: E731
+    for index in range(3):
+        job_d, job_p = default.jobs[index], path.jobs[index]
+        assert job_d.render_seed == job_p.render_seed
+        pose = target_pose(default, job_d, job_d.camera)
+        curve = OutlineCurve(job_d.camera, pose, "square", default.target_size_m)
+        x, y = np.round(curve.points(np.array([0.375]))[0]).astype(int)
+        crop = (int(x) - 24, int(y) - 24, 48, 48)
+        rad_d, _, gt = render_job(default, job_d, crop=crop)
+        assert gt["render"]["edge_mode"] == "frame" and gt["render"]["edge_band"]["mode"] == "frame"
+        rad_d2 = render_job(default, replace(job_d, render_seed=job_d.render_seed + 1), crop=crop)[0]
+        rad_p, _, gt_p = render_job(path, job_p, crop=crop)
+        assert "edge_mode" not in gt_p["render"] and gt_p["render"]["edge_band"]["mode"] == "path"
+        assert gt_p["pose"] == gt["pose"]
+        rad_p2 = render_job(path, replace(job_p, render_seed=job_p.render_seed + 1), crop=crop)[0]
+        ys, xs = np.mgrid[crop[1]:crop[1] + 48, crop[0]:crop[0] + 48]
+        edge = np.abs(curve.signed_distance(xs.astype(float), ys.astype(float))) < 1.5
+        d = (rad_d - rad_p)[edge].astype(np.float64)
+        sp, so = ((a - b)[edge] / math.sqrt(2.0) for a, b in ((rad_p, rad_p2), (rad_d, rad_d2)))
+        print(f"{job_d.distance_cm:.0f} cm, {d.size} edge pixels: RMS(default - path) {rms(d):.3g}, path's MC "
+              f"noise {rms(sp):.3g}, default's own {rms(so):.3g}, mean difference {d.mean():.3g}")
+        assert d.size > 60
+        # the difference is the two renders' noise, E[d^2] = sigma_path^2 + sigma_own^2 (the estimates' spread allowed)
+        assert rms(d) <= 1.3 * math.sqrt(rms(sp) ** 2 + rms(so) ** 2)
+        assert abs(d.mean()) <= 4.0 * rms(sp) / math.sqrt(d.size)
+        assert rms(so) <= 0.25 * rms(sp)  # the default's edge pixels carry little Monte-Carlo noise
+
 @pytest.mark.slow
 @pytest.mark.parametrize("distance_m", [0.5, 1.5, 2.5])
 def test_frame_mode_noise_is_below_a_quarter_of_the_dark_noise(fast_variant, distance_m):

@@ -277,6 +277,7 @@ name = "boards"
 camera = "default"
 camera_scale = 8
 spp = 4
+board_mode = "path"
 squares = {{ {squares} }}
 
 [[group]]
