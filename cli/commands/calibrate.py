@@ -155,7 +155,7 @@ def run(args: argparse.Namespace) -> int:
     from edgetruth.evaluate.calibration import calibrate_photos, find_photos, parse_pattern
     from edgetruth.fileio import check_output_file, write_json
 
-    from edgetruth.evaluate.board.pattern import parse_board_pattern
+    from edgetruth.evaluate.pattern import parse_board_pattern
 
     board_pattern = parse_board_pattern(args.pattern, kinds=("chessboard", "charuco"))
     square_m = parse_square_m(args.square_m)
