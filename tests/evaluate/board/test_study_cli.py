@@ -89,7 +89,7 @@ def test_files_figures_and_report(zhang_run):
 
 def test_the_report_says_how_far_the_photos_are_from_the_locators_model(zhang_run):
     """A finding on real data, pinned as measured (2026-12-02): patch_psf_fit's residual is 1.28-2.01x the photos'
-    flat-region noise (1 where its blurred-step model holds: tests/evaluate/board/test_locator_fit.py), and it is
+    flat-region noise (1 where its blurred-step model holds: tests/evaluate/board/tone/test_locator_fit.py), and it is
     not the straightest method (Canny-Devernay 0.048 px, it 0.052 px)."""
     _, out = zhang_run
     loc = json.loads((out / "locator.json").read_text())
@@ -221,7 +221,7 @@ def test_an_overlay_per_photo_linked_from_the_squares_table(zhang_run):
     are the detected quads (the drawn pixels lie on their outlines)."""
     import cv2
 
-    from edgetruth.evaluate.board.overlays import FOUND, board_overlay, overlay_name
+    from edgetruth.evaluate.board.report.overlays import FOUND, board_overlay, overlay_name
 
     _, out = zhang_run
     text = (out / "report.md").read_text()
