@@ -442,10 +442,10 @@ def use_bent_board(cal: Calibration, results: list, model: str = "quadratic") ->
 # --- real photographs ----------------------------------------------------------------------------------
 def parse_pattern(text: str, option: str = "--pattern") -> tuple[int, int]:
     """``"9x6"`` -> (9, 6): inner corners per row x per column (OpenCV's patternSize).  A circle grid or ChArUco
-    pattern (``circles:4x11:asymmetric``; ``edgetruth.evaluate.board.pattern``) is refused, saying this reads a
+    pattern (``circles:4x11:asymmetric``; ``edgetruth.evaluate.pattern``) is refused, saying this reads a
     chessboard."""
     if ":" in str(text):
-        from edgetruth.evaluate.board.pattern import parse_board_pattern
+        from edgetruth.evaluate.pattern import parse_board_pattern
 
         parse_board_pattern(text, option, kinds=("chessboard",))  # raises: a chessboard pattern has no ':'
     parts = str(text).strip().lower().replace("×", "x").split("x")
@@ -567,7 +567,7 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     Each photo is read with ``edgetruth.image_io.read_gray(path, channel)``; its corners with
     ``detect_corners(image, pattern_size, window_px)``, or with ``corner_finder(image, pattern_size)`` when given:
     (COLS * ROWS, 2) in OpenCV's order, NaN where it measured none, None when the board is not found (e.g.
-    ``edgetruth.evaluate.board.grid_corners.line_corners``); ``corner_label`` then names it in the calibration's
+    ``edgetruth.evaluate.board.measure.grid_corners.line_corners``); ``corner_label`` then names it in the calibration's
     method line.  ``undistort_lines``: ``corner_finder`` returns a photo's grid (``.corners(lens)``, e.g.
     ``grid_corners.grid_points``) and the corners are refitted with the calibration's own lens, where the grid
     lines are straight, and the camera recalibrated, until no corner moves by ``STRAIGHTEN_TOL_PX``.  Each photo

@@ -32,15 +32,15 @@ from edgetruth import console, locate
 from edgetruth.locate.registry import camera_free
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
-from edgetruth.evaluate.board import chessboard as cb
-from edgetruth.evaluate.board import locator_fit as LF
-from edgetruth.evaluate.board import tone as tone_mod
-from edgetruth.evaluate.board.compare import compare_all
+from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.tone import locator_fit as LF
+from edgetruth.evaluate.board.tone import values as tone_mod
+from edgetruth.evaluate.board.measure.compare import compare_all
 from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, load_photos_scaled, resolve_inputs
-from edgetruth.evaluate.board.measure import OPENCV_ROW, REFERENCE_ROW, Row, calibrate_row, method_row
-from edgetruth.evaluate.board.squares import locate_squares
-from edgetruth.evaluate.board.summary import per_side_rows, row_summary
-from edgetruth.evaluate.board.tone_fit import estimate_power, require_chessboard
+from edgetruth.evaluate.board.measure.rows import OPENCV_ROW, REFERENCE_ROW, Row, calibrate_row, method_row
+from edgetruth.evaluate.board.detect.squares import locate_squares
+from edgetruth.evaluate.board.measure.summary import per_side_rows, row_summary
+from edgetruth.evaluate.board.tone.fit import estimate_power, require_chessboard
 
 KIND = "study board"
 
@@ -90,7 +90,7 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
     """Steps 2-4 of the study (module docstring) on checked inputs; nothing is written.  ``images``: the photos
     already read, and decoded by their tone (else read here, as stored); ``keep_points``: each method row keeps its
     refined points (``Row.points``); ``tone``: how ``images`` were decoded (``tone_summary``), for the report."""
-    from edgetruth.evaluate.board.summary import INTRINSICS
+    from edgetruth.evaluate.board.measure.summary import INTRINSICS
 
     t0 = time.perf_counter()
     images = load_photos(inp.photos, channel) if images is None else images
@@ -143,7 +143,7 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
 
 def check_tone(text: str | None, inp: BoardInputs) -> tone_mod.Tone:
     """``--tone`` parsed and checked before any work: ``auto`` needs a chessboard and a camera-free method."""
-    from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD
+    from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD
 
     t = tone_mod.parse_tone(text, DEFAULT_METHOD)
     if t.kind != "auto":
@@ -186,7 +186,7 @@ def tone_summary(tone: tone_mod.Tone, scales: list[float], fit=None) -> dict | N
 def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], options: dict, thresholds,
                     title: str | None = None) -> Path:
     """The study's files (``report.write_outputs``) of ``run`` into the existing directory ``out``."""
-    from edgetruth.evaluate.board.report import header_lines, write_outputs
+    from edgetruth.evaluate.board.report.files import header_lines, write_outputs
 
     inp = run.inp
     header = header_lines(inp, run.names, run.size, channel, methods, options, thresholds, run.reference,

@@ -35,7 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.ranging.images import SHAPES, ImageResult, interval_label
+from edgetruth.evaluate.design import interval_label
+from edgetruth.evaluate.ranging.images import SHAPES, ImageResult
 
 REQUIRED_COLUMNS = ("image", "distance_cm", "size_m", "shape", "group")
 OPTIONAL_COLUMNS = ("height_m", "polarity", "roi_px", "point_px", "reference", "note")

@@ -89,7 +89,7 @@ def test_files_figures_and_report(zhang_run):
 
 def test_the_report_says_how_far_the_photos_are_from_the_locators_model(zhang_run):
     """A finding on real data, pinned as measured (2026-12-02): patch_psf_fit's residual is 1.28-2.01x the photos'
-    flat-region noise (1 where its blurred-step model holds: tests/evaluate/board/test_locator_fit.py), and it is
+    flat-region noise (1 where its blurred-step model holds: tests/evaluate/board/tone/test_locator_fit.py), and it is
     not the straightest method (Canny-Devernay 0.048 px, it 0.052 px)."""
     _, out = zhang_run
     loc = json.loads((out / "locator.json").read_text())

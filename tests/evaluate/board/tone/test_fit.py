@@ -10,8 +10,8 @@ import pytest
 from edgetruth.cli import main
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
-from edgetruth.evaluate.board import chessboard as cb
-from edgetruth.evaluate.board import tone_fit
+from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.tone import fit as tone_fit
 from edgetruth.evaluate.board.inputs import BoardInputs
 from edgetruth.evaluate.board.model import BoardModel
 from tests.evaluate.board.chessboard_images import stored_views

@@ -25,10 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from edgetruth.evaluate.board import chessboard as cb
+from edgetruth.evaluate.board.detect import chessboard as cb
 
 #: The edge method ``line_corners`` uses unless told otherwise: on rendered boards its corners lie 0.0004 px from
-#: the truth on average (tests/evaluate/board/test_chessboard.py), the best of the ERF windows on this camera.
+#: the truth on average (tests/evaluate/board/detect/test_chessboard.py), the best of the ERF windows on this camera.
 DEFAULT_METHOD = "erf4p_fixed11"
 
 
@@ -69,7 +69,7 @@ class GridPoints:
         200-300 px from the centre; fx +0.17 %).  With ``lens`` = (K, dist) (OpenCV's model) the points, their
         normals, the squares and the halves are undistorted first, the lines fitted there, where the model
         says they are straight, and the corners distorted back."""
-        from edgetruth.evaluate.board.sides import side_fits, square_map
+        from edgetruth.evaluate.board.sides.lines import side_fits, square_map
         from edgetruth.evaluate.calibration import distort_px, undistort_px
 
         quads, halves, x, y, nx, ny, shape = self.quads, self.halves, self.x, self.y, self.nx, self.ny, self.shape
@@ -105,7 +105,7 @@ def grid_points(image: np.ndarray, pattern: tuple[int, int], method: str = DEFAU
     """The board of ``pattern`` in ``image`` and ``method``'s refined points near its squares' sides and the
     sides continued into the outer ring (``GridPoints``); None when OpenCV does not find the board."""
     from edgetruth import locate
-    from edgetruth.evaluate.board.squares import board_candidates
+    from edgetruth.evaluate.board.detect.squares import board_candidates
 
     img = np.asarray(image)
     model = cb.settle_parity([img], cb.chessboard_model(pattern, 1.0))
@@ -163,7 +163,7 @@ def open_corners(halves: np.ndarray, x, y, nx, ny, converged) -> np.ndarray:
     end of the half, their normal within ``MAX_NORMAL_ANGLE_DEG`` of the chord's.  NaN where a half has fewer than
     ``MIN_POINTS`` points.  The two halves of a line have the dark square on opposite sides, so whatever makes dark
     squares image larger or smaller moves them by opposite amounts, and the line is free of it."""
-    from edgetruth.evaluate.board.sides import (BAND_PASS1_PX, BAND_PASS2_PX, MIN_POINTS, along_segments, intersect,
+    from edgetruth.evaluate.board.sides.lines import (BAND_PASS1_PX, BAND_PASS2_PX, MIN_POINTS, along_segments, intersect,
                                                 tls_lines)
 
     h = np.asarray(halves, float).reshape(-1, 2, 2)  # (4M, 2, 2): every half, two per line, two lines per corner

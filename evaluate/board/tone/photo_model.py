@@ -71,8 +71,8 @@ class BoardLines:
 def board_lines(image: np.ndarray, model: BoardModel) -> BoardLines | None:
     """The side lines of the model's squares found on ``image`` (None when the board is not found)."""
     from edgetruth import locate
-    from edgetruth.evaluate.board.sides import side_fits, square_map
-    from edgetruth.evaluate.board.squares import board_candidates, board_squares
+    from edgetruth.evaluate.board.sides.lines import side_fits, square_map
+    from edgetruth.evaluate.board.detect.squares import board_candidates, board_squares
 
     c = board_squares(image, model)[0]
     if c is None:
@@ -284,7 +284,7 @@ def _outward(lines: BoardLines) -> tuple[np.ndarray, np.ndarray]:
 def _offset_quads(lines: BoardLines, margin_px: float) -> np.ndarray:
     """(S, 4, 2) each square's outline moved ``margin_px`` outward (< 0: inward) along its side normals; NaN
     where a side is missing."""
-    from edgetruth.evaluate.board.sides import intersect_sides
+    from edgetruth.evaluate.board.sides.lines import intersect_sides
 
     n, d = _outward(lines)
     return intersect_sides(n, d + margin_px)
@@ -294,7 +294,7 @@ def _side_bands(lines: BoardLines, near_px: float, far_px: float, cap_px: float)
     """(S, 4, 4, 2) beside each side k, the quad between its line moved ``near_px`` and ``far_px`` outward, capped
     by the neighbouring sides' lines moved ``cap_px`` inward: the light ground beside the side alone, clear of
     what lies diagonally off the square's corners (on a chessboard, the next dark square)."""
-    from edgetruth.evaluate.board.sides import intersect as meet
+    from edgetruth.evaluate.board.sides.lines import intersect as meet
 
     n, d = _outward(lines)
     n0, d0 = np.roll(n, 1, axis=1), np.roll(d, 1, axis=1) - cap_px  # side k - 1, moved inward

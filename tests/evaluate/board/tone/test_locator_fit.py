@@ -7,7 +7,7 @@ import pytest
 from scipy.ndimage import gaussian_filter1d
 
 from edgetruth import locate
-from edgetruth.evaluate.board.locator_fit import misfit_ratio, residual_sd
+from edgetruth.evaluate.board.tone.locator_fit import misfit_ratio, residual_sd
 from edgetruth.render.edge_truth import StraightEdge
 from edgetruth.render.synthetic.scenarios import render_edge_image
 

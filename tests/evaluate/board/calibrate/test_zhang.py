@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board.calibrate import board_points, calibrate, leave_one_out, side_lengths
+from edgetruth.evaluate.board.calibrate.zhang import board_points, calibrate, leave_one_out, side_lengths
 from tests.evaluate.board.board_images import grid_model
 
 K = np.array([[800.0, 0, 322.5], [0, 800.0, 241.0], [0, 0, 1]])

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from edgetruth.evaluate.board.correspond import match_squares
+from edgetruth.evaluate.board.detect.correspond import match_squares
 from edgetruth.evaluate.board.model import read_model
-from edgetruth.evaluate.board.quads import find_quads
+from edgetruth.evaluate.board.detect.quads import find_quads
 from edgetruth.evaluate.board.reference import read_corners
 from edgetruth.image_io import read_gray
 from edgetruth.resources import real_set

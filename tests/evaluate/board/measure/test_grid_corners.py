@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from edgetruth.cli import main
-from edgetruth.evaluate.board import chessboard as cb
-from edgetruth.evaluate.board.grid_corners import (grid_points, line_corners, open_halves, to_opencv_order,
+from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.measure.grid_corners import (grid_points, line_corners, open_halves, to_opencv_order,
                                                   undistort_points)
 from edgetruth.evaluate.calibration import detect_corners, undistort_px
 from tests.evaluate.board.board_images import apply_h
 from tests.evaluate.board.chessboard_images import BARREL, K, ROTATIONS, SHAPE, render, render_distorted
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[4]
 
 ROTATIONS_6 = ROTATIONS + [(0.1, 0.2, 0.4), (-0.2, -0.1, -0.3)]
 

@@ -1,8 +1,8 @@
-"""--pattern: one parser for chessboards, circle grids and ChArUco boards (evaluate/board/pattern.py)."""
+"""--pattern: one parser for chessboards, circle grids and ChArUco boards (evaluate/pattern.py)."""
 import pytest
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board.pattern import BoardPattern, aruco_dictionaries, parse_board_pattern
+from edgetruth.evaluate.pattern import BoardPattern, aruco_dictionaries, parse_board_pattern
 from edgetruth.evaluate.calibration import parse_pattern
 
 

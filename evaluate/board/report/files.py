@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from edgetruth.evaluate.board import figures
-from edgetruth.evaluate.board import locator_fit as LF
-from edgetruth.evaluate.board.measure import REFERENCE_ROWS
-from edgetruth.evaluate.board.summary import INTRINSICS
+from edgetruth.evaluate.board.report import figures
+from edgetruth.evaluate.board.tone import locator_fit as LF
+from edgetruth.evaluate.board.measure.rows import REFERENCE_ROWS
+from edgetruth.evaluate.board.measure.summary import INTRINSICS
 from edgetruth.evaluate.report_format import ci, num, table
 from edgetruth.fileio import atomic_write_text, write_json
 
@@ -132,7 +132,7 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
 
 
 def tone_line(tone: dict | None) -> str:
-    """The header's line on the tone (``--tone``, evaluate/board/tone.py)."""
+    """The header's line on the tone (``--tone``, evaluate/board/tone/values.py)."""
     if tone is None:
         return ("- Tone: the stored values, as stored (`--tone` decodes them first: srgb, power:G, or auto on a "
                 "chessboard).")

@@ -41,7 +41,7 @@ def misfit_ratio(residual_sd_dn: float, noise_sd_dn: float) -> float:
 def locator_misfit(images, cands, model, names, **options) -> list[dict]:
     """Per photo: ``photo``, ``residual_sd``, ``noise_sd`` (DN, the larger flat-region SD), ``misfit_ratio``,
     ``points`` (the candidates refined).  Photos whose board lines or flat regions are not found get NaN."""
-    from edgetruth.evaluate.board.photo_model import board_lines, noise
+    from edgetruth.evaluate.board.tone.photo_model import board_lines, noise
 
     out = []
     for name, img, cand in zip(names, images, cands):
@@ -60,7 +60,7 @@ def locator_misfit(images, cands, model, names, **options) -> list[dict]:
 def _versus_best(rows, sums, family: str, key: str, label: str) -> dict | None:
     """The locator's row against the best other method row on ``key`` (lowest), paired on ``family``'s units."""
     from edgetruth.evaluate import stats
-    from edgetruth.evaluate.board.compare import family_values
+    from edgetruth.evaluate.board.measure.compare import family_values
 
     by_row = {s["row"]: s for s in sums}
     ranked = sorted((r for r in rows if r.is_method and np.isfinite(by_row[r.label].get(key, np.nan))),
@@ -101,7 +101,7 @@ def reading_lines(loc: dict) -> list[str]:
                       f"rank-biserial {v['rank_biserial']:+.2f})."))
     if ratios:
         out.append(f"Its fit assumes a blurred step in Gaussian noise; where that holds its residual per pixel equals "
-                   f"the noise (misfit ratio 1, as on analytic edges: tests/evaluate/board/test_locator_fit.py). On "
+                   f"the noise (misfit ratio 1, as on analytic edges: tests/evaluate/board/tone/test_locator_fit.py). On "
                    f"these photos the residual is {min(ratios):.2f}–{max(ratios):.2f}× the larger flat-region noise "
                    f"SD (per photo: " + ", ".join(f"{m['photo']} {m['misfit_ratio']:.2f}" for m in loc["misfit"])
                    + "): the edges are not the model's blurred step (a camera's sharpening overshoot, a palette's "

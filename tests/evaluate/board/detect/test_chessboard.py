@@ -9,7 +9,7 @@ import pytest
 
 from edgetruth.cli import main
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board import chessboard as cb
+from edgetruth.evaluate.board.detect import chessboard as cb
 from tests.evaluate.board.board_images import apply_h
 from tests.evaluate.board.chessboard_images import ROTATIONS, SHAPE, all_dark_squares, render
 
@@ -136,7 +136,7 @@ def test_white_flats_of_a_chessboard_are_the_light_squares_beside_the_sides():
     """The noise of the light ground next to the dark squares, on a board with Gaussian noise of SD 2: the plain
     ring around a square reaches its diagonal neighbours (black) and reads far above 2; the bands beside the
     sides read 2."""
-    from edgetruth.evaluate.board.photo_model import board_lines, noise
+    from edgetruth.evaluate.board.tone.photo_model import board_lines, noise
 
     model = cb.chessboard_model((9, 6), 1.0)
     img, _ = render((9, 6), ROTATIONS[1], sigma_px=0.7)

@@ -6,7 +6,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from edgetruth.evaluate.board import compare as cmp
+from edgetruth.evaluate.board.measure import compare as cmp
 
 
 def test_by_photo_is_the_cluster_bootstrap_of_the_unit_mean():

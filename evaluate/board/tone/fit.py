@@ -31,13 +31,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board import chessboard as cb
-from edgetruth.evaluate.board.levels import square_levels
-from edgetruth.evaluate.board.measure import method_row
-from edgetruth.evaluate.board.sides import square_map
-from edgetruth.evaluate.board.squares import MIN_FOUND_SHARE, board_candidates, find_board
-from edgetruth.evaluate.board.summary import outward_offsets
-from edgetruth.evaluate.board.tone import POWER_RANGE, Tone, decode
+from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.detect.levels import square_levels
+from edgetruth.evaluate.board.measure.rows import method_row
+from edgetruth.evaluate.board.sides.lines import square_map
+from edgetruth.evaluate.board.detect.squares import MIN_FOUND_SHARE, board_candidates, find_board
+from edgetruth.evaluate.board.measure.summary import outward_offsets
+from edgetruth.evaluate.board.tone.values import POWER_RANGE, Tone, decode
 
 #: the half step (in G) of the finite difference that gives each photo's slope d offset / d G
 SLOPE_STEP = 0.05
@@ -109,7 +109,7 @@ class PowerFit:
                 "offset_stored_px": self.offset_stored_px, "offset_fit_px": self.offset_fit_px,
                 "evaluations": self.evaluations,
                 "definition": "power G of full*(v/full)**G at which the method's own corners meet the junctions "
-                              "(mean outward offset 0); evaluate/board/tone_fit.py"}
+                              "(mean outward offset 0); evaluate/board/tone/fit.py"}
 
 
 def require_chessboard(model) -> None:

@@ -8,10 +8,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from edgetruth import locate
-from edgetruth.evaluate.board import calibrate as cb
-from edgetruth.evaluate.board.chessboard import junction_corners
+from edgetruth.evaluate.board.calibrate import zhang as cb
+from edgetruth.evaluate.board.detect.chessboard import junction_corners
 from edgetruth.evaluate.board.model import BoardModel
-from edgetruth.evaluate.board.sides import SideFits, side_fits
+from edgetruth.evaluate.board.sides.lines import SideFits, side_fits
 
 #: The label of the reference row: the shipped set's own corners in place of a method's.
 REFERENCE_ROW = "zhang_corners"

@@ -9,12 +9,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from edgetruth import console
-from edgetruth.evaluate.board import chessboard as cb
-from edgetruth.evaluate.board.correspond import Correspondence, match_squares
-from edgetruth.evaluate.board.levels import SquareLevels, saturated, square_levels
+from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.detect.correspond import Correspondence, match_squares
+from edgetruth.evaluate.board.detect.levels import SquareLevels, saturated, square_levels
 from edgetruth.evaluate.board.model import BoardModel
-from edgetruth.evaluate.board.quads import find_quads
-from edgetruth.evaluate.board.sides import square_map
+from edgetruth.evaluate.board.detect.quads import find_quads
+from edgetruth.evaluate.board.sides.lines import square_map
 
 if TYPE_CHECKING:
     from edgetruth.evaluate.board.inputs import BoardInputs
@@ -39,7 +39,7 @@ def board_candidates(image: np.ndarray, corners: np.ndarray, chessboard: bool, e
     sides continued past their corners (``chessboard.grid_segments``: its grid lines run on into the outer ring),
     and of ``extra_segments`` (M, 2, 2) when given."""
     from edgetruth import locate
-    from edgetruth.evaluate.board.sides import CANDIDATE_MARGIN_PX, near_segments, near_sides
+    from edgetruth.evaluate.board.sides.lines import CANDIDATE_MARGIN_PX, near_segments, near_sides
 
     cand = locate.candidates(image)
     near = near_sides(corners, cand.x, cand.y, CANDIDATE_MARGIN_PX)

@@ -43,9 +43,9 @@ import cv2
 import numpy as np
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board.correspond import Correspondence, project, rotation_deg
+from edgetruth.evaluate.board.detect.correspond import Correspondence, project, rotation_deg
 from edgetruth.evaluate.board.model import BoardModel
-from edgetruth.evaluate.board.quads import BORDER_PX
+from edgetruth.evaluate.board.detect.quads import BORDER_PX
 
 
 @dataclass(frozen=True)
@@ -211,7 +211,7 @@ def junction_corners(j: Junctions, sides, x, y, nx, ny, converged) -> np.ndarray
     A dark square's own side lines lie off the inner corner by whatever makes dark squares print or image larger
     or smaller than light ones (ink spread, blur on a tone curve); the two halves of a grid line lie off by
     opposite amounts, so a line through both is free of it."""
-    from edgetruth.evaluate.board.sides import BAND_PASS2_PX, MIN_POINTS, along_segments, intersect, tls_lines
+    from edgetruth.evaluate.board.sides.lines import BAND_PASS2_PX, MIN_POINTS, along_segments, intersect, tls_lines
 
     x, y, nx, ny = (np.asarray(v, float) for v in (x, y, nx, ny))
     n_sq = len(sides.n_points)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board.tone import POWER_RANGE, Tone, decode, parse_tone
+from edgetruth.evaluate.board.tone.values import POWER_RANGE, Tone, decode, parse_tone
 
 
 @pytest.mark.parametrize("text, tone", [

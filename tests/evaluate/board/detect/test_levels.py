@@ -1,9 +1,9 @@
-"""A chessboard photo's flat levels (``evaluate/board/levels.py``): the dark and light squares' values and noise at
+"""A chessboard photo's flat levels (``evaluate/board/detect/levels.py``): the dark and light squares' values and noise at
 their centres, and the saturated white they show."""
 import numpy as np
 import pytest
 
-from edgetruth.evaluate.board.levels import SquareLevels, saturated, square_levels
+from edgetruth.evaluate.board.detect.levels import SquareLevels, saturated, square_levels
 from tests.evaluate.board.board_images import apply_h
 from tests.evaluate.board.chessboard_images import ROTATIONS, all_dark_squares, render, stored_views
 

@@ -20,7 +20,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from edgetruth.evaluate.board.measure import REFERENCE_ROWS, Row
+from edgetruth.evaluate.board.measure.rows import REFERENCE_ROWS, Row
 from edgetruth.evaluate.board.model import BoardModel
 
 N_BOOT = 2000
@@ -134,7 +134,7 @@ def row_summary(row: Row, model: BoardModel, reference: dict | None, reference_c
                    points_per_side=float(np.mean(n[covered])) if covered.any() else float("nan"),
                    refine_s=row.refine_s)
         if model.pattern is not None:  # a chessboard: how far apart the two dark squares put a junction
-            from edgetruth.evaluate.board.chessboard import junction_split, junctions
+            from edgetruth.evaluate.board.detect.chessboard import junction_split, junctions
 
             jn = junctions(model)
             split = _flat([junction_split(jn, f.corners) for f in row.sides])

@@ -1,4 +1,4 @@
-"""The photo model (edgetruth.evaluate.board.photo_model) on Zhang's shipped photos, and its parts on analytic edges.
+"""The photo model (edgetruth.evaluate.board.tone.photo_model) on Zhang's shipped photos, and its parts on analytic edges.
 
 Values measured on CalibIm1 (a clean photo: adaptive 256-colour palette, 244 gray values) and CalibIm2 (a
 3-3-2 palette photo, 74 gray values), pinned with tolerances of about a tenth of the differences they show:
@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from edgetruth.evaluate.board import photo_model as pm
+from edgetruth.evaluate.board.tone import photo_model as pm
 from edgetruth.evaluate.board.model import read_model
 from edgetruth.resources import real_set
 
@@ -149,7 +149,7 @@ def test_the_whites_falloff_across_the_board():
     means changes by 0.1 x (the centres' x span) / 640 of the level at their mean centre along x (to 0.1 %
     points: the regions' means carry the ramp exactly, their centres do not quite sit on the squares'), and by
     nothing along y (to 0.1); an evenly lit view reads 0 both ways."""
-    from edgetruth.evaluate.board import chessboard as cb
+    from edgetruth.evaluate.board.detect import chessboard as cb
     from tests.evaluate.board.chessboard_images import ROTATIONS, render
 
     img, _ = render((9, 6), ROTATIONS[0], sigma_px=0.8)

@@ -27,8 +27,8 @@ from __future__ import annotations
 import numpy as np
 
 from edgetruth.evaluate import stats
-from edgetruth.evaluate.board.measure import Row
-from edgetruth.evaluate.board.summary import N_BOOT, SEED, bootstrap_indices, photo_resamples
+from edgetruth.evaluate.board.measure.rows import Row
+from edgetruth.evaluate.board.measure.summary import N_BOOT, SEED, bootstrap_indices, photo_resamples
 
 FAMILIES = ("straightness", "reprojection", "loo", "side_length")
 FAMILY_LABELS = {"straightness": "straightness per side (px)",

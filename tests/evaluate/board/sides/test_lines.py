@@ -4,10 +4,10 @@ import pytest
 
 from edgetruth import locate
 from edgetruth.evaluate import method_order as mo
-from edgetruth.evaluate.board.correspond import match_squares
+from edgetruth.evaluate.board.detect.correspond import match_squares
 from edgetruth.evaluate.board.model import check_model
-from edgetruth.evaluate.board.quads import find_quads
-from edgetruth.evaluate.board.sides import CORNER_EXCLUSION_PX, fit_lines, intersect_sides, side_fits, square_map
+from edgetruth.evaluate.board.detect.quads import find_quads
+from edgetruth.evaluate.board.sides.lines import CORNER_EXCLUSION_PX, fit_lines, intersect_sides, side_fits, square_map
 from tests.evaluate.board.board_images import apply_h, grid_model, render_board, side_offsets
 
 TH = np.radians(12)
@@ -56,7 +56,7 @@ def test_pixel_centres_are_not_precise(scene):
 def test_points_near_corners_are_left_out(scene):
     model, truth, img, c, cand, smap = scene
     pts = locate.refine(img, cand, "canny_devernay")
-    from edgetruth.evaluate.board.sides import BAND_PASS2_PX, assign
+    from edgetruth.evaluate.board.sides.lines import BAND_PASS2_PX, assign
 
     lab = assign(truth, smap, pts.x, pts.y, pts.nx, pts.ny, pts.converged, BAND_PASS2_PX)
     got = lab >= 0
