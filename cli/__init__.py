@@ -56,7 +56,7 @@ def add_pattern_option(p: argparse.ArgumentParser, what: str, required: bool = F
                        kinds: tuple[str, ...] = ("chessboard",)) -> None:
     """``--pattern COLSxROWS``: a chessboard's inner corners, as every command that reads one counts them
     (``edgetruth.evaluate.calibration.parse_pattern``); with ``kinds`` naming circle grids or ChArUco too, their
-    forms (``edgetruth.evaluate.board.pattern.parse_board_pattern``); ``what`` says what the command does with
+    forms (``edgetruth.evaluate.pattern.parse_board_pattern``); ``what`` says what the command does with
     the board."""
     forms = ["inner corners of a chessboard, per row x per column (OpenCV's patternSize; a board of 10 x 7 squares "
              "is 9x6)"]

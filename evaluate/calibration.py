@@ -178,22 +178,33 @@ class Calibration:
 
     @property
     def fx(self) -> float:
+        """K[0, 0]: the focal length along x, px."""
         return float(self.K[0, 0])
 
     @property
     def fy(self) -> float:
+        """K[1, 1]: the focal length along y, px."""
         return float(self.K[1, 1])
 
     @property
     def cx(self) -> float:
+        """K[0, 2]: the principal point's x, px (OpenCV convention)."""
         return float(self.K[0, 2])
 
     @property
     def cy(self) -> float:
+        """K[1, 2]: the principal point's y, px (OpenCV convention)."""
         return float(self.K[1, 2])
 
     def errors(self) -> dict:
-        """Recovered minus true values (needs ``truth``)."""
+        """Recovered minus true values, for a calibration from renders (needs ``truth``).
+
+        Returns
+        -------
+        dict
+            ``fx_rel_pct``, ``fy_rel_pct`` (%), ``cx_px``, ``cy_px`` (px) and ``dist`` (coefficient differences);
+            empty without ``truth``.
+        """
         if not self.truth:
             return {}
         t = self.truth
@@ -203,6 +214,14 @@ class Calibration:
                 "dist": (self.dist - np.asarray(t["dist_coeffs_opencv"])).tolist()}
 
     def to_dict(self) -> dict:
+        """The ``calibration.json`` form (docs/formats.md), which ``from_dict`` reads back.
+
+        Returns
+        -------
+        dict
+            ``K``, ``fx_px`` ... ``cy_px``, ``dist_coeffs_opencv``, ``image_size``, ``reprojection_rms_px`` and
+            the rest of the fields.
+        """
         return {"method": self.method,
                 "K": self.K.tolist(), "fx_px": self.fx, "fy_px": self.fy, "cx_px": self.cx, "cy_px": self.cy,
                 "dist_coeffs_opencv": self.dist.tolist(), "image_size": list(self.image_size),
@@ -214,7 +233,20 @@ class Calibration:
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "calibration") -> "Calibration":
-        """The inverse of ``to_dict`` (a ``calibration.json`` written by ``edgetruth run``/``evaluate``)."""
+        """The inverse of ``to_dict`` (a ``calibration.json`` written by ``edgetruth calibrate``, ``run``, ``evaluate``).
+
+        Parameters
+        ----------
+        d : dict
+            The JSON's content: at least ``K`` (3 x 3), ``dist_coeffs_opencv`` and ``image_size``.
+        where : str, optional
+            What error messages call it (the file).
+
+        Returns
+        -------
+        Calibration
+            The camera.
+        """
         try:
             K = np.asarray(d["K"], float)
             dist = np.asarray(d["dist_coeffs_opencv"], float).ravel()
@@ -410,10 +442,10 @@ def use_bent_board(cal: Calibration, results: list, model: str = "quadratic") ->
 # --- real photographs ----------------------------------------------------------------------------------
 def parse_pattern(text: str, option: str = "--pattern") -> tuple[int, int]:
     """``"9x6"`` -> (9, 6): inner corners per row x per column (OpenCV's patternSize).  A circle grid or ChArUco
-    pattern (``circles:4x11:asymmetric``; ``edgetruth.evaluate.board.pattern``) is refused, saying this reads a
+    pattern (``circles:4x11:asymmetric``; ``edgetruth.evaluate.pattern``) is refused, saying this reads a
     chessboard."""
     if ":" in str(text):
-        from edgetruth.evaluate.board.pattern import parse_board_pattern
+        from edgetruth.evaluate.pattern import parse_board_pattern
 
         parse_board_pattern(text, option, kinds=("chessboard",))  # raises: a chessboard pattern has no ':'
     parts = str(text).strip().lower().replace("×", "x").split("x")
@@ -535,7 +567,7 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     Each photo is read with ``edgetruth.image_io.read_gray(path, channel)``; its corners with
     ``detect_corners(image, pattern_size, window_px)``, or with ``corner_finder(image, pattern_size)`` when given:
     (COLS * ROWS, 2) in OpenCV's order, NaN where it measured none, None when the board is not found (e.g.
-    ``edgetruth.evaluate.board.grid_corners.line_corners``); ``corner_label`` then names it in the calibration's
+    ``edgetruth.evaluate.board.measure.grid_corners.line_corners``); ``corner_label`` then names it in the calibration's
     method line.  ``undistort_lines``: ``corner_finder`` returns a photo's grid (``.corners(lens)``, e.g.
     ``grid_corners.grid_points``) and the corners are refitted with the calibration's own lens, where the grid
     lines are straight, and the camera recalibrated, until no corner moves by ``STRAIGHTEN_TOL_PX``.  Each photo

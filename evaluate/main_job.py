@@ -59,13 +59,15 @@ def warm_on_render(dataset, name: str, methods=None, thresholds=None) -> None:
 
     from edgetruth.evaluate import method_order as mo
     from edgetruth.evaluate.calibration import Calibration
+    from edgetruth.evaluate.points.scores import score_image
     from edgetruth.evaluate.ranging.images import range_image
     from edgetruth.render.dataset.reader import open_dataset
 
     cam = open_dataset(dataset)[name].truth["camera"]
     cal = Calibration(K=np.asarray(cam["K"], float), dist=np.asarray(cam["dist_coeffs_opencv"], float), rms_px=float("nan"), n_views=0,
                       image_size=(int(cam["width_px"]), int(cam["height_px"])))
-    range_image(str(dataset), name, cal, list(methods or mo.ordered(None)), False, mo.study_options(thresholds))
+    range_image(str(dataset), name, cal, list(methods or mo.ordered(None)), False, mo.study_options(thresholds),
+                score=score_image)
 
 
 def _warm_main(argv) -> None:
@@ -241,6 +243,7 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
     methods' window shares beside the full study's (the quick run's report)."""
     from edgetruth import locate
     from edgetruth.evaluate import method_order as mo
+    from edgetruth.evaluate.points import report as points_report, scores as point_scores
     from edgetruth.evaluate.ranging.images import UNDISTORT_LINES, run_ranging
     from edgetruth.evaluate.ranging.report import write_report
     from edgetruth.evaluate.threshold_calibration import check_disjoint
@@ -256,7 +259,11 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
         methods = mo.ordered(list(methods or locate.METHODS) + [
             v for v in mo.variant_labels(options) if options[v]["method"] in (methods or locate.METHODS)])
     result = run_ranging(datasets, calibration, out, methods=methods, progress=progress, names=names,
-                         options=options, backend=backend, workers=workers, address=address, undistort=undistort)
+                         options=options, backend=backend, workers=workers, address=address, undistort=undistort,
+                         score=point_scores.score_image)
+    # the per-point study on the same candidates, scored in the ranging's workers (one read of each image)
+    points = point_scores.table_from_scores(result["point_images"], result["point_scores"], result["methods"])
+    point_scores.write_points(Path(out) / point_scores.POINTS_FILE, points)
     head = dict(header or {})
     head.setdefault("target images", len({(r.get("spec"), r["image"]) for r in result["rows"]}))
     outside = {}  # images the ranging does not size (an own scene of several outlines, a shape it does not model)
@@ -277,8 +284,10 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
     if callable(synthetic_report):  # the main job's synthetic study, running beside the ranging: wait for it now
         synthetic_report, more = synthetic_report()
         head.update(more)
+    section = points_report.report_section(points, [m for m in result["methods"] if m in points.errors], Path(out)) \
+        if len(points.image) else []
     return write_report(out, result["rows"], result["methods"], calibration, result["examples"], head,
-                        str(synthetic_report) if synthetic_report else None, title=title, points=result["points"],
+                        str(synthetic_report) if synthetic_report else None, title=title, points_section=section,
                         windows_beside_full=windows_beside_full)
 
 

@@ -301,3 +301,8 @@ def target_candidates(image: np.ndarray, valid: np.ndarray | None = None, margin
     if keep.sum() < 8:
         raise InputError(f"target finding: only {int(keep.sum())} Canny candidates on the target boundary")
     return TargetCandidates(region, crop, (x0, y0), cand, cand.subset(keep), keep)
+
+
+def is_scene(truth) -> bool:
+    """The truth of an image with several outlines (``SceneOutline``: shapes, a ring's two edges, clutter)."""
+    return getattr(truth, "shape", "") == "scene"

@@ -29,7 +29,7 @@ from edgetruth import locate
 from edgetruth import __version__
 from edgetruth.errors import InputError
 from edgetruth.resources import source_commit
-from edgetruth.evaluate.points.matching import MATCH_RADIUS_PX, on_edge
+from edgetruth.evaluate.matching import MATCH_RADIUS_PX, on_edge
 from edgetruth.locate.methods.erf import WINDOWS
 from edgetruth.render.synthetic.scenarios import SCENARIOS, DEFAULT_SHAPE, synthetic_image
 

@@ -54,7 +54,20 @@ class Method:
     needs_camera: bool = False
 
     def footprint_masks(self, cand: Candidates, **options) -> np.ndarray:
-        """The pixels the method reads for each candidate (its declaration, or the whole neighbourhood)."""
+        """The pixels the method reads for each candidate (its declaration, or the whole neighbourhood).
+
+        Parameters
+        ----------
+        cand : Candidates
+            The candidates.
+        **options
+            The method's options (a window size changes the footprint).
+
+        Returns
+        -------
+        numpy.ndarray
+            (N, SIZE, SIZE) bool, centred on each candidate pixel.
+        """
         from edgetruth.locate import footprints
 
         fp = self.footprint or footprints.neighbourhood

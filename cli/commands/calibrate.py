@@ -100,8 +100,8 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, line
                          "drop one")
     from edgetruth import locate
     from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.board.chessboard import chessboard_model
-    from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD, grid_points, line_corners
+    from edgetruth.evaluate.board.detect.chessboard import chessboard_model
+    from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD, grid_points, line_corners
     from edgetruth.locate.registry import camera_free
 
     spec = spec or DEFAULT_METHOD
@@ -123,7 +123,7 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, line
             return grid_points(image, pattern_size, method, **options)
         return line_corners(image, pattern_size, method, **options)
 
-    label = f"corners where the grid lines of {spec}'s points meet (edgetruth.evaluate.board.grid_corners)"
+    label = f"corners where the grid lines of {spec}'s points meet (edgetruth.evaluate.board.measure.grid_corners)"
     return finder, label, undistort_lines
 
 
@@ -155,7 +155,7 @@ def run(args: argparse.Namespace) -> int:
     from edgetruth.evaluate.calibration import calibrate_photos, find_photos, parse_pattern
     from edgetruth.fileio import check_output_file, write_json
 
-    from edgetruth.evaluate.board.pattern import parse_board_pattern
+    from edgetruth.evaluate.pattern import parse_board_pattern
 
     board_pattern = parse_board_pattern(args.pattern, kinds=("chessboard", "charuco"))
     square_m = parse_square_m(args.square_m)

@@ -23,8 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board import chessboard as cb
-from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD as GRID_METHOD
+from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD as GRID_METHOD
 from edgetruth.render.scene.charuco import CharucoBoard
 
 #: The edge method of ``--corners lines`` on a ChArUco board: the chessboard path's (``grid_corners``).  The markers'
@@ -34,7 +34,7 @@ DEFAULT_METHOD = GRID_METHOD
 
 
 def board_of(pattern, square_m: float, marker_m: float) -> CharucoBoard:
-    """The ``CharucoBoard`` of a ``--pattern charuco:COLSxROWS:DICT`` (``board.pattern.BoardPattern``), its square
+    """The ``CharucoBoard`` of a ``--pattern charuco:COLSxROWS:DICT`` (``evaluate.pattern.BoardPattern``), its square
     and marker side in metres; one ``InputError`` line when they do not make a board."""
     if not (np.isfinite(marker_m) and 0 < marker_m < square_m):
         raise InputError(f"--marker-m {marker_m:g}: the printed marker side (black border included) must be "
@@ -77,8 +77,8 @@ def charuco_view(image: np.ndarray, board: CharucoBoard, corners: np.ndarray) ->
     None unless every corner was found."""
     import cv2
 
-    from edgetruth.evaluate.board.correspond import Correspondence, project, rotation_deg
-    from edgetruth.evaluate.board.quads import BORDER_PX
+    from edgetruth.evaluate.board.detect.correspond import Correspondence, project, rotation_deg
+    from edgetruth.evaluate.board.detect.quads import BORDER_PX
 
     if not np.all(np.isfinite(corners)):
         return None
@@ -103,8 +103,8 @@ def charuco_grid_points(image: np.ndarray, board: CharucoBoard, method: str = DE
                         **options):
     """``grid_corners.GridPoints`` of a ChArUco photo (module docstring), or None unless OpenCV finds every corner."""
     from edgetruth import locate
-    from edgetruth.evaluate.board.grid_corners import GridPoints, open_halves, to_opencv_order
-    from edgetruth.evaluate.board.squares import board_candidates
+    from edgetruth.evaluate.board.measure.grid_corners import GridPoints, open_halves, to_opencv_order
+    from edgetruth.evaluate.board.detect.squares import board_candidates
 
     img = np.asarray(image)
     corners, _ = charuco_corners(img, board, detector)

@@ -50,7 +50,7 @@ def _shipped_names() -> list[str]:
 def board_model(model_path: str | None, pattern: str | None, square: str | float | None) -> BoardModel:
     """The model the user gave: a model file, or a chessboard (``--pattern``, ``--square``; side lengths in squares
     when no square size is given).  One InputError line when there is none, or both."""
-    from edgetruth.evaluate.board.chessboard import chessboard_model
+    from edgetruth.evaluate.board.detect.chessboard import chessboard_model
     from edgetruth.evaluate.calibration import parse_pattern
 
     if model_path is not None and pattern is not None:
@@ -93,7 +93,7 @@ def resolve_inputs(items: list[str], model_path: str | None = None, pattern: str
             raise InputError(f"{name}: the shipped set supplies its own model; drop {' and '.join(given)}")
         s = shipped_set(name)
         if s is not None and "chessboard" in s:
-            from edgetruth.evaluate.board.chessboard import chessboard_model
+            from edgetruth.evaluate.board.detect.chessboard import chessboard_model
             from edgetruth.evaluate.calibration import parse_pattern
 
             b = s["chessboard"]

@@ -26,8 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from edgetruth.evaluate.design import factor_tables, main_rows, plain_groups
-from edgetruth.evaluate.ranging.images import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS
+from edgetruth.evaluate.design import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, factor_tables, main_rows, plain_groups
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, table as _table
 from edgetruth.evaluate.stats import bootstrap_indices, holm, rank_biserial, wilcoxon_paired
 

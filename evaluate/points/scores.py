@@ -7,7 +7,7 @@ each point's error is its signed distance to the exact distorted outline of the 
 (``edgetruth.render.edge_truth.OutlineEdge``: the JSON's dense polyline, chords within 1e-3 px of
 the curve; > 0 on the bright board, as the synthetic study's errors are > 0 on the bright side).
 
-Which candidates are scored (one rule for every method, as ``edgetruth.evaluate.points.matching``):
+Which candidates are scored (one rule for every method, as ``edgetruth.evaluate.matching``):
 
 - *on the edge*: the candidate pixel centre lies within ``MATCH_RADIUS_PX`` (1.5 px) of the outline;
 - *not at a corner*: squares only -- the candidate lies farther than ``CORNER_EXCLUSION_PX`` (4 px)
@@ -49,7 +49,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from edgetruth.evaluate.points.matching import MATCH_RADIUS_PX
+from edgetruth.evaluate.matching import MATCH_RADIUS_PX
+from edgetruth.evaluate.target import is_scene
 
 CORNER_EXCLUSION_PX = 4.0
 BOUND_WINDOW_PX = 11
@@ -117,11 +118,6 @@ def scored_subset(truth, cand, offset) -> tuple[np.ndarray, np.ndarray]:
     keep = np.abs(d) <= MATCH_RADIUS_PX
     keep &= truth.corner_distance(cx, cy) > CORNER_EXCLUSION_PX
     return keep, d[keep]
-
-
-def is_scene(truth) -> bool:
-    """The truth of an image with several outlines (``SceneOutline``: shapes, a ring's two edges, clutter)."""
-    return getattr(truth, "shape", "") == "scene"
 
 
 def scene_candidates(image: np.ndarray, truth, margin_px: int = 12, boundary_tol_px: float = 2.0,

@@ -30,22 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.design import interval_label
 from edgetruth.evaluate.ranging.size import distance_from_size, fit_circle, fit_square
-
-INTERVALS_CM = ((50, 100), (100, 150), (150, 200), (200, 250), (250, 300))
-REFERENCE_METHOD = "dynamic_erf_4p"
-#: The seed's Table 13 methods, and the representative set of Tables 16-17.
-SEED_TABLE13 = ("canny_pixel", "canny_devernay", "hagara_aef2011", "sigmoid_logistic_fit2023", "ser_cis",
-                "dynamic_erf_4p")
-SEED_ROBUSTNESS = ("canny_pixel", "erf4p_fixed11", "ser_cis", "dynamic_erf_4p")
-
-
-def interval_label(distance_cm: float) -> str:
-    for a, b in INTERVALS_CM:
-        if a <= distance_cm < b or (b == INTERVALS_CM[-1][1] and distance_cm == b):
-            return f"{a}-{b}"
-    return "<50" if distance_cm < INTERVALS_CM[0][0] else ">300"
-
 
 @dataclass
 class ImageResult:
@@ -59,7 +45,7 @@ class ImageResult:
     points: dict = field(default_factory=dict)  # method -> (x, y) in image coords (for figures)
     crop: tuple = ()
     error: str = ""
-    scores: object = None  # edgetruth.evaluate.points.scores.PointScores of the raw image (None: not scored)
+    scores: object = None  # the per-point study's scores of the raw image (range_image's score; None: not scored)
     record: dict = field(default_factory=dict)  # the image's design fields (for the per-point tables)
     fits: dict = field(default_factory=dict)  # keep_points: method -> its size fit's geometry (overlays)
 
@@ -77,7 +63,7 @@ def ranging_scope(gt: dict) -> str:
     """Why a rendered target image is not ranged ("" where it is): ranging sizes one target of a shape it models
     (``SHAPES``); an own scene of several outlines, or another shape, is scored per point only."""
     from edgetruth.render.scene.ground_truth import image_outline
-    from edgetruth.evaluate.points.scores import is_scene
+    from edgetruth.evaluate.target import is_scene
 
     if is_scene(image_outline(gt)):
         return "a scene of several outlines (ranging sizes one target); scored per point"
@@ -433,11 +419,11 @@ def ranging_methods(labels: list[str], options: dict | None = None) -> list[str]
 
 
 def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: bool, options: dict,
-                score_points: bool = True, undistort: str = "image"):
+                score=None, undistort: str = "image"):
     """One task (a pure function of its arguments): range target image ``name`` of ``dataset`` with
-    every method and score every method's points on the raw image against the exact outline
-    (``edgetruth.evaluate.points.scores``); None for a checkerboard.  Runs in worker processes."""
-    from edgetruth.evaluate.points.scores import score_image
+    every method and, with ``score`` (the per-point study's ``score_image(image, gt, methods, options,
+    radiance=)``, passed by the main job: ranging does not import that study), score every method's points on
+    the raw image against the exact outline; None for a checkerboard.  Runs in worker processes."""
     from edgetruth.render.dataset.reader import open_dataset
 
     s = open_dataset(dataset)[name]
@@ -455,9 +441,9 @@ def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: b
                       name=name, options=options, undistort=undistort)
     if r.rows:
         r.record = {k: r.rows[0].get(k, "") for k in POINT_RECORD_FIELDS}
-    if score_points and not r.error:
+    if score is not None and not r.error:
         try:
-            r.scores = score_image(image, gt, methods, options, radiance=s.radiance)
+            r.scores = score(image, gt, methods, options, radiance=s.radiance)
         except InputError as exc:  # the raw image's target finding failed: the image has no points
             r.record["points_error"] = str(exc)
         else:
@@ -496,13 +482,14 @@ def _range_task(i, *args):
 def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | None = None,
                 progress: bool = True, names: dict | None = None, figure_examples: int = 2,
                 options: dict | None = None, backend: str = "local", workers: int | None = 1,
-                address: str | None = None, score_points: bool = True, undistort: str = "image") -> dict:
+                address: str | None = None, score=None, undistort: str = "image") -> dict:
     """Range every target image of ``datasets`` with every method; write ``ranging_rows.csv``
-    (``undistort``: ``process_image``).
+    (``undistort``: ``process_image``).  ``score``: the per-point scorer of each image (``range_image``); its
+    scores come back in "point_images" and "point_scores" (the image records and their scores, in order).
 
     Images are independent tasks on ``backend`` (in-process, local pool or Ray, with the caller's
     plug-in methods shipped to the workers); rows come back in dataset/index order whatever the
-    backend.  Returns {"rows": [...], "examples": [ImageResult with points, ...], "per_image": [...]}.
+    backend.  Returns {"rows": [...], "examples": [ImageResult with points, ...], "per_image": [...], ...}.
     """
     from edgetruth import console, locate
     from edgetruth.backends import make_backend
@@ -526,7 +513,7 @@ def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | N
             keep.add(k)
             shown.add(shape)
     check_undistort(undistort)
-    tasks = [(k, ds, n, cal, methods, k in keep, options or {}, score_points, undistort)
+    tasks = [(k, ds, n, cal, methods, k in keep, options or {}, score, undistort)
              for k, (ds, n, _) in enumerate(jobs)]
     results: dict = {}
     t0 = time.perf_counter()
@@ -554,11 +541,5 @@ def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | N
                           "n_boundary": r.n_boundary, **r.region, "error": r.error})
     write_rows(out_dir / "ranging_rows.csv", rows)
     (out_dir / "ranging_images.json").write_text(json.dumps(per_image, indent=1))
-    points = None
-    if score_points:
-        from edgetruth.evaluate.points import scores as rp
-
-        points = rp.table_from_scores(point_images, point_scores, methods)
-        rp.write_points(out_dir / rp.POINTS_FILE, points)
     return {"rows": rows, "examples": examples, "per_image": per_image, "wall_s": time.perf_counter() - t0,
-            "methods": methods, "points": points}
+            "methods": methods, "point_images": point_images, "point_scores": point_scores}

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from edgetruth.evaluate.design import factor_tables, group_rows, main_rows, plain_groups
-from edgetruth.evaluate.ranging.images import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13
+from edgetruth.evaluate.design import (INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13, factor_tables,
+                                       group_rows, main_rows, plain_groups)
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, signed as _signed, table as _table
 from edgetruth.evaluate.stats import (bootstrap_ci, holm, rank_biserial, rmse, rmse_ci, rmse_difference_ci,
                                       spearman, summary, wilcoxon_paired)
@@ -451,7 +451,7 @@ def figures(rows, methods, examples, fig_dir: Path, groups: bool = True) -> dict
 
 # --- the report ---------------------------------------------------------------------------
 def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), header: dict | None = None,
-                 synthetic_report: str | None = None, title: str = "ranging report", points=None,
+                 synthetic_report: str | None = None, title: str = "ranging report", points_section=None,
                  reference: str | None = None, sections=(), windows_beside_full: bool = False) -> Path:
     """Write ``report.md`` (+ ``figures/``, ``ranging_summary.json``) and return its path.
 
@@ -461,14 +461,15 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     tables), shows distances outside 50-300 cm in their own columns, and replaces Tables 16-17's
     design levels by one table over the rows' own ``group`` (the CSV's).  ``sections``: Markdown
     lines placed after the calibration (a photo set's table of photos).  ``windows_beside_full``: add the
-    dynamic methods' window shares beside the full study's (``window_shares.beside_section``; the quick run)."""
+    dynamic methods' window shares beside the full study's (``window_shares.beside_section``; the quick run).
+    ``points_section``: the per-point study's Markdown lines (Tables E1-E4, written by the main job, which scores
+    the points; ranging does not import that study), None where no points were scored."""
     from edgetruth.fileio import atomic_write_text
 
     out_dir = Path(out_dir)
     all_rows = rows
     # methods with no ranging rows (those that need the camera's model: ranging reads the undistorted image)
     # are in the per-point tables only
-    point_methods = list(methods)
     ranged = {r["method"] for r in all_rows}
     points_only = [m for m in methods if m not in ranged] if ranged else []
     methods = [m for m in methods if m not in points_only]
@@ -592,13 +593,11 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
                   "ΔRMSE = RMSE(Dynamic 4P) − RMSE(method) with a paired bootstrap 95 % CI.  α = 0.05, two-sided.", "",
                   _table(["method", "pairs", "median Δabs(e) (cm)", "r", "ΔRMSE (cm)", "ΔRMSE 95 % CI", "p", "p (Holm)",
                           "significant"], body)]
-    if points is not None and len(points.image):
-        from edgetruth.evaluate.points.report import report_section
-
+    if points_section:
         if points_only:
             L += ["", f"{', '.join(points_only)}: scored per point only (Tables E1–E4): it needs the camera's model, "
                   "which describes the raw image, while the size and pose rows read the undistorted one."]
-        L += report_section(points, [m for m in point_methods if m in points.errors], out_dir)
+        L += points_section
         if windows_beside_full and (out_dir / "render_points_summary.csv").is_file():
             from edgetruth.evaluate.ranging.window_shares import beside_section
 
@@ -609,9 +608,9 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
         L += [f"**{figure_name(k)}**", "", f"![{figure_name(k)}]({rel})", ""]
     L += ["## Files", "", "- `ranging_rows.csv`: one row per (image, method)", "- `ranging_summary.json`",
           "- `render_points.npz`: every scored point's signed error per method (docs/formats.md)"
-          if points is not None else "",
+          if points_section is not None else "",
           "- `render_points_summary.csv`: per-point statistics per method × cell × distance interval"
-          if points is not None else "",
+          if points_section is not None else "",
           "- `calibration.json`" if calibration is not None else ""]
     path = out_dir / "report.md"
     atomic_write_text(path, "\n".join(L) + "\n")

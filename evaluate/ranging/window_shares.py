@@ -69,7 +69,7 @@ def image_window_counts(image: np.ndarray, method: str = "dynamic_erf_4p") -> di
 
 def window_shares(dataset_dirs, method: str = "dynamic_erf_4p", groups=None) -> dict:
     """{"total": {5: share, ...}, "by_interval": {"50-100": {...}, ...}, "n_points": N, "n_images": M}."""
-    from edgetruth.evaluate.ranging.images import interval_label
+    from edgetruth.evaluate.design import interval_label
     from edgetruth.render.dataset.reader import open_dataset
 
     total = dict.fromkeys(WINDOWS, 0)

@@ -3,7 +3,7 @@
 Every method refines the same Canny candidates of the same test-split images
 (seeds disjoint from the threshold calibration split).  Errors are signed
 distances to the true edge along the true normal, for candidates whose
-pixel centre lies within 1.5 px of the edge (``edgetruth.evaluate.points.matching``); a
+pixel centre lies within 1.5 px of the edge (``edgetruth.evaluate.matching``); a
 method that fails on a candidate answers with the candidate pixel (and the
 failure share is reported), so every method is scored on the same points.
 
@@ -29,7 +29,7 @@ from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate import crb
 from edgetruth.evaluate import stats as st
-from edgetruth.evaluate.points.matching import MATCH_RADIUS_PX, on_edge
+from edgetruth.evaluate.matching import MATCH_RADIUS_PX, on_edge
 from edgetruth.evaluate.stats import summary, wilcoxon_paired
 from edgetruth.render.synthetic.scenarios import DEFAULT_SHAPE, SCENARIOS, synthetic_image
 

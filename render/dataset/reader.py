@@ -172,6 +172,7 @@ class Dataset:
 
     @property
     def spec_name(self) -> str:
+        """The name of the spec the dataset was rendered from."""
         return str(self.manifest.get("spec", ""))
 
     @property
@@ -180,6 +181,13 @@ class Dataset:
         return int(self.manifest["n_images"])
 
     def names(self) -> list[str]:
+        """The complete images' names, in index order.
+
+        Returns
+        -------
+        list of str
+            E.g. ``["0000_calib", "0015_G1_T1", ...]``.
+        """
         return [s.name for s in self._samples]
 
     def __len__(self) -> int:
@@ -196,13 +204,33 @@ class Dataset:
         return self._samples[key]
 
     def targets(self) -> list[Sample]:
+        """The target images (``kind = "target"``), in index order.
+
+        Returns
+        -------
+        list of Sample
+            Each with its ``outline``.
+        """
         return [s for s in self._samples if s.kind == "target"]
 
     def checkerboards(self) -> list[Sample]:
+        """The checkerboard images (``kind = "checkerboard"``: calibration boards), in index order.
+
+        Returns
+        -------
+        list of Sample
+            Their truth holds the inner corners.
+        """
         return [s for s in self._samples if s.kind == "checkerboard"]
 
     def square_boards(self) -> list[Sample]:
-        """Images of boards of squares (``kind = "squares"``; their truth's ``squares`` block)."""
+        """Images of boards of squares (``kind = "squares"``; their truth's ``squares`` block), in index order.
+
+        Returns
+        -------
+        list of Sample
+            The board images.
+        """
         return [s for s in self._samples if s.kind == "squares"]
 
     def __repr__(self) -> str:

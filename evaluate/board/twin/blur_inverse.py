@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from edgetruth.evaluate.board.photo_model import ESF_HALF_WIDTH_PX, fit_erf_batch
+from edgetruth.evaluate.board.tone.photo_model import ESF_HALF_WIDTH_PX, fit_erf_batch
 
 #: the ESF's grid step (px) and length (samples) for the numerical LSF
 STEP_PX = 1.0 / 64.0

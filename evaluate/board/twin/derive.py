@@ -162,7 +162,7 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     ``source`` the photos in words (for the headers); ``bend``: each board curled as its photo's (``bend_mm``;
     chessboards only); ``model_ref``: how the spec names a board of separate squares' model file (required
     for one)."""
-    from edgetruth.evaluate.board.photo_model import SHARPENED_PCT, clipped_white
+    from edgetruth.evaluate.board.tone.photo_model import SHARPENED_PCT, clipped_white
     from edgetruth.evaluate.board.twin.blur_inverse import aberration_sigma_px
     from edgetruth.evaluate.board.twin.sharpening import fit_sharpening, mask_noise_gain, sharpened_axes
     from edgetruth.render.optics.camera import camera_from_dict
@@ -320,7 +320,7 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
                  f"lines fitted in the undistorted image; `edgetruth calibrate --pattern {cols}x{rows} --corners "
                  f"lines`), RMS {m['rms_px']:.4f} px" if chess else
                  f"Zhang's calibration (k1, k2, as his) on the corners of the {4 * m['board']['squares']} squares' "
-                 "side lines (Canny-Devernay points, edgetruth.evaluate.board.photo_model.board_lines) of every "
+                 "side lines (Canny-Devernay points, edgetruth.evaluate.board.tone.photo_model.board_lines) of every "
                  f"photo, RMS {m['rms_px']:.4f} px")
     cam = _comment(
         f"The camera of {source}, as edgetruth measured it: {cal_words}.  Written by `edgetruth twin` "
@@ -328,7 +328,7 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         f"the f-number (f/{a.f_number:g}) and the focus (the median board distance, with "
         + (f"a square of {square_m * 1000:g} mm" if chess else f"a model unit of {square_m * 1000:g} mm")
         + "); they set f = fx * pitch and the defocus, which is small here.  The lens blur is "
-        f"the median of the unsaturated photos' ERF sigma per axis (edgetruth.evaluate.board.photo_model: "
+        f"the median of the unsaturated photos' ERF sigma per axis (edgetruth.evaluate.board.tone.photo_model: "
         f"{sig_x:.3f} px along x, {sig_y:.3f} px along y)"
         + (f", less what the JPEG adds ({jpeg_x:.3f} and {jpeg_y:.3f} px on a synthetic board)" if output == "jpeg"
            else "") + ", as the Gaussian aberration whose edge through the pixel and the diffraction reads that "
@@ -470,7 +470,7 @@ poses = [{{ R = [{R}], t = [{t}] }}]
     over = {k: [p["overshoot_pct"][k] for p in photos if p.get("overshoot_pct")] for k in "xy"}
     if over["x"]:
         shape = (f"sharpening: the photos' pooled ESFs overshoot by {_range(over['x'])} % of the step along x and "
-                 f"{_range(over['y'])} % along y (edgetruth.evaluate.board.photo_model)")
+                 f"{_range(over['y'])} % along y (edgetruth.evaluate.board.tone.photo_model)")
         board_lines.append(_comment(shape + (
             f": above {SHARPENED_PCT:g} % (the unsaturated photos' median) along {' and '.join(axes)}, rendered as "
             f"an unsharp mask there (sharpen_axis), its amount "
@@ -494,7 +494,7 @@ poses = [{{ R = [{R}], t = [{t}] }}]
         _comment(f"saturation: {len(sat)} photo(s) with whites flat ({flat_rule}){clip}: "
                  + ("the ADC's top or full_well_e there" if raw else "output_clip_dn there")
                  + (", with the white before the clip from the share of the ring at its top and the photo's noise "
-                    "(edgetruth.evaluate.board.photo_model.clipped_white)" if by_top else
+                    "(edgetruth.evaluate.board.tone.photo_model.clipped_white)" if by_top else
                     f", with the white before the clip their dark level x {ratio:.2f}")
                  + (" (above the black level)" if raw else "") + ";", True),
         _comment(f"noise: {noise}: " + (

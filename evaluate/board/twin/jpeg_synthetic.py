@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from edgetruth.evaluate.board.photo_model import ESF_HALF_WIDTH_PX
+from edgetruth.evaluate.board.tone.photo_model import ESF_HALF_WIDTH_PX
 
 
 def synthetic_board(shape: tuple[int, int], lines, sigma_x_px: float, sigma_y_px: float, dark: float,
@@ -30,7 +30,7 @@ def synthetic_board(shape: tuple[int, int], lines, sigma_x_px: float, sigma_y_px
     combined along the side's normal), exact along the middle of each side where ``photo_model.blur`` reads it."""
     from scipy.special import ndtr
 
-    from edgetruth.evaluate.board.photo_model import _outward
+    from edgetruth.evaluate.board.tone.photo_model import _outward
 
     n, d = _outward(lines)
     h, w = shape
@@ -56,7 +56,7 @@ def jpeg_blur_px(shape: tuple[int, int], lines, sigma_x_px: float, sigma_y_px: f
     """{"x", "y"}: how much a JPEG at ``quality`` (``render.sensor.pipeline.jpeg_round_trip``, the twin's encoder)
     raises the ERF σ (px) ``photo_model.blur`` reads on the ``synthetic_board`` of these lines, levels and σ; the
     same pixels stored as 8-bit without it are the reference, so the synthesis' own small bias cancels."""
-    from edgetruth.evaluate.board.photo_model import blur
+    from edgetruth.evaluate.board.tone.photo_model import blur
     from edgetruth.render.sensor.pipeline import jpeg_round_trip
 
     img = synthetic_board(shape, lines, sigma_x_px, sigma_y_px, dark, white)
@@ -88,7 +88,7 @@ def noise_before_jpeg(shape: tuple[int, int], lines, squares, sigma_x_px: float,
     The white's SD is solved for s with r held (``BEFORE_OVER_AFTER``), the dark's for r with s held
     (``READ_NOISE_DN``), ``NOISE_PASSES`` times.  -> {"shot_dn": s, "read_dn": r}; None when no noise is measured
     after it, or when none of the levels leaves as much."""
-    from edgetruth.evaluate.board.levels import square_levels
+    from edgetruth.evaluate.board.detect.levels import square_levels
     from edgetruth.render.sensor.pipeline import jpeg_round_trip
 
     if not (white_sd_after > 0 and math.isfinite(white_sd_after) and math.isfinite(dark_sd_after)):

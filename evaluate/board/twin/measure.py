@@ -156,11 +156,11 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     JPEG quality, bend) on which the board is found; ``left_out`` names the others and why (fewer than 3 left: an
     ``InputError``).
     ``progress``: wraps an iterable of photos in a progress bar (the calibration's pass, then the measurements')."""
-    from edgetruth.evaluate.board import chessboard as cb
-    from edgetruth.evaluate.board.grid_corners import grid_points
-    from edgetruth.evaluate.board.levels import saturated, square_levels
-    from edgetruth.evaluate.board.photo_model import blur as edge_blur
-    from edgetruth.evaluate.board.photo_model import board_lines
+    from edgetruth.evaluate.board.detect import chessboard as cb
+    from edgetruth.evaluate.board.measure.grid_corners import grid_points
+    from edgetruth.evaluate.board.detect.levels import saturated, square_levels
+    from edgetruth.evaluate.board.tone.photo_model import blur as edge_blur
+    from edgetruth.evaluate.board.tone.photo_model import board_lines
     from edgetruth.evaluate.board.twin.jpeg_synthetic import jpeg_blur_px, noise_before_jpeg
     from edgetruth.evaluate.board.twin.shading import light_levels, light_square_centres, project
     from edgetruth.evaluate.calibration import calibrate_photos
@@ -280,9 +280,9 @@ def measure_tone(photos, images, rows, model, full_scale: float = 255.0) -> dict
     ``output_gamma`` 1 (linear) when the 95 % interval holds 1, else the power.  Too few unsaturated photos (or no
     power found): linear, and ``note`` says why.  ``full_scale``: the stored values' (65535 for 16-bit photos)."""
     from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD
+    from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD
     from edgetruth.evaluate.board.inputs import BoardInputs
-    from edgetruth.evaluate.board.tone_fit import estimate_power
+    from edgetruth.evaluate.board.tone.fit import estimate_power
 
     keep = [i for i, r in enumerate(rows) if not r["white_saturated"]]
     if len(keep) < 3:

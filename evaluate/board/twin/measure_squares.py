@@ -77,9 +77,9 @@ def measure_squares(photos: list[Path], model, tone_power: float = 2.2, channel:
     photo on which the board is found; ``left_out`` names the others and why (fewer than 3 left: an
     ``InputError``).  ``tone_power``: the 8-bit photos' tone (stored = linear^(1/power)), assumed.
     ``progress``: wraps an iterable of photos in a progress bar."""
-    from edgetruth.evaluate.board.calibrate import calibrate
-    from edgetruth.evaluate.board.photo_model import blur as edge_blur
-    from edgetruth.evaluate.board.photo_model import board_lines, flat_labels, noise
+    from edgetruth.evaluate.board.calibrate.zhang import calibrate
+    from edgetruth.evaluate.board.tone.photo_model import blur as edge_blur
+    from edgetruth.evaluate.board.tone.photo_model import board_lines, flat_labels, noise
     from edgetruth.evaluate.board.twin.jpeg_synthetic import jpeg_blur_px
     from edgetruth.evaluate.board.twin.measure import edge_shape, jpeg_quality, read_photo
     from edgetruth.evaluate.board.twin.shading import light_levels, project

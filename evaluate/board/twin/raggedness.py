@@ -140,15 +140,15 @@ def measure_set(images: list[np.ndarray], model, methods: list[str], options: di
     through a JPEG at its quality."""
     from edgetruth import console
     from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.board.measure import method_row
-    from edgetruth.evaluate.board.photo_model import board_lines, blur, noise
-    from edgetruth.evaluate.board.sides import square_map
-    from edgetruth.evaluate.board.squares import board_candidates, board_squares
+    from edgetruth.evaluate.board.measure.rows import method_row
+    from edgetruth.evaluate.board.tone.photo_model import board_lines, blur, noise
+    from edgetruth.evaluate.board.sides.lines import square_map
+    from edgetruth.evaluate.board.detect.squares import board_candidates, board_squares
     from edgetruth.evaluate.board.twin.measure import jpeg_quality
 
     chess = model.pattern is not None
     if chess:  # which squares are dark, as the board study settles it
-        from edgetruth.evaluate.board.chessboard import settle_parity
+        from edgetruth.evaluate.board.detect.chessboard import settle_parity
 
         model = settle_parity([np.asarray(i, np.float64) for i in images], model)
     names = names or [f"photo{i + 1}" for i in range(len(images))]

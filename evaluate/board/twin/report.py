@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from edgetruth.evaluate import method_order as mo
-from edgetruth.evaluate.board.measure import OPENCV_ROW, REFERENCE_ROW
+from edgetruth.evaluate.board.measure.rows import OPENCV_ROW, REFERENCE_ROW
 from edgetruth.evaluate.report_format import num, table
 from edgetruth.evaluate.stats import spearman
 from edgetruth.fileio import atomic_write_text, write_json
@@ -264,7 +264,7 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
                     "PAE default real", "PAE default twin"], per_photo), "",
              *corner_lines(corners),
              "## Table 3 — the photo model: what the camera did, real and twin", "",
-             "`edgetruth.evaluate.board.photo_model` on every photo and every twin image alike: ERF σ of the "
+             "`edgetruth.evaluate.board.tone.photo_model` on every photo and every twin image alike: ERF σ of the "
              "squares' horizontal sides (blur along y) and vertical sides (blur along x), median over sides; MTF50 "
              "of the pooled ESF; its over/undershoot in % of the step (sharpening); flat regions (inside the "
              "squares, a ring around them, 4 px from the sides): mean, residual SD about a quadratic surface, lag-1 "

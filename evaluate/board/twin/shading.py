@@ -29,8 +29,8 @@ MIN_PHOTOS, MIN_LEVELS = 2, 20
 def light_square_centres(pattern: tuple[int, int]) -> np.ndarray:
     """(L, 2) the light squares' centres among the dark ones, in the board study's chessboard model (squares; inner
     corner (0, 0) at the origin), in a fixed order: ``levels.light_centres`` of the model's dark squares."""
-    from edgetruth.evaluate.board import chessboard as cb
-    from edgetruth.evaluate.board.levels import light_centres
+    from edgetruth.evaluate.board.detect import chessboard as cb
+    from edgetruth.evaluate.board.detect.levels import light_centres
 
     return light_centres(cb.chessboard_model(tuple(pattern), 1.0).corners)
 
@@ -46,7 +46,7 @@ def project(points_model: np.ndarray, R, t, K, dist) -> np.ndarray:
 def light_levels(image: np.ndarray, uv: np.ndarray, clip: float | None = None) -> list[float | None]:
     """The median of a (2 ``PATCH_HALF_PX`` + 1)² patch at each of ``uv`` (the nearest pixel centre); None where the
     patch leaves the image or reaches ``clip`` (a clip flattens the shading it measures)."""
-    from edgetruth.evaluate.board.levels import patches_at
+    from edgetruth.evaluate.board.detect.levels import patches_at
 
     patches, inside = patches_at(image, uv, PATCH_HALF_PX)
     level = np.median(patches, axis=1)

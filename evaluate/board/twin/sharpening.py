@@ -20,7 +20,7 @@ def sharpened_axes(photos: list[dict]) -> str | None:
     """'x', 'y' or 'xy' (the renderer's ``sharpen_axis``) where the photos' median overshoot (``overshoot_pct``,
     the larger of over- and undershoot) exceeds ``photo_model.SHARPENED_PCT``; None where no axis does (or none
     was measured)."""
-    from edgetruth.evaluate.board.photo_model import SHARPENED_PCT
+    from edgetruth.evaluate.board.tone.photo_model import SHARPENED_PCT
 
     over = [p["overshoot_pct"] for p in photos if p.get("overshoot_pct")]
     axes = "".join(a for a in "xy" if over and np.nanmedian([o[a] for o in over]) > SHARPENED_PCT)
@@ -35,7 +35,7 @@ def fit_sharpening(esfs: dict, camera, defocus_px: float, black: float, white: f
     (1: linear).  -> {"sigma_um": {axis: σ}, "amount", "sigma_px", "fit_rms"}."""
     from scipy.optimize import least_squares
 
-    from edgetruth.evaluate.board.photo_model import normalised_model
+    from edgetruth.evaluate.board.tone.photo_model import normalised_model
 
     axes = sorted(esfs)
     data = {a: (np.asarray(esfs[a][0], float), np.asarray(esfs[a][1], float)) for a in axes}

@@ -135,8 +135,8 @@ def outline_points(truth: dict, step_px: float = OUTLINE_STEP_PX,
 
 def exact_outline_row(truths: list[dict], model):
     """The study's line fit and intersection applied to points on the exact outline: the floor of its procedure."""
-    from edgetruth.evaluate.board.measure import Row
-    from edgetruth.evaluate.board.sides import fit_lines
+    from edgetruth.evaluate.board.measure.rows import Row
+    from edgetruth.evaluate.board.sides.lines import fit_lines
 
     corners, fits = [], []
     for t in truths:
@@ -181,8 +181,8 @@ def per_photo_corners(real_run, twin_run, truths: list[dict], method: str) -> li
     junction's corner on the photo and on the twin (``summary.outward_offsets``: > 0 out of the dark square), the
     twin's mean signed error of the points against the exact outline, and whether the photo's white is saturated
     (``levels``).  None for a board of separate squares (no junctions) or when ``method`` did not run."""
-    from edgetruth.evaluate.board import chessboard as cb
-    from edgetruth.evaluate.board.summary import outward_offsets
+    from edgetruth.evaluate.board.detect import chessboard as cb
+    from edgetruth.evaluate.board.measure.summary import outward_offsets
 
     model = twin_run.inp.model
     if model.pattern is None or not (len(real_run.names) == len(twin_run.names) == len(truths)):
@@ -285,7 +285,7 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
     ``opencv_left_twin_bent``, whose boards curl as the photos' do.  ``set_name`` may also be a list of your own
     photos (files, folders, globs; ``resolve_inputs`` with ``model_path`` or ``pattern`` and ``square``): then
     ``twin`` is required, e.g. the ``twin.toml`` of ``edgetruth twin``."""
-    from edgetruth.evaluate.board.photo_model import derive_twin, measure_photo
+    from edgetruth.evaluate.board.tone.photo_model import derive_twin, measure_photo
     from edgetruth.evaluate.board.study import compute_board_study, write_board_run
     from edgetruth.evaluate.run_dir import prepare_run_dir
     from edgetruth.image_io import read_gray
@@ -359,8 +359,8 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
     study_s = time.perf_counter() - t_s
 
     # 3. the twin against its truth
-    from edgetruth.evaluate.board.measure import calibrate_row
-    from edgetruth.evaluate.board.summary import row_summary
+    from edgetruth.evaluate.board.measure.rows import calibrate_row
+    from edgetruth.evaluate.board.measure.summary import row_summary
 
     errors = {r.label: point_errors(r, truths) for r in twin_run.rows if r.is_method}
     corners = per_photo_corners(real_run, twin_run, truths, PER_PHOTO_METHOD)
@@ -409,7 +409,7 @@ def closed_loop_noise(pm_real: list[dict], pm_twin: list[dict], sensors) -> list
     """Per photo not reduced to a coarse palette: the output noise that would make the twin's black SD equal the
     photo's, from the twin's measured black SD s_t with its output noise n: the twin's other noise (Monte-Carlo,
     sensor, through the sharpening) is s_t² − n² − 1/12, and n' = sqrt(s_real² − other − 1/12)."""
-    from edgetruth.evaluate.board.photo_model import PALETTE_LEVELS
+    from edgetruth.evaluate.board.tone.photo_model import PALETTE_LEVELS
 
     out = []
     for r, t, sen in zip(pm_real, pm_twin, sensors):
