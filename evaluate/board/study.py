@@ -38,6 +38,7 @@ from edgetruth.evaluate.board.measure.compare import compare_all
 from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD
 from edgetruth.evaluate.board.measure.rows import OPENCV_ROW, REFERENCE_ROW, Row, calibrate_row, method_row
 from edgetruth.evaluate.board.measure.summary import INTRINSICS, per_side_rows, row_summary
+from edgetruth.evaluate.board.report.overlays import board_overlay, overlay_name, png_bytes
 from edgetruth.evaluate.board.tone import locator_fit as LF, values as tone_mod
 from edgetruth.evaluate.board.tone.fit import estimate_power, require_chessboard
 from edgetruth.evaluate.run_dir import check_same_settings, prepare_run_dir
@@ -82,6 +83,8 @@ class BoardRun:
     locator: dict | None = None
     #: how the stored values were decoded (``tone_summary``); None: as stored
     tone: dict | None = None
+    #: per photo used: (file name in figures/, PNG bytes) of its overlay (``evaluate.board.report.overlays``)
+    overlays: list | None = None
 
 
 def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, channel: str = "luma",
@@ -136,7 +139,20 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
             locator = LF.locator_summary(rows, summaries, label, misfit)
             break
     return BoardRun(inp, names, (w, h), rows, summaries, comparisons, per_side, photo_table, reference,
-                    ref_row, time.perf_counter() - t0, locator, tone)
+                    ref_row, time.perf_counter() - t0, locator, tone, board_overlays(rows, used_images, quads, names))
+
+
+def board_overlays(rows: list, images, quads, names) -> list:
+    """Per photo used, the overlay of its detected squares and one method's fitted sides (dynamic_erf_4p where
+    it ran, else the first method row): [(file name, PNG bytes)]."""
+    method_rows = [r for r in rows if r.is_method and r.sides]
+    row = next((r for r in method_rows if r.label == "dynamic_erf_4p"), method_rows[0] if method_rows else None)
+    out = []
+    for i, (img, q, name) in enumerate(zip(images, quads, names)):
+        sides = row.sides[i].corners if row is not None and row.sides[i] is not None else None
+        text = f"green: squares found; magenta: {row.label}'s side lines" if row is not None else "squares found"
+        out.append((overlay_name(name), png_bytes(board_overlay(img, q, sides, text=text))))
+    return out
 
 
 def check_tone(text: str | None, inp: BoardInputs) -> tone_mod.Tone:
@@ -191,7 +207,7 @@ def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], 
     return write_outputs(out, title=title, header_lines=header, photos_table=run.photo_table, rows=run.rows,
                          summaries=run.summaries, comparisons=run.comparisons, reference=run.reference,
                          model=inp.model, photo_names=run.names, per_side=run.per_side, locator=run.locator,
-                         tone=run.tone)
+                         tone=run.tone, overlays=run.overlays)
 
 
 def run_board_study(items: list[str], out, model: str | None = None, methods=None, channel: str = "luma",

@@ -474,7 +474,25 @@ def photo_section(per_image: list[dict]) -> list[str]:
             "fitted side lines or circle (magenta), the refined points of one method (red; dynamic_erf_4p where it "
             "ranged) with its l and Z, the runners-up (faint yellow); drawn on the undistorted photo."
             + (f"  {n_close} of {len(per_image)} choices were close." if n_close else ""),
-            "", "A method that did not range a photo says why in `ranging_rows.csv` (`status`)."]
+            "", "A method that did not range a photo says why in `ranging_rows.csv` (`status`)."] + runners_up_lines(per_image)
+
+
+def runners_up_lines(per_image: list[dict]) -> list[str]:
+    """Per photo, the regions target finding kept and passed over (polarity, box x,y,w,h, score), close ones first."""
+    lines = []
+    for p in sorted(per_image, key=lambda p: not (p.get("finder") or {}).get("close")):
+        fin = p.get("finder")
+        if not fin:
+            continue
+        c = fin["chosen"]
+        rest = "; ".join(f"{r['polarity']} {','.join(str(v) for v in r['bbox'])} ({r['score']:.2f})"
+                         for r in fin.get("runners_up", [])[:3]) or "none"
+        lines.append(f"- {p['image']}{' (**close**)' if fin.get('close') else ''}: kept {c['polarity']} "
+                     f"{','.join(str(v) for v in c['bbox'])} ({c['score']:.2f}); runners-up {rest}")
+    if not lines:
+        return []
+    return ["", "Target finding per photo: the region kept and the runners-up (polarity, box x,y,w,h in px of the "
+                "undistorted photo, score); a runner-up's box is a ready `roi_px` if it is the target.", ""] + lines
 
 
 def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_dir: str | Path | None = None,

@@ -18,7 +18,7 @@ from edgetruth.evaluate.board.tone import locator_fit as LF
 from edgetruth.evaluate.report_format import ci, num, table
 from edgetruth.evaluate.run_dir import utc_stamp
 from edgetruth.evaluate.stats import spearman
-from edgetruth.fileio import atomic_write_text, write_json
+from edgetruth.fileio import atomic_write_bytes, atomic_write_text, write_json
 from edgetruth.resources import source_commit
 
 
@@ -354,11 +354,17 @@ def reading(sums, comparisons, reference, tone: dict | None = None, photos: list
 
 
 def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_table: list[dict], rows, summaries,
-                  comparisons, reference, model, photo_names, per_side, locator=None, tone=None) -> Path:
+                  comparisons, reference, model, photo_names, per_side, locator=None, tone=None,
+                  overlays=None) -> Path:
     """Every output file of the study; returns report.md's path.  ``tone``: how the stored values were decoded
-    (``study.tone_summary``), written as tone.json when given."""
+    (``study.tone_summary``), written as tone.json when given; ``overlays``: [(file name, PNG bytes)] per photo
+    used, written into figures/ and linked from the "Squares found" table."""
     (out / "calibration").mkdir(exist_ok=True)
     (out / "figures").mkdir(exist_ok=True)
+    pictures = {}
+    for (fname, data), photo in zip(overlays or [], photo_names):
+        atomic_write_bytes(out / "figures" / fname, data)
+        pictures[photo] = f"[overlay](figures/{fname})"
     atomic_write_text(out / "summary.csv", _csv_text(SUMMARY_COLUMNS, [_flat_summary(s) for s in summaries]))
     atomic_write_text(out / "per_side.csv", _csv_text(
         ("image", "square", "side", "method", "n_points", "rms_px", "length_model", "length_measured", "length_err",
@@ -393,9 +399,12 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
             figures.side_length_error(summaries, errors_px, out / "figures")]
     labels = {s["row"]: s["label"] for s in summaries}
     lines = [f"# {title}", "", *header_lines, "",
-             "## Squares found", "", table([photo_headers[k] for k in photos_table[0]],
+             "## Squares found", "", table([photo_headers[k] for k in photos_table[0]] + (["picture"] if pictures else []),
                                            [[num(v, 2) if isinstance(v, float) else ("—" if v in ("", None) else v)
-                                             for v in p.values()] for p in photos_table]), "",
+                                             for v in p.values()] + ([pictures.get(p["photo"], "—")] if pictures else [])
+                                            for p in photos_table]), "",
+             *(["Overlays: the squares found (green) and one method's fitted side lines (magenta) on each photo used.",
+                ""] if pictures else []),
              "## Table 1 — straightness and coverage (per method)", "",
              "RMS of each side's refined points about its total-least-squares line, pooled over every covered side "
              "of every photo (95 % percentile bootstrap CIs resampling sides, and resampling photos with all their "
