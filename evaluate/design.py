@@ -1,9 +1,28 @@
 """Which rows (or image records) make each table's cells: the paired design's base cell, the levels
 of each factor on the same pose slots, and the groups outside any design (Tables 13-17, the factor
-tables and the per-point tables alike)."""
+tables and the per-point tables alike), and the constants the ranging and per-point studies share: the
+distance intervals, the reference method and the seed's method sets.  Both studies import it; neither
+imports the other."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+#: the distance intervals of the tables (cm; the last one closed)
+INTERVALS_CM = ((50, 100), (100, 150), (150, 200), (200, 250), (250, 300))
+#: the method every other is compared with (the seed's proposed one)
+REFERENCE_METHOD = "dynamic_erf_4p"
+#: The seed's Table 13 methods, and the representative set of Tables 16-17.
+SEED_TABLE13 = ("canny_pixel", "canny_devernay", "hagara_aef2011", "sigmoid_logistic_fit2023", "ser_cis",
+                "dynamic_erf_4p")
+SEED_ROBUSTNESS = ("canny_pixel", "erf4p_fixed11", "ser_cis", "dynamic_erf_4p")
+
+
+def interval_label(distance_cm: float) -> str:
+    """The table interval a distance (cm) falls in ("50-100", ...; "<50" and ">300" outside)."""
+    for a, b in INTERVALS_CM:
+        if a <= distance_cm < b or (b == INTERVALS_CM[-1][1] and distance_cm == b):
+            return f"{a}-{b}"
+    return "<50" if distance_cm < INTERVALS_CM[0][0] else ">300"
 
 
 def level_of(row, factor: str) -> str | None:

@@ -60,7 +60,7 @@ def test_calibrate_camera_runs_on_one_thread_and_restores_the_count(seen):
 
 
 def test_the_projects_calibrations_go_through_it(seen):
-    from edgetruth.evaluate.board.calibrate import calibrate as calibrate_squares
+    from edgetruth.evaluate.board.calibrate.zhang import calibrate as calibrate_squares
     from edgetruth.evaluate.calibration import solve_points
 
     obj, img = _views()

@@ -20,12 +20,22 @@ Object points: inner corner k at (c, r) * square_m (``calibration.object_points`
 """
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
+from edgetruth import locate
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board import chessboard as cb
-from edgetruth.evaluate.board.grid_corners import DEFAULT_METHOD as GRID_METHOD
+from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.detect.correspond import Correspondence, project, rotation_deg
+from edgetruth.evaluate.board.detect.quads import BORDER_PX
+from edgetruth.evaluate.board.detect.squares import board_candidates
+from edgetruth.evaluate.board.measure.grid_corners import (DEFAULT_METHOD as GRID_METHOD, GridPoints, open_halves,
+                                                           to_opencv_order)
+from edgetruth.evaluate.calibration import to_uint8
+from edgetruth.locate.registry import camera_free
 from edgetruth.render.scene.charuco import CharucoBoard
+
 
 #: The edge method of ``--corners lines`` on a ChArUco board: the chessboard path's (``grid_corners``).  The markers'
 #: sides lie (square - marker) / 2 beside the squares' sides, inside its 11-point window; on renders it measured
@@ -34,7 +44,7 @@ DEFAULT_METHOD = GRID_METHOD
 
 
 def board_of(pattern, square_m: float, marker_m: float) -> CharucoBoard:
-    """The ``CharucoBoard`` of a ``--pattern charuco:COLSxROWS:DICT`` (``board.pattern.BoardPattern``), its square
+    """The ``CharucoBoard`` of a ``--pattern charuco:COLSxROWS:DICT`` (``evaluate.pattern.BoardPattern``), its square
     and marker side in metres; one ``InputError`` line when they do not make a board."""
     if not (np.isfinite(marker_m) and 0 < marker_m < square_m):
         raise InputError(f"--marker-m {marker_m:g}: the printed marker side (black border included) must be "
@@ -47,16 +57,12 @@ def board_of(pattern, square_m: float, marker_m: float) -> CharucoBoard:
 
 def detector_input(image: np.ndarray) -> np.ndarray:
     """The 8-bit image OpenCV's detector reads: an 8-bit photo as it is, any other stretched to 8 bits."""
-    from edgetruth.evaluate.calibration import to_uint8
-
     img = np.asarray(image)
     return img if img.dtype == np.uint8 else to_uint8(img)
 
 
 def charuco_corners(image: np.ndarray, board: CharucoBoard, detector=None) -> tuple[np.ndarray, int]:
     """OpenCV's ChArUco corners in ``image``: ((K, 2) in id order, NaN where not found; markers found)."""
-    import cv2
-
     det = detector or cv2.aruco.CharucoDetector(board.cv_board())
     cc, ids, _, mids = det.detectBoard(detector_input(image))
     out = np.full(((board.cols - 1) * (board.rows - 1), 2), np.nan)
@@ -75,11 +81,6 @@ def parity(board: CharucoBoard) -> int:
 def charuco_view(image: np.ndarray, board: CharucoBoard, corners: np.ndarray) -> tuple[object, cb.ChessboardView] | None:
     """(model, view): OpenCV's corners of every inner corner as the chessboard grid ``grid_corners`` fits on;
     None unless every corner was found."""
-    import cv2
-
-    from edgetruth.evaluate.board.correspond import Correspondence, project, rotation_deg
-    from edgetruth.evaluate.board.quads import BORDER_PX
-
     if not np.all(np.isfinite(corners)):
         return None
     pattern = (board.cols - 1, board.rows - 1)
@@ -102,10 +103,6 @@ def charuco_view(image: np.ndarray, board: CharucoBoard, corners: np.ndarray) ->
 def charuco_grid_points(image: np.ndarray, board: CharucoBoard, method: str = DEFAULT_METHOD, detector=None,
                         **options):
     """``grid_corners.GridPoints`` of a ChArUco photo (module docstring), or None unless OpenCV finds every corner."""
-    from edgetruth import locate
-    from edgetruth.evaluate.board.grid_corners import GridPoints, open_halves, to_opencv_order
-    from edgetruth.evaluate.board.squares import board_candidates
-
     img = np.asarray(image)
     corners, _ = charuco_corners(img, board, detector)
     got = charuco_view(img, board, corners)
@@ -127,11 +124,6 @@ def corner_finder(board: CharucoBoard, corners: str, line_frame: str | None = No
     """``calibrate --corners`` on a ChArUco board -> (corner_finder, label, undistort_lines) for
     ``calibration.calibrate_photos``: 'subpix' = OpenCV's CharucoDetector corners; 'lines[:METHOD]' = edgetruth's
     line corners (fitted in the undistorted image unless ``line_frame`` is 'photo')."""
-    import cv2
-
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.locate.registry import camera_free
-
     detector = cv2.aruco.CharucoDetector(board.cv_board())
     kind, _, spec = str(corners).partition(":")
     if kind == "subpix" and not spec:
@@ -144,7 +136,6 @@ def corner_finder(board: CharucoBoard, corners: str, line_frame: str | None = No
         raise InputError(f"--corners {corners!r}: give 'subpix' or 'lines' (or lines:METHOD, e.g. lines:canny_devernay)")
     spec = spec or DEFAULT_METHOD
     method, options = mo.resolve(spec, mo.study_options())
-    from edgetruth import locate
 
     locate.get_method(method)
     if not camera_free([method]):

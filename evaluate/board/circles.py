@@ -19,9 +19,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
+from edgetruth import locate
 from edgetruth.errors import InputError
+from edgetruth.evaluate.calibration import (DEFAULT_DIST_MODEL, DIST_MODELS, Calibration, PhotoResult, distort_px,
+                                            solve_points, undistort_px)
+from edgetruth.evaluate.conic import algebraic_residual_px, centre_image, fit_ellipse
+from edgetruth.evaluate.residual_field import residual_structure
+from edgetruth.render.edge_truth import closed_polyline_signed_distance
+from edgetruth.render.scene.circle_conic import conic_centre
 
 #: the edge method unless told otherwise (as the chessboard's grid lines: ``grid_corners.DEFAULT_METHOD``)
 DEFAULT_METHOD = "erf4p_fixed11"
@@ -61,7 +69,6 @@ def as_8bit(image: np.ndarray, full_scale: float | None = None) -> np.ndarray:
 def find_blobs(image: np.ndarray, pattern_size: tuple[int, int], asymmetric: bool, full_scale: float | None = None):
     """(centroids (n, 2) in OpenCV's order, diameters (n,) px of the blobs at them) or None when
     ``cv2.findCirclesGrid`` does not find the grid."""
-    import cv2
 
     g8 = as_8bit(image, full_scale)
     flags = cv2.CALIB_CB_ASYMMETRIC_GRID if asymmetric else cv2.CALIB_CB_SYMMETRIC_GRID
@@ -89,8 +96,6 @@ class CircleEdges:
     def conics(self, K, dist) -> list:
         """Per circle the ellipse (3, 3; undistorted px) of its points undistorted with (K, dist), or None: fitted,
         the points beyond ``OUTLIER_PX`` of it dropped, refitted."""
-        from edgetruth.evaluate.calibration import undistort_px
-        from edgetruth.evaluate.conic import algebraic_residual_px, fit_ellipse
 
         p = undistort_px(np.column_stack([self.x, self.y]), K, dist)
         out = []
@@ -106,7 +111,6 @@ class CircleEdges:
 
 def predicted_outlines(obj: np.ndarray, radius_m: float, rvec, tvec, K, dist) -> np.ndarray:
     """(n, OUTLINE_SAMPLES, 2) each circle of ``radius_m`` around the object points, projected (distorted)."""
-    import cv2
 
     a = 2.0 * np.pi * np.arange(OUTLINE_SAMPLES) / OUTLINE_SAMPLES
     ring = np.column_stack([radius_m * np.cos(a), radius_m * np.sin(a), np.zeros_like(a)])
@@ -118,9 +122,6 @@ def predicted_outlines(obj: np.ndarray, radius_m: float, rvec, tvec, K, dist) ->
 def circle_edges(image: np.ndarray, blobs: np.ndarray, outlines: np.ndarray, method: str = DEFAULT_METHOD,
                  **options) -> CircleEdges:
     """The method's points on the Canny candidates within ``BAND_PX`` of each predicted outline (n, m, 2)."""
-    from edgetruth import locate
-    from edgetruth.render.edge_truth import closed_polyline_signed_distance
-
     img = np.asarray(image, np.float64)
     cand = locate.candidates(img)
     label = np.full(len(cand), -1)
@@ -140,11 +141,7 @@ def circle_edges(image: np.ndarray, blobs: np.ndarray, outlines: np.ndarray, met
 def image_points(edges: CircleEdges, kind: str, K, dist, rvec=None) -> np.ndarray:
     """(n, 2) the circles' image points (px, the photo; NaN where a circle has no ellipse) of ``kind``: 'conic'
     (the ellipse's centre) or 'corrected' (the image of the circle's centre for the board plane of ``rvec``)."""
-    import cv2
 
-    from edgetruth.evaluate.calibration import distort_px
-    from edgetruth.evaluate.conic import centre_image
-    from edgetruth.render.scene.circle_conic import conic_centre
 
     qs = edges.conics(K, dist)
     out = np.full((len(qs), 2), np.nan)
@@ -177,13 +174,6 @@ def calibrate_circles(views, pattern, spacing_m: float, centres: str = "blobs", 
     scale, ``as_8bit``; None: renders): ``pattern`` a circles ``BoardPattern``,
     ``spacing_m`` OpenCV's squareSize, ``centres`` as ``parse_centres``.  -> (Calibration, [PhotoResult],
     info {rounds, moved_px, radius_m, centres, method, image_points: per used view (n, 2)})."""
-    import cv2
-
-    from edgetruth import locate
-    from edgetruth.evaluate.calibration import (DEFAULT_DIST_MODEL, DIST_MODELS, Calibration, PhotoResult,
-                                                solve_points)
-    from edgetruth.evaluate.residual_field import residual_structure
-
     kind, method = parse_centres(centres)
     if kind != "blobs":
         locate.get_method(method)

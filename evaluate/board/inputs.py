@@ -14,10 +14,14 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.board.detect.chessboard import chessboard_model
 from edgetruth.evaluate.board.model import BoardModel, read_model
 from edgetruth.evaluate.board.reference import read_corners, read_zhang_calibration, shipped_set
+from edgetruth.evaluate.calibration import parse_pattern
 from edgetruth.fileio import check_input_file
-from edgetruth.image_io import SUFFIXES
+from edgetruth.image_io import SUFFIXES, read_gray_scaled
+from edgetruth.resources import shipped_real_set_names
+
 
 #: Leave-one-image-out calibrates on the other photos: Zhang's method needs at least 2 views.
 MIN_PHOTOS = 3
@@ -42,17 +46,12 @@ class BoardInputs:
 
 
 def _shipped_names() -> list[str]:
-    from edgetruth.resources import shipped_real_set_names
-
     return shipped_real_set_names()
 
 
 def board_model(model_path: str | None, pattern: str | None, square: str | float | None) -> BoardModel:
     """The model the user gave: a model file, or a chessboard (``--pattern``, ``--square``; side lengths in squares
     when no square size is given).  One InputError line when there is none, or both."""
-    from edgetruth.evaluate.board.chessboard import chessboard_model
-    from edgetruth.evaluate.calibration import parse_pattern
-
     if model_path is not None and pattern is not None:
         raise InputError("board study: --model and --pattern both given; give --model FILE for a board of separate "
                          "squares or --pattern COLSxROWS for a chessboard")
@@ -93,9 +92,6 @@ def resolve_inputs(items: list[str], model_path: str | None = None, pattern: str
             raise InputError(f"{name}: the shipped set supplies its own model; drop {' and '.join(given)}")
         s = shipped_set(name)
         if s is not None and "chessboard" in s:
-            from edgetruth.evaluate.board.chessboard import chessboard_model
-            from edgetruth.evaluate.calibration import parse_pattern
-
             b = s["chessboard"]
             model = chessboard_model(parse_pattern(str(b["pattern"])), float(b["square"]), str(b["units"]),
                                      source=s["source"])
@@ -144,8 +140,6 @@ def load_photos(photos: list[Path], channel: str = "luma") -> list[np.ndarray]:
 
 def load_photos_scaled(photos: list[Path], channel: str = "luma") -> tuple[list[np.ndarray], list[float]]:
     """``load_photos``, and each photo's full scale of stored values (``image_io.full_scale``)."""
-    from edgetruth.image_io import read_gray_scaled
-
     images, scales = [], []
     for p in photos:
         img, scale = read_gray_scaled(p, channel=channel)

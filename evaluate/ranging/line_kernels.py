@@ -15,36 +15,7 @@ import math
 import numpy as np
 
 from edgetruth.jit import njit
-
-_BLOCK = 128  # numpy's PW_BLOCKSIZE
-
-
-@njit(cache=True)
-def _block_sum(a, lo, n):
-    """numpy's pairwise_sum of ``a[lo:lo + n]`` for n <= 128: 8 accumulators, then the rest in order."""
-    if n < 8:
-        res = -0.0
-        for i in range(lo, lo + n):
-            res += a[i]
-        return res
-    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
-    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
-    i = 8
-    while i < n - (n % 8):
-        r0 += a[lo + i]
-        r1 += a[lo + i + 1]
-        r2 += a[lo + i + 2]
-        r3 += a[lo + i + 3]
-        r4 += a[lo + i + 4]
-        r5 += a[lo + i + 5]
-        r6 += a[lo + i + 6]
-        r7 += a[lo + i + 7]
-        i += 8
-    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while i < n:
-        res += a[lo + i]
-        i += 1
-    return res
+from edgetruth.locate import exact_sum as XS
 
 
 @njit(cache=True)
@@ -52,8 +23,8 @@ def pairwise_sum(a, lo, n):
     """numpy's ``add.reduce`` of the contiguous float64 ``a[lo:lo + n]``, bit for bit: blocks of <= 128,
     halved (at a multiple of 8) above.  Iterative, with its own stack: numba's on-disk cache cannot
     reload a recursive function (it crashes the process)."""
-    if n <= _BLOCK:
-        return _block_sum(a, lo, n)
+    if n <= XS.BLOCK:
+        return XS.block_sum(a, lo, n)
     los = np.empty(64, np.int64)
     ns = np.empty(64, np.int64)
     state = np.zeros(64, np.int64)  # 0: split next, 1: left done, 2: both done
@@ -63,8 +34,8 @@ def pairwise_sum(a, lo, n):
     while sp > 0:
         top = sp - 1
         m = ns[top]
-        if m <= _BLOCK:
-            vals[vt] = _block_sum(a, los[top], m)
+        if m <= XS.BLOCK:
+            vals[vt] = XS.block_sum(a, los[top], m)
             vt += 1
             sp -= 1
             continue
@@ -88,7 +59,7 @@ def pairwise_sum(a, lo, n):
 @njit(cache=True)
 def _sum(a):
     # np.int64(0), not 0: a literal argument makes numba compile another copy of pairwise_sum and
-    # _block_sum specialised to it (1.4 s of a cold start for the same code)
+    # block_sum specialised to it (1.4 s of a cold start for the same code)
     return pairwise_sum(a, np.int64(0), a.size)
 
 

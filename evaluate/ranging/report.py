@@ -7,15 +7,22 @@ signed ranging error e = Z_hat - Z_true (cm); summaries of |e|; mean relative er
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
+from scipy import stats as st
+from scipy.stats import kendalltau, kruskal
 
-from edgetruth.evaluate.design import factor_tables, group_rows, main_rows, plain_groups
-from edgetruth.evaluate.ranging.images import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13
+from edgetruth.evaluate.design import (INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13, factor_tables,
+                                       group_rows, main_rows, plain_groups)
+from edgetruth.evaluate.method_order import label, options_line
+from edgetruth.evaluate.ranging.window_shares import beside_section
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, signed as _signed, table as _table
-from edgetruth.evaluate.stats import (bootstrap_ci, holm, rank_biserial, rmse, rmse_ci, rmse_difference_ci,
-                                      spearman, summary, wilcoxon_paired)
+from edgetruth.evaluate.stats import (bootstrap_ci, friedman, holm, paired_comparisons, rank_biserial, rmse, rmse_ci,
+                                      rmse_difference_ci, spearman, summary, wilcoxon_paired)
+from edgetruth.fileio import atomic_write_text
+
 
 #: Fewer valid images than this: claims are reported as inconclusive.
 MIN_IMAGES_FOR_VERDICT = 20
@@ -28,13 +35,11 @@ SEED_TARGET_WINNER = {"T1": "dynamic_erf_4p", "T2": "ser_cis", "T3": "dynamic_er
 
 
 def _label(m: str) -> str:
-    from edgetruth.evaluate.method_order import label
     return label(m)
 
 
 def _options_line(methods) -> str:
     """The options each method ran with (the studies' ``STUDY_OPTIONS`` and any ``METHOD:key=value`` label)."""
-    from edgetruth.evaluate.method_order import options_line
     return options_line(methods)
 
 
@@ -146,7 +151,6 @@ def method_comparisons(per: dict, methods, reference: str = REFERENCE_METHOD, ke
 
 # --- claims ---------------------------------------------------------------------------
 def _kendall(order_a, order_b) -> float:
-    from scipy.stats import kendalltau
     if len(order_a) < 2:
         return float("nan")
     pos = {m: i for i, m in enumerate(order_b)}
@@ -160,10 +164,6 @@ def level_analysis(rows, groups: list[str]) -> dict:
     Kendall's W, and Holm-adjusted Wilcoxon steps between consecutive levels.  Otherwise (each
     level drew its own poses) the levels can only be compared unpaired: Kruskal–Wallis, and
     Spearman's rho of |e| against the level index."""
-    from scipy import stats as st
-
-    from edgetruth.evaluate.stats import friedman, paired_comparisons
-
     ok = _ok(rows)
     by = {g: {(r.get("spec", ""), r.get("slot")): abs(r["error_cm"]) for r in ok if r["group"] == g} for g in groups}
     slots = set.intersection(*(set(v) for v in by.values())) if by else set()
@@ -351,9 +351,9 @@ def level_table(ft, methods) -> list[str]:
 def figures(rows, methods, examples, fig_dir: Path, groups: bool = True) -> dict:
     """Figures 8-12, one per other design factor, and (``groups``) one over the groups outside the
     design; returns {key: path} (``figure_name`` captions a key)."""
-    import matplotlib
+    import matplotlib  # lazy: matplotlib is heavy
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: matplotlib is heavy
 
     fig_dir.mkdir(parents=True, exist_ok=True)
     out = {}
@@ -451,7 +451,7 @@ def figures(rows, methods, examples, fig_dir: Path, groups: bool = True) -> dict
 
 # --- the report ---------------------------------------------------------------------------
 def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), header: dict | None = None,
-                 synthetic_report: str | None = None, title: str = "ranging report", points=None,
+                 synthetic_report: str | None = None, title: str = "ranging report", points_section=None,
                  reference: str | None = None, sections=(), windows_beside_full: bool = False) -> Path:
     """Write ``report.md`` (+ ``figures/``, ``ranging_summary.json``) and return its path.
 
@@ -461,14 +461,13 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     tables), shows distances outside 50-300 cm in their own columns, and replaces Tables 16-17's
     design levels by one table over the rows' own ``group`` (the CSV's).  ``sections``: Markdown
     lines placed after the calibration (a photo set's table of photos).  ``windows_beside_full``: add the
-    dynamic methods' window shares beside the full study's (``window_shares.beside_section``; the quick run)."""
-    from edgetruth.fileio import atomic_write_text
-
+    dynamic methods' window shares beside the full study's (``window_shares.beside_section``; the quick run).
+    ``points_section``: the per-point study's Markdown lines (Tables E1-E4, written by the main job, which scores
+    the points; ranging does not import that study), None where no points were scored."""
     out_dir = Path(out_dir)
     all_rows = rows
     # methods with no ranging rows (those that need the camera's model: ranging reads the undistorted image)
     # are in the per-point tables only
-    point_methods = list(methods)
     ranged = {r["method"] for r in all_rows}
     points_only = [m for m in methods if m not in ranged] if ranged else []
     methods = [m for m in methods if m not in points_only]
@@ -481,8 +480,6 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
         L.append(f"- **{k}**: {v}")
     L.append(f"- **method options**: {_options_line(methods)}")
     if synthetic_report:
-        import os
-
         link = os.path.relpath(Path(synthetic_report).resolve(), out_dir.resolve())  # relative to this report
         L += ["", f"Synthetic study (seed §4.2–4.3): see [{link}]({link})"]
     L += ["", "## Claim-by-claim verdict against the seed (ranging, §4.4)", ""]
@@ -592,16 +589,12 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
                   "ΔRMSE = RMSE(Dynamic 4P) − RMSE(method) with a paired bootstrap 95 % CI.  α = 0.05, two-sided.", "",
                   _table(["method", "pairs", "median Δabs(e) (cm)", "r", "ΔRMSE (cm)", "ΔRMSE 95 % CI", "p", "p (Holm)",
                           "significant"], body)]
-    if points is not None and len(points.image):
-        from edgetruth.evaluate.points.report import report_section
-
+    if points_section:
         if points_only:
             L += ["", f"{', '.join(points_only)}: scored per point only (Tables E1–E4): it needs the camera's model, "
                   "which describes the raw image, while the size and pose rows read the undistorted one."]
-        L += report_section(points, [m for m in point_methods if m in points.errors], out_dir)
+        L += points_section
         if windows_beside_full and (out_dir / "render_points_summary.csv").is_file():
-            from edgetruth.evaluate.ranging.window_shares import beside_section
-
             L += beside_section(out_dir / "render_points_summary.csv")
     L += ["", "## Figures", ""]
     for k, p in figs.items():
@@ -609,9 +602,9 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
         L += [f"**{figure_name(k)}**", "", f"![{figure_name(k)}]({rel})", ""]
     L += ["## Files", "", "- `ranging_rows.csv`: one row per (image, method)", "- `ranging_summary.json`",
           "- `render_points.npz`: every scored point's signed error per method (docs/formats.md)"
-          if points is not None else "",
+          if points_section is not None else "",
           "- `render_points_summary.csv`: per-point statistics per method × cell × distance interval"
-          if points is not None else "",
+          if points_section is not None else "",
           "- `calibration.json`" if calibration is not None else ""]
     path = out_dir / "report.md"
     atomic_write_text(path, "\n".join(L) + "\n")
@@ -626,8 +619,6 @@ def group_table(rows, methods, shown, title: str = ("Tables 16–17 — per grou
     """Tables 16-17 for rows whose ``group`` is free text (a photo CSV's, or the groups outside a
     design): the ``shown`` methods per group, the lowest-RMSE method of all per group, and a
     Kruskal–Wallis test across the groups (``unit``: what a group holds, in the text)."""
-    from scipy.stats import kruskal
-
     groups = sorted({str(r["group"]) for r in rows})
     per = by_method(rows, methods)
     body, best = [], []

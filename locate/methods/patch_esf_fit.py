@@ -53,6 +53,7 @@ from edgetruth.errors import InputError
 from edgetruth.jit import before_compile, njit, prange
 from edgetruth.locate import erf_kernels as K
 from edgetruth.locate import esf_tables as ET
+from edgetruth.locate import exact_sum as XS
 from edgetruth.locate import footprints as FP
 from edgetruth.locate.esf_tables import EsfTables, means
 from edgetruth.locate.fit_status import NO_CONTRAST, NOT_CONVERGED, OK, OUT_OF_WINDOW
@@ -150,40 +151,12 @@ def _rho_variance(H, npar, out):
 # union's row, its unused pixels adding zero terms.
 
 @njit(cache=True, forceinline=True)
-def _sum_block(t, lo, n):
-    """numpy's pairwise sum of t[lo:lo + n] for n <= 128 (eight running sums; below 8 one)."""
-    if n < 8:
-        res = -0.0
-        for i in range(lo, lo + n):
-            res += t[i]
-        return res
-    r0, r1, r2, r3 = t[lo], t[lo + 1], t[lo + 2], t[lo + 3]
-    r4, r5, r6, r7 = t[lo + 4], t[lo + 5], t[lo + 6], t[lo + 7]
-    i = 8
-    while i < n - n % 8:
-        r0 += t[lo + i]
-        r1 += t[lo + i + 1]
-        r2 += t[lo + i + 2]
-        r3 += t[lo + i + 3]
-        r4 += t[lo + i + 4]
-        r5 += t[lo + i + 5]
-        r6 += t[lo + i + 6]
-        r7 += t[lo + i + 7]
-        i += 8
-    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while i < n:
-        res += t[lo + i]
-        i += 1
-    return res
-
-
-@njit(cache=True, forceinline=True)
 def _sum_half(t, lo, n):
     if n <= 128:
-        return _sum_block(t, lo, n)
+        return XS.block_sum(t, lo, n)
     n2 = n // 2
     n2 -= n2 % 8
-    return _sum_block(t, lo, n2) + _sum_block(t, lo + n2, n - n2)
+    return XS.block_sum(t, lo, n2) + XS.block_sum(t, lo + n2, n - n2)
 
 
 @njit(cache=True)
@@ -191,7 +164,7 @@ def _pairwise_sum(t, n):
     """numpy's float64 row sum of t[:n] bit for bit (its pairwise summation; every n <= FP.SIZE² = 289 checked
     against np.sum: three levels of halving are enough there)."""
     if n <= 128:
-        return 0.0 + _sum_block(t, 0, n)
+        return 0.0 + XS.block_sum(t, 0, n)
     n2 = n // 2
     n2 -= n2 % 8
     return 0.0 + (_sum_half(t, 0, n2) + _sum_half(t, n2, n - n2))

@@ -37,7 +37,7 @@ from edgetruth.render.scene.mitsuba_scene import LIGHT_OFFSET_M, RenderSettings
 from edgetruth.render.scene.pose import ROTATION_TOLERANCE, ExplicitPose, nearest_rotation
 from edgetruth.render.schema import REQUIRED, Key, _is_num, parse_table
 from edgetruth.render.sensor.linear_model import SensorModel, sensor_from_dict
-from edgetruth.render.scene.shapes import SCENE_GROUP_KEYS, scene_from_group
+from edgetruth.render.scene.target_scene import SCENE_GROUP_KEYS, scene_from_group
 from edgetruth.render.scene.targets import CHECKERBOARD_KEYS, TARGETS, Checkerboard, SquareBoard, square_board_from_dict
 from edgetruth.render.scene.circles_grid import CirclesGrid, circles_grid_from_dict
 

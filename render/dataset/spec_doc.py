@@ -101,7 +101,8 @@ def scene_section() -> list[str]:
     """The target scene's own keys: shapes, materials, lights (``edgetruth.render.scene.shapes``)."""
     from edgetruth.render.scene.lights import LIGHT_KEYS
     from edgetruth.render.scene.materials import MATERIAL_KEYS
-    from edgetruth.render.scene.shapes import BOX_KEYS, SHAPE_KEYS
+    from edgetruth.render.scene.clutter import BOX_KEYS
+    from edgetruth.render.scene.shapes import SHAPE_KEYS
 
     return [
         "### The target scene: shapes, materials, lights", "",

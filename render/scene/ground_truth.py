@@ -57,7 +57,7 @@ def motion_ground_truth(camera: Camera, exposure_s: float, points_cam: np.ndarra
 
 def target_ground_truth(camera: Camera, pose: Pose, target, size_m: float, exposure_s: float = 0.0) -> dict:
     """The truth of a target image: ``target`` a preset id (T1..T4) or a ``TargetScene``."""
-    from edgetruth.render.scene.shapes import TargetScene
+    from edgetruth.render.scene.target_scene import TargetScene
 
     if isinstance(target, TargetScene):
         return scene_ground_truth(camera, pose, target, exposure_s)
@@ -197,7 +197,7 @@ def view_outline_local(target, size_m: float, paired: bool = False) -> np.ndarra
     """Board points that must stay in view when a pose is drawn: a preset's outline (paired design slots:
     the square, which bounds the circle, so every cell draws the same pose), or a ``TargetScene``'s shapes'
     outlines (plus that square when paired)."""
-    from edgetruth.render.scene.shapes import TargetScene
+    from edgetruth.render.scene.target_scene import TargetScene
 
     if not isinstance(target, TargetScene):
         return target_outline_local("square" if paired else TARGETS[target]["shape"], size_m)
@@ -220,7 +220,7 @@ def raised_covers(pose: Pose, scene, source_height_m: float, skip: int | None = 
     """The clutter items that can hide points ``source_height_m`` in front of the board (as occluders): the
     planar items held higher, and every box (the segment to the eye decides); ``skip``: an item's index to
     leave out (a box's own silhouette)."""
-    from edgetruth.render.scene.shapes import BoxCover, RaisedCover
+    from edgetruth.render.scene.clutter import BoxCover, RaisedCover
 
     eye = tuple(_eye_board(pose))
     return [BoxCover(c.shape, eye, source_height_m) if c.is_box else RaisedCover(c, eye, source_height_m)
@@ -401,7 +401,8 @@ def clutter_truth(camera: Camera, pose: Pose, scene) -> list[dict]:
     box's outline is its silhouette from the camera (``Box.silhouette``: a polygon of its corners, each side
     a straight 3-D edge through the lens), which nearer items may hide; its internal edges between faces
     are not recorded (they do not bound the board)."""
-    from edgetruth.render.scene.shapes import FootprintCover, Outline, SpaceOutline, shadow_outline
+    from edgetruth.render.scene.clutter import FootprintCover, SpaceOutline, shadow_outline
+    from edgetruth.render.scene.shapes import Outline
 
     out = []
     for c, item in enumerate(scene.clutter):
@@ -461,7 +462,8 @@ def area_shadow_regions(camera: Camera, pose: Pose, item, light, hide: list) -> 
     polygon, or a light corner not further from the board than the item: not given (``regions_given``
     false).  The irradiance between them: ``clutter_shadow_irradiance``."""
     from edgetruth.render.scene.lights import area_corners_board
-    from edgetruth.render.scene.shapes import Outline, convex_hull, convex_intersection
+    from edgetruth.render.scene.polygons import convex_hull, convex_intersection
+    from edgetruth.render.scene.shapes import Outline
 
     lc = area_corners_board(light, pose)
     if np.any(-lc[:, 2] <= item.top_m):
@@ -508,10 +510,11 @@ def clutter_shadow_irradiance(pose: Pose, scene, item_index: int, light_index: i
     """Irradiance (W/m^2) that light ``light_index`` gives at board points (N, 2) (z = 0) with clutter item
     ``item_index`` in its way (the others ignored).  Point and spot lights: 0 inside the item's exact shadow.
     Area lights and planar items: exact (``lights.unit_irradiance_occluded``: the light's projected solid
-    angle minus its blocked part; conics as ``shapes.CONIC_POLYGON_VERTICES``-gons); boxes too (exact: the
+    angle minus its blocked part; conics as ``clutter.CONIC_POLYGON_VERTICES``-gons); boxes too (exact: the
     faces that face the point tile the blocked part)."""
     from edgetruth.render.scene.lights import unit_irradiance_occluded
-    from edgetruth.render.scene.shapes import occluder_polygons, point_in_polygon, shadow_outline
+    from edgetruth.render.scene.clutter import occluder_polygons, shadow_outline
+    from edgetruth.render.scene.polygons import point_in_polygon
 
     item, lt = scene.clutter[item_index], scene.lights[light_index]
     xy = np.atleast_2d(np.asarray(points_board, float))

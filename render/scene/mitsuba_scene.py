@@ -245,7 +245,7 @@ class TargetRig(_Rig):
         """Place ``target`` at ``pose``; returns the (first) light's radiance.  ``target``: a preset id
         (T1..T4: this rig's fixed scene) or a ``TargetScene`` (its own ``SceneRig``, loaded on first use
         with this rig's camera, settings, crop and window, and rendered until the next ``set_state``)."""
-        from edgetruth.render.scene.shapes import TargetScene
+        from edgetruth.render.scene.target_scene import TargetScene
 
         if isinstance(target, TargetScene):
             if target not in self._scene_rigs:
@@ -333,7 +333,7 @@ class SceneRig(_Rig):
         super().__init__(camera, settings, crop, window)
 
     def _shapes(self) -> dict:
-        from edgetruth.render.scene.shapes import triangulate
+        from edgetruth.render.scene.polygons import triangulate
 
         sc = self.target_scene
         T = self._T(np.eye(4))

@@ -15,8 +15,8 @@ import numpy as np
 from edgetruth.errors import InputError
 from edgetruth.render.schema import Key, parse_table
 # the stand-off and the board's default size live with the shapes (re-exported here)
-from edgetruth.render.scene.shapes import (BOARD_HALF_SIZE_M, TARGET_STANDOFF_M, Shape,  # noqa: F401
-                                           checkerboard_preset, legacy_targets)
+from edgetruth.render.scene.shapes import BOARD_HALF_SIZE_M, TARGET_STANDOFF_M, Shape  # noqa: F401
+from edgetruth.render.scene.target_scene import checkerboard_preset, legacy_targets
 BOARD_REFLECTANCE = 0.8  # white matte board (Lambertian albedo)
 #: the shipped checkerboard preset (``assets/targets.toml [checkerboard]``): kind = "checkerboard" groups show it
 _PRESET, _PRESET_MARGIN_M = checkerboard_preset()
@@ -127,7 +127,7 @@ class SquareBoard:
     def chessboard(cls, cols: int, rows: int, side_m: float, ring: tuple = (1.0, 1.0), **kw) -> "SquareBoard":
         """The dark squares of a chessboard of ``cols`` x ``rows`` *inner* corners (OpenCV's patternSize), inner
         corner (i, j) (row i, column j) at (j, i) * side_m.  First the dark squares between inner corners, in the
-        board study's chessboard model order (``edgetruth.evaluate.board.chessboard.chessboard_model``, parity 0:
+        board study's chessboard model order (``edgetruth.evaluate.board.detect.chessboard.chessboard_model``, parity 0:
         square (r, c) dark where r + c is even; row-major; corners (c, r), (c+1, r), (c+1, r+1), (c, r+1)), so a
         render's first squares are the study's model; then the dark squares of the outer ring, row-major, each cut
         to ``ring`` = [x, y] of a square's side beyond the outermost inner corners (1: whole squares; printed

@@ -7,7 +7,7 @@
 - ``output = "raw"``: those DN in a 16-bit PNG.  ``"srgb8"``: v = (DN − black) / (full scale −
   black), clipped to [0, 1], through the sRGB transfer curve (IEC 61966-2-1), × 255, rounded,
   in an 8-bit PNG.  ``output_gamma`` = G > 0 replaces the sRGB curve by e = v^(1/G) (G = 1: the
-  stored values are linear in light; ``edgetruth.evaluate.board.tone``'s power:G decodes it).
+  stored values are linear in light; ``edgetruth.evaluate.board.tone.values``'s power:G decodes it).
   ``"jpeg"``: the srgb8 image through OpenCV's JPEG encoder (libjpeg, gray, at ``jpeg_quality``)
   and decoded again; the decoded pixels go into the 8-bit PNG.
 - **A video camera's processing** (8-bit outputs; each step off by default, in this order, on the

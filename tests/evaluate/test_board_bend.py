@@ -123,8 +123,8 @@ def test_zhangs_board_barely_bends():
     """A finding, measured (docs/board.md): Zhang's own corners of his five photos (k1 k2): a quadratic bend takes
     2 % of the residual energy against 1 % by chance -- significant over 1,280 corners, but mostly noise
     (excess 0.01), unlike OpenCV's photos."""
-    from edgetruth.evaluate.board.calibrate import _views as board_views
-    from edgetruth.evaluate.board.calibrate import calibrate
+    from edgetruth.evaluate.board.calibrate.zhang import _views as board_views
+    from edgetruth.evaluate.board.calibrate.zhang import calibrate
     from edgetruth.evaluate.board.inputs import resolve_inputs
 
     inp = resolve_inputs(["zhang1998"])

@@ -53,8 +53,8 @@ def test_zhangs_own_corners_are_mostly_noise():
     significant over 1,280 corners, but an excess of 0.02: mostly noise, unlike OpenCV's photos."""
     import cv2
 
-    from edgetruth.evaluate.board.calibrate import _views as board_views
-    from edgetruth.evaluate.board.calibrate import calibrate
+    from edgetruth.evaluate.board.calibrate.zhang import _views as board_views
+    from edgetruth.evaluate.board.calibrate.zhang import calibrate
     from edgetruth.evaluate.board.inputs import resolve_inputs
 
     inp = resolve_inputs(["zhang1998"])

@@ -27,7 +27,7 @@ def test_grid_optimum_is_no_worse_than_any_fixed_window(data):
 def test_grid_rmse_equals_running_the_dynamic_method(data):
     """The prefix-sum shortcut must give exactly what dynamic_erf_4p gives with those thresholds."""
     tau, rmse, _ = tc.grid_search(data.entropy, data.errors["4p"], step=0.05)
-    from edgetruth.evaluate.points.matching import on_edge
+    from edgetruth.evaluate.matching import on_edge
     from edgetruth.render.synthetic.scenarios import SCENARIOS, synthetic_image
 
     errs = []

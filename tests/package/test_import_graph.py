@@ -128,6 +128,90 @@ def test_no_import_cycles(graph):
     assert not sccs, "import cycles:\n" + "\n".join(" <-> ".join(c) for c in sccs)
 
 
+#: evaluate's study packages: rooms side by side on the evaluate floor.  Each imports its own modules and the
+#: floor below (evaluate's shared modules: design tables, target finding, statistics, ...), never another study,
+#: nor a module above the studies (one that imports a study: the main job, threshold calibration), which would be
+#: a sideways import through the back door.  What combines two studies sits above both (or in the CLI).
+STUDIES = ("edgetruth.evaluate.points", "edgetruth.evaluate.ranging", "edgetruth.evaluate.board",
+           "edgetruth.evaluate.synthetic")
+
+
+def _study(m: str) -> str | None:
+    return next((s for s in STUDIES if m == s or m.startswith(s + ".")), None)
+
+
+def _above_the_studies(graph) -> set:
+    """evaluate's modules outside the studies that import a study, directly or through another such module."""
+    upper: set = set()
+    while True:
+        more = {m for m, ts in graph.items() if m.startswith("edgetruth.evaluate") and _study(m) is None
+                and m not in upper and any(_study(t) or t in upper for t in ts)}
+        if not more:
+            return upper
+        upper |= more
+
+
+def test_studies_do_not_import_each_other(graph):
+    assert {"edgetruth.evaluate.main_job", "edgetruth.evaluate.threshold_calibration"} <= _above_the_studies(graph)
+    upper = _above_the_studies(graph)
+    bad = [f"{m} imports {t}" + (" (above the studies)" if t in upper else "") for m, ts in graph.items()
+           if _study(m) for t in sorted(ts) if (_study(t) and _study(t) != _study(m)) or t in upper]
+    assert not bad, "sideways imports between study packages:\n" + "\n".join(bad)
+
+
+def test_the_sideways_check_finds_a_sideways_import():
+    """The check itself can fail: a study importing another, directly or through a module above both."""
+    base = {"edgetruth.evaluate.main_job": {"edgetruth.evaluate.points.scores"},
+            "edgetruth.evaluate.threshold_calibration": {"edgetruth.evaluate.points.scores"},
+            "edgetruth.evaluate.points.scores": {"edgetruth.evaluate.design"}, "edgetruth.evaluate.design": set()}
+    test_studies_do_not_import_each_other(base)  # the floor and the top: allowed
+    with pytest.raises(AssertionError, match="evaluate.points.report imports edgetruth.evaluate.ranging.images"):
+        test_studies_do_not_import_each_other(
+            {**base, "edgetruth.evaluate.points.report": {"edgetruth.evaluate.ranging.images"}})
+    with pytest.raises(AssertionError, match=r"ranging.main imports edgetruth.evaluate.threshold_calibration \(above"):
+        test_studies_do_not_import_each_other(
+            {**base, "edgetruth.evaluate.ranging.main": {"edgetruth.evaluate.threshold_calibration"}})
+
+
+#: the board study's rooms, one per stage, bottom to top: each imports the rooms below it and the board's shared
+#: modules (model, reference, inputs), never a room above it, the study that drives them, or the twin
+BOARD = "edgetruth.evaluate.board"
+BOARD_ROOMS = ("sides", "detect", "calibrate", "measure", "tone", "report")
+BOARD_SHARED = ("model", "reference", "inputs")
+
+
+def _board_room(m: str) -> str | None:
+    if not m.startswith(BOARD + "."):
+        return None
+    part = m.split(".")[3]
+    return part if part in BOARD_ROOMS or part in BOARD_SHARED else ("twin" if part == "twin" else "study")
+
+
+def test_board_rooms_import_downwards(graph):
+    rooms = {_board_room(m) for m in graph}
+    assert set(BOARD_ROOMS) <= rooms
+    bad = []
+    for m, ts in graph.items():
+        a = _board_room(m)
+        if a not in BOARD_ROOMS:
+            continue
+        for t in sorted(ts):
+            b = _board_room(t)
+            if b is None or b == a or b in BOARD_SHARED:
+                continue
+            if b not in BOARD_ROOMS or BOARD_ROOMS.index(b) > BOARD_ROOMS.index(a):
+                bad.append(f"{m} ({a}) imports {t} ({b})")
+    assert not bad, "board rooms importing upwards:\n" + "\n".join(bad)
+
+
+def test_the_board_check_finds_an_upward_import():
+    ok = {f"{BOARD}.measure.rows": {f"{BOARD}.sides.lines", f"{BOARD}.model"}}
+    test_board_rooms_import_downwards({**ok, **{f"{BOARD}.{r}.x": set() for r in BOARD_ROOMS}})
+    with pytest.raises(AssertionError, match=r"board.sides.lines \(sides\) imports edgetruth.evaluate.board.tone.fit"):
+        test_board_rooms_import_downwards({**ok, **{f"{BOARD}.{r}.x": set() for r in BOARD_ROOMS},
+                                           f"{BOARD}.sides.lines": {f"{BOARD}.tone.fit"}})
+
+
 def test_the_graph_check_finds_a_cycle():
     """The check itself can fail: a two-module cycle is reported."""
     with pytest.raises(AssertionError, match="a <-> b"):

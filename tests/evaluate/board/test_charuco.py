@@ -15,7 +15,7 @@ import pytest
 
 from edgetruth.errors import InputError
 from edgetruth.evaluate.board import charuco as ch
-from edgetruth.evaluate.board.pattern import parse_board_pattern
+from edgetruth.evaluate.pattern import parse_board_pattern
 from edgetruth.evaluate.calibration import DIST_MODELS, calibrate_photos
 
 K = np.array([[600.0, 0.0, 319.5], [0.0, 600.0, 239.5], [0.0, 0.0, 1.0]])

@@ -9,7 +9,7 @@ import pytest
 
 from edgetruth.errors import InputError
 from edgetruth.evaluate.board import circles
-from edgetruth.evaluate.board.pattern import parse_board_pattern
+from edgetruth.evaluate.pattern import parse_board_pattern
 
 
 def test_object_points_follow_opencvs_sample():

@@ -1,7 +1,7 @@
 """The shipped real photo sets: each resolves by name, and carries its provenance and licence."""
 import pytest
 
-from edgetruth.evaluate.board.chessboard import find_squares, settle_parity
+from edgetruth.evaluate.board.detect.chessboard import find_squares, settle_parity
 from edgetruth.evaluate.board.inputs import load_photos, resolve_inputs
 from edgetruth.resources import real_set, shipped_real_set_names
 

@@ -46,9 +46,9 @@ def run(tmp_path_factory):
 def test_a_square_cut_by_the_border_is_reported_missing():
     """The board shifted up so that square 0 (the highest) is cut by the image's top border: it is left out,
     the others keep their numbers."""
-    from edgetruth.evaluate.board.correspond import match_squares
+    from edgetruth.evaluate.board.detect.correspond import match_squares
     from edgetruth.evaluate.board.model import check_model
-    from edgetruth.evaluate.board.quads import find_quads
+    from edgetruth.evaluate.board.detect.quads import find_quads
 
     model = check_model(grid_model(6, 6, side=1.0, pitch=1.6), "6x6")
     r, t = POSES[3]

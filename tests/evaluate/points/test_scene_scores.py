@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from edgetruth.render.scene.ground_truth import SceneOutline, image_outline, scene_ground_truth
-from edgetruth.render.scene.shapes import Shape, TargetScene
+from edgetruth.render.scene.shapes import Shape
+from edgetruth.render.scene.target_scene import TargetScene
 
 from tests.support.scenes import FRONTAL, PINHOLE
 

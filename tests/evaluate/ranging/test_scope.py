@@ -8,7 +8,8 @@ import pytest
 
 from edgetruth.evaluate.ranging.images import ranging_scope, true_pose_distance, true_size_px
 from edgetruth.render.scene.ground_truth import scene_ground_truth
-from edgetruth.render.scene.shapes import Shape, TargetScene
+from edgetruth.render.scene.shapes import Shape
+from edgetruth.render.scene.target_scene import TargetScene
 
 from tests.support.scenes import FRONTAL, PINHOLE, TILTED
 

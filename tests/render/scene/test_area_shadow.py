@@ -13,7 +13,10 @@ from edgetruth.render.scene.ground_truth import clutter_shadow_irradiance, scene
 from edgetruth.render.scene.lights import Light, area_corners_board, unit_irradiance_occluded
 from edgetruth.render.scene.materials import Material
 from edgetruth.render.scene.pose import Pose
-from edgetruth.render.scene.shapes import Box, Clutter, Shape, TargetScene, point_in_polygon
+from edgetruth.render.scene.clutter import Box, Clutter
+from edgetruth.render.scene.polygons import point_in_polygon
+from edgetruth.render.scene.shapes import Shape
+from edgetruth.render.scene.target_scene import TargetScene
 
 CAM = Camera(width_px=128, height_px=96, pitch_um=40.0, focal_length_mm=8.0, f_number=0.0, focus_distance_m=0.8,
              diffraction_wavelength_nm=0.0, natural_vignetting=False)  # fx = 200 px, no distortion, no PSF

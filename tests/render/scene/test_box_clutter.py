@@ -16,7 +16,9 @@ from edgetruth.render.scene.ground_truth import SceneOutline, scene_ground_truth
 from edgetruth.render.scene.lights import Light
 from edgetruth.render.scene.materials import Material
 from edgetruth.render.scene.pose import Pose
-from edgetruth.render.scene.shapes import Box, Clutter, Shape, TargetScene, clutter_from_list
+from edgetruth.render.scene.clutter import Box, Clutter, clutter_from_list
+from edgetruth.render.scene.shapes import Shape
+from edgetruth.render.scene.target_scene import TargetScene
 from tests.support.scenes import polyline_region
 
 CAM = Camera(width_px=128, height_px=96, pitch_um=40.0, focal_length_mm=8.0, f_number=0.0, focus_distance_m=0.8,

@@ -24,8 +24,8 @@ from edgetruth.render.scene.ground_truth import SceneOutline, scene_ground_truth
 from edgetruth.render.scene.lights import Light
 from edgetruth.render.scene.outline import OutlineCurve
 from edgetruth.render.scene.pose import Pose
-from edgetruth.render.scene.shapes import (BOARD_HALF_SIZE_M, PRESETS, Shape, TargetScene, checkerboard_preset,
-                                           scene_from_group, shape_from_dict)
+from edgetruth.render.scene.shapes import BOARD_HALF_SIZE_M, Shape, shape_from_dict
+from edgetruth.render.scene.target_scene import PRESETS, TargetScene, checkerboard_preset, scene_from_group
 from edgetruth.render.scene.targets import CHECKER_BLACK_REFLECTANCE, TARGETS, Checkerboard
 from tests.render.scene.test_shapes_edges import measure_piece
 

@@ -14,7 +14,9 @@ from edgetruth.render.scene.ground_truth import SceneOutline, scene_ground_truth
 from edgetruth.render.scene.lights import Light
 from edgetruth.render.scene.materials import Material
 from edgetruth.render.scene.pose import Pose
-from edgetruth.render.scene.shapes import Clutter, Shape, TargetScene
+from edgetruth.render.scene.clutter import Clutter
+from edgetruth.render.scene.shapes import Shape
+from edgetruth.render.scene.target_scene import TargetScene
 from tests.support.scenes import polyline_region
 
 CAM = Camera(width_px=128, height_px=96, pitch_um=40.0, focal_length_mm=8.0, f_number=0.0, focus_distance_m=0.8,
@@ -110,7 +112,7 @@ def test_rendered_shadow_lies_where_the_truth_puts_it(fast_variant):
     ({"type": "circle", "raised_m": 0.05, "width_m": 0.1}, "width_m"),
 ])
 def test_bad_clutter_is_a_one_line_error(item, needle):
-    from edgetruth.render.scene.shapes import clutter_from_list
+    from edgetruth.render.scene.clutter import clutter_from_list
 
     with pytest.raises(InputError) as e:
         clutter_from_list([item], 0.13, "group 'g' clutter")

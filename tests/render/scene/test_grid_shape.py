@@ -14,7 +14,8 @@ from edgetruth.render.scene.ground_truth import SceneOutline, scene_ground_truth
 from edgetruth.render.scene.lights import Light
 from edgetruth.render.scene.materials import Material
 from edgetruth.render.scene.pose import Pose
-from edgetruth.render.scene.shapes import Shape, TargetScene, shape_from_dict
+from edgetruth.render.scene.shapes import Shape, shape_from_dict
+from edgetruth.render.scene.target_scene import TargetScene
 
 DISTORTED = Camera(width_px=320, height_px=240, pitch_um=20.0, focal_length_mm=8.0, f_number=0.0,
                    focus_distance_m=0.8, distortion=(-0.25, 0.12, 1e-3, -8e-4, 0.0))

@@ -13,7 +13,8 @@ from edgetruth.render.optics.camera import Camera
 from edgetruth.render.scene.lights import Light
 from edgetruth.render.scene.materials import Material
 from edgetruth.render.scene.pose import Pose
-from edgetruth.render.scene.shapes import Shape, TargetScene
+from edgetruth.render.scene.shapes import Shape
+from edgetruth.render.scene.target_scene import TargetScene
 
 CAMERA = Camera(width_px=48, height_px=48, pitch_um=50.0, focal_length_mm=8.0, f_number=0.0, focus_distance_m=0.7,
                 diffraction_wavelength_nm=0.0, natural_vignetting=False)  # fx = 160 px
@@ -143,7 +144,7 @@ def test_presets_render_bit_for_bit_as_the_fixed_scene(fast_variant, preset):
     import mitsuba as mi
 
     from edgetruth.render.scene.mitsuba_scene import RenderSettings, TargetRig
-    from edgetruth.render.scene.shapes import preset_scene
+    from edgetruth.render.scene.target_scene import preset_scene
 
     mi.set_variant(fast_variant)
     rig = TargetRig(Camera(width_px=64, height_px=48, pitch_um=96.0, focal_length_mm=8.0, f_number=4.0,

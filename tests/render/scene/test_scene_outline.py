@@ -8,7 +8,8 @@ import pytest
 
 from edgetruth.render.scene.ground_truth import SceneOutline, scene_ground_truth, target_ground_truth
 from edgetruth.render.scene.outline import OutlineCurve
-from edgetruth.render.scene.shapes import Shape, TargetScene
+from edgetruth.render.scene.shapes import Shape
+from edgetruth.render.scene.target_scene import TargetScene
 
 from tests.support.scenes import DISTORTED, FRONTAL, PINHOLE, TILTED, Z_M
 H, R = 0.05, 0.02  # the square's half side, the disk's radius (the disk sits on the square's right side)

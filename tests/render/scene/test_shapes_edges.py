@@ -19,7 +19,8 @@ from edgetruth.render.scene.lights import Light
 from edgetruth.render.scene.materials import Material
 from edgetruth.render.scene.outline import OutlineCurve
 from edgetruth.render.scene.pose import Pose
-from edgetruth.render.scene.shapes import Shape, TargetScene
+from edgetruth.render.scene.shapes import Shape
+from edgetruth.render.scene.target_scene import TargetScene
 
 TOL_PX = 0.01
 HALF_WINDOW_PX = 5

@@ -9,7 +9,8 @@ import pytest
 
 from edgetruth.errors import InputError
 from edgetruth.render.scene.outline import OutlineCurve
-from edgetruth.render.scene.shapes import Shape, TargetScene, visible_intervals
+from edgetruth.render.scene.shapes import Shape, visible_intervals
+from edgetruth.render.scene.target_scene import TargetScene
 
 from tests.support.scenes import DISTORTED, FRONTAL, PINHOLE, TILTED, Z_M
 
@@ -50,7 +51,7 @@ def test_signed_distance_of_a_turned_rectangle_equals_the_analytic_polygon():
         return np.linalg.norm(p - (a + u[:, None] * d), axis=1)
 
     dist = np.min([seg_dist(q, corners[i], corners[(i + 1) % 4]) for i in range(4)], axis=0)
-    from edgetruth.render.scene.shapes import point_in_polygon
+    from edgetruth.render.scene.polygons import point_in_polygon
 
     exact = np.where(point_in_polygon(corners, q), -dist, dist)
     got = curve.signed_distance(q[:, 0], q[:, 1])
@@ -158,7 +159,7 @@ def test_scene_ground_truth_lists_every_outline_corner_and_occlusion():
 
 
 def test_presets_are_the_fixed_targets():
-    from edgetruth.render.scene.shapes import preset_scene
+    from edgetruth.render.scene.target_scene import preset_scene
     from edgetruth.render.scene.targets import TARGETS
 
     assert set(TARGETS) == {"T1", "T2", "T3", "T4"}

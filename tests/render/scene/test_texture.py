@@ -15,7 +15,8 @@ from edgetruth.render.scene.ground_truth import scene_ground_truth
 from edgetruth.render.scene.lights import Light
 from edgetruth.render.scene.materials import Material, with_texture_file
 from edgetruth.render.scene.pose import Pose
-from edgetruth.render.scene.shapes import Shape, TargetScene
+from edgetruth.render.scene.shapes import Shape
+from edgetruth.render.scene.target_scene import TargetScene
 from edgetruth.render.scene.targets import BOARD_HALF_SIZE_M
 
 CAM = Camera(width_px=96, height_px=64, pitch_um=30.0, focal_length_mm=8.0, f_number=0.0, focus_distance_m=0.6,

@@ -15,7 +15,8 @@ from edgetruth.render.scene.ground_truth import scene_ground_truth
 from edgetruth.render.scene.lights import Light
 from edgetruth.render.scene.materials import Material, with_texture_file
 from edgetruth.render.scene.pose import Pose
-from edgetruth.render.scene.shapes import Shape, TargetScene
+from edgetruth.render.scene.shapes import Shape
+from edgetruth.render.scene.target_scene import TargetScene
 
 CAM = Camera(width_px=240, height_px=160, pitch_um=30.0, focal_length_mm=8.0, f_number=0.0, focus_distance_m=0.6,
              diffraction_wavelength_nm=0.0, natural_vignetting=False)  # fx = 266.7 px, no distortion, no PSF

@@ -317,7 +317,7 @@ def test_pattern_board_with_drawn_poses(tmp_path):
 def test_chessboard_squares_start_with_the_board_studys_model(tmp_path):
     """A chessboard target's first squares are the board study's chessboard model (same corners, same order, in
     side_m); the rest are the outer ring's dark squares, cut to ``ring`` beyond the outermost inner corners."""
-    from edgetruth.evaluate.board.chessboard import chessboard_model
+    from edgetruth.evaluate.board.detect.chessboard import chessboard_model
 
     spec = load_spec(_spec(tmp_path, squares='chessboard = "9x6", side_m = 0.03, ring = [0.5, 0.8]'))
     b = spec.squares
@@ -338,8 +338,8 @@ def test_chessboard_squares_start_with_the_board_studys_model(tmp_path):
 def test_rendered_chessboard_is_found_in_model_order(fast_variant, tmp_path):
     """The board study finds a rendered chessboard's model squares where the render's truth puts its first
     squares (cornerSubPix corners at 4 spp: within 0.5 px, median 0.2 px; a square is 27 px)."""
-    from edgetruth.evaluate.board.chessboard import chessboard_model
-    from edgetruth.evaluate.board.squares import board_squares
+    from edgetruth.evaluate.board.detect.chessboard import chessboard_model
+    from edgetruth.evaluate.board.detect.squares import board_squares
     from edgetruth.image_io import read_gray
     from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.dataset.reader import open_dataset

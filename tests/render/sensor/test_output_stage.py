@@ -138,7 +138,7 @@ def test_off_changes_nothing():
 def test_output_gamma_is_a_pure_power_of_the_linear_signal():
     """output_gamma G: e = v^(1/G) instead of the sRGB curve (G = 1: stored values linear in light), and the board
     study's --tone power:G decodes it back to within the 8-bit rounding."""
-    from edgetruth.evaluate.board.tone import decode, parse_tone
+    from edgetruth.evaluate.board.tone.values import decode, parse_tone
 
     s = SensorModel(output="srgb8")
     raw = np.tile(np.linspace(s.dark_offset_dn, s.max_dn, 512).astype(np.uint16), (2, 1))

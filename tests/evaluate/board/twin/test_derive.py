@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board import chessboard as cb
+from edgetruth.evaluate.board.detect import chessboard as cb
 from edgetruth.evaluate.board.twin import derive as td
 from edgetruth.evaluate.board.twin import measure as tm
 from tests.evaluate.board.chessboard_images import write_views as views
@@ -71,7 +71,7 @@ def test_rendered_twin_puts_the_board_where_the_photos_have_it(fast_variant, tmp
     assert err.max() < 0.05
     # the blur: the twin's edges read the views' ERF σ (blur_inverse; the pixel and the Airy core taken off in
     # quadrature instead left them 0.05 px wider)
-    from edgetruth.evaluate.board.photo_model import measure_photo
+    from edgetruth.evaluate.board.tone.photo_model import measure_photo
 
     model = cb.chessboard_model((9, 6), 1.0)
     gap = []
@@ -89,8 +89,8 @@ def test_a_tone_curve_is_measured_and_rendered(fast_variant, tmp_path):
     stored): the derivation measures the power (output_gamma within 0.1 of 1.6) and takes levels, contrast and noise
     back through it, so that the rendered twin (4 spp) has the views' dark and white levels within 4 DN (measured:
     the same medians; with the stored levels taken as linear, as before this test, 20 and 29 DN off)."""
-    from edgetruth.evaluate.board import chessboard as cb
-    from edgetruth.evaluate.board.levels import square_levels
+    from edgetruth.evaluate.board.detect import chessboard as cb
+    from edgetruth.evaluate.board.detect.levels import square_levels
     from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.dataset.reader import open_dataset
     from edgetruth.render.dataset.spec import load_spec
@@ -229,7 +229,7 @@ def test_sharpened_views_give_a_sharpened_twin(fast_variant, tmp_path):
     orientation's sides as axis-aligned (a 1-D mask on the pixel grid along the normal), and these views tilt their
     sides by up to 0.4 rad: sharpened along x alone, their horizontal sides, which the x mask reaches when tilted,
     read 4.1 % in the twin against 0.3 % in the views (docs/board.md, *Sharpening*)."""
-    from edgetruth.evaluate.board.photo_model import blur, board_lines
+    from edgetruth.evaluate.board.tone.photo_model import blur, board_lines
     from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.dataset.spec import load_spec
     from edgetruth.render.sensor.pipeline import sharpen

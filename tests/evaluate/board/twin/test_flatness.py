@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from edgetruth.evaluate.board import chessboard as cb
+from edgetruth.evaluate.board.detect import chessboard as cb
 from edgetruth.evaluate.board.twin.flatness import board_flatness, unique_corners
 from tests.evaluate.bent_views import DIST_TRUE, K_TRUE, view_poses
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from edgetruth.evaluate.board import chessboard as cb
+from edgetruth.evaluate.board.detect import chessboard as cb
 from edgetruth.evaluate.board.twin import jpeg_synthetic as js
-from edgetruth.evaluate.board.photo_model import blur, board_lines
+from edgetruth.evaluate.board.tone.photo_model import blur, board_lines
 from tests.evaluate.board.chessboard_images import ROTATIONS, render
 
 MODEL = cb.chessboard_model((9, 6), 1.0)
@@ -58,7 +58,7 @@ def test_the_noise_before_a_jpeg_is_found_from_the_noise_after_it(quality, shot,
     noise, through OpenCV's JPEG: from the white and dark SDs left after it, ``noise_before_jpeg`` finds the shot SD
     to 10 % and the read noise to 0.75 DN (measured: within 7 % and 0.56 DN; the dark's SD after a JPEG moves
     little with the read noise before it), where the JPEG took 31-49 % of the white's SD off."""
-    from edgetruth.evaluate.board.levels import square_levels
+    from edgetruth.evaluate.board.detect.levels import square_levels
     from edgetruth.render.sensor.pipeline import jpeg_round_trip
 
     img, _ = render((9, 6), ROTATIONS[1], sigma_px=0.9)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from edgetruth.errors import InputError
-from edgetruth.evaluate.board import chessboard as cb
+from edgetruth.evaluate.board.detect import chessboard as cb
 from edgetruth.evaluate.board.twin import measure as tm
 from tests.evaluate.board.chessboard_images import ROTATIONS, render
 from tests.evaluate.board.chessboard_images import write_views as views

@@ -105,7 +105,7 @@ def test_rendered_twin_of_zhangs_photos(zhang, fast_variant, tmp_path):
     (measured 2.6 %): the twin renders its board without Monte-Carlo noise (``board_mode = "frame"``), so the darks'
     noise is the split's alone (path-traced, the render's noise there, amplified by the mask, added up to 74 % at 64
     spp)."""
-    from edgetruth.evaluate.board.photo_model import blur, board_lines, noise
+    from edgetruth.evaluate.board.tone.photo_model import blur, board_lines, noise
     from edgetruth.render.dataset.driver import render_spec
     from edgetruth.render.dataset.spec import load_spec
     from tests.evaluate.board.twin.test_derive import rendered_pngs

@@ -7,7 +7,7 @@ from scipy.ndimage import gaussian_filter1d
 from scipy.special import ndtr
 
 from edgetruth import locate
-from edgetruth.evaluate.board.sides import CANDIDATE_MARGIN_PX, near_sides, side_fits, square_map
+from edgetruth.evaluate.board.sides.lines import CANDIDATE_MARGIN_PX, near_sides, side_fits, square_map
 from edgetruth.evaluate.board.twin import raggedness as rg
 
 DARK, WHITE, SIGMA_PX = 40.0, 200.0, 1.0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from edgetruth.evaluate.board.photo_model import normalised_model
+from edgetruth.evaluate.board.tone.photo_model import normalised_model
 from edgetruth.evaluate.board.twin.sharpening import fit_sharpening, sharpened_axes
 from edgetruth.render.optics.camera import camera_from_dict
 

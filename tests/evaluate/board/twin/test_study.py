@@ -28,8 +28,8 @@ def _square_truth(corners: np.ndarray) -> dict:
 
 
 def test_outline_points_and_point_errors():
-    from edgetruth.evaluate.board.measure import Row
-    from edgetruth.evaluate.board.sides import fit_lines
+    from edgetruth.evaluate.board.measure.rows import Row
+    from edgetruth.evaluate.board.sides.lines import fit_lines
 
     c = np.array([[10.0, 10.0], [50.0, 12.0], [48.0, 52.0], [8.0, 50.0]])
     truth = _square_truth(c)
