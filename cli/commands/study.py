@@ -6,7 +6,14 @@ from __future__ import annotations
 import datetime as _dt
 from pathlib import Path
 
+from edgetruth import console
+from edgetruth.cli import (add_backend_options, add_image_options, add_pattern_option, add_plugin_option,
+                           add_progress_option, method_list, methods_help, positive_int)
 from edgetruth.errors import InputError
+from edgetruth.evaluate.board.study import run_board_study
+from edgetruth.evaluate.board.twin.study import run_twin_study
+from edgetruth.resources import default_runs_dir
+
 
 #: options that belong to one kind of study only (dest -> the kind), refused with the other
 _SYNTHETIC_ONLY = {"preset": "--preset", "images_per_scenario": "--images-per-scenario", "workers": "-j/--workers",
@@ -17,9 +24,6 @@ _TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant", "twi
 
 
 def register(sub) -> None:
-    from edgetruth.cli import (add_backend_options, add_image_options, add_pattern_option, add_plugin_option,
-                               add_progress_option, methods_help, positive_int)
-
     p = sub.add_parser("study", help="run a study and write its report",
                        description="synthetic: the seed's synthetic study (Tables 3-8, Figures 4-7) on analytic "
                                    "edges with exact ground truth; re-running into the same directory resumes. "
@@ -98,15 +102,9 @@ def _refuse(args, only: dict, kind: str) -> None:
 
 
 def run(args) -> int:
-    from edgetruth import console
-    from edgetruth.cli import method_list
-    from edgetruth.resources import default_runs_dir
-
     out = Path(args.output) if args.output else default_runs_dir() / (
         _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d-%H%M%S") + f"-{args.kind}")
     if args.kind == "twin":
-        from edgetruth.evaluate.board.twin.study import run_twin_study
-
         # one name that is not a path: a shipped set; else your own photos, with their twin scene (--twin)
         shipped = len(args.inputs) == 1 and not Path(args.inputs[0]).exists()
         board_only = {k: v for k, v in _BOARD_ONLY.items() if k != "inputs" and (shipped or k == "tone")}
@@ -124,8 +122,6 @@ def run(args) -> int:
         console.say(f"report: {report}")
         return 0
     if args.kind == "board":
-        from edgetruth.evaluate.board.study import run_board_study
-
         _refuse(args, _SYNTHETIC_ONLY | _TWIN_ONLY, "board")
         if args.backend != "local":
             raise InputError("--backend: not an option of `study board` (it runs in-process); drop it")
@@ -135,7 +131,7 @@ def run(args) -> int:
                                  channel=args.channel, thresholds=args.thresholds, progress=not args.no_progress)
         console.say(f"report: {report}")
         return 0
-    from edgetruth.evaluate.synthetic.study import run_synthetic_study
+    from edgetruth.evaluate.synthetic.study import run_synthetic_study  # lazy: study loads numba
 
     _refuse(args, _BOARD_ONLY | _TWIN_ONLY, "synthetic")
     report = run_synthetic_study(out, args.preset or "quick", method_list(args.methods), progress=not args.no_progress,

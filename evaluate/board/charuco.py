@@ -20,12 +20,18 @@ Object points: inner corner k at (c, r) * square_m (``calibration.object_points`
 """
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
+from edgetruth import locate
 from edgetruth.errors import InputError
+from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board.detect.charuco import (board_of, charuco_corners, charuco_view,  # noqa: F401
                                                      detector_input, parity)
-from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD as GRID_METHOD
+from edgetruth.evaluate.board.detect.squares import board_candidates
+from edgetruth.evaluate.board.measure.grid_corners import (DEFAULT_METHOD as GRID_METHOD, GridPoints, open_halves,
+                                                           to_opencv_order)
+from edgetruth.locate.registry import camera_free
 from edgetruth.render.scene.charuco import CharucoBoard
 
 #: The edge method of ``--corners lines`` on a ChArUco board: the chessboard path's (``grid_corners``).  The markers'
@@ -37,10 +43,6 @@ DEFAULT_METHOD = GRID_METHOD
 def charuco_grid_points(image: np.ndarray, board: CharucoBoard, method: str = DEFAULT_METHOD, detector=None,
                         **options):
     """``grid_corners.GridPoints`` of a ChArUco photo (module docstring), or None unless OpenCV finds every corner."""
-    from edgetruth import locate
-    from edgetruth.evaluate.board.measure.grid_corners import GridPoints, open_halves, to_opencv_order
-    from edgetruth.evaluate.board.detect.squares import board_candidates
-
     img = np.asarray(image)
     corners, _ = charuco_corners(img, board, detector)
     got = charuco_view(img, board, corners)
@@ -62,11 +64,6 @@ def corner_finder(board: CharucoBoard, corners: str, line_frame: str | None = No
     """``calibrate --corners`` on a ChArUco board -> (corner_finder, label, undistort_lines) for
     ``calibration.calibrate_photos``: 'subpix' = OpenCV's CharucoDetector corners; 'lines[:METHOD]' = edgetruth's
     line corners (fitted in the undistorted image unless ``line_frame`` is 'photo')."""
-    import cv2
-
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.locate.registry import camera_free
-
     detector = cv2.aruco.CharucoDetector(board.cv_board())
     kind, _, spec = str(corners).partition(":")
     if kind == "subpix" and not spec:
@@ -79,8 +76,6 @@ def corner_finder(board: CharucoBoard, corners: str, line_frame: str | None = No
         raise InputError(f"--corners {corners!r}: give 'subpix' or 'lines' (or lines:METHOD, e.g. lines:canny_devernay)")
     spec = spec or DEFAULT_METHOD
     method, options = mo.resolve(spec, mo.study_options())
-    from edgetruth import locate
-
     locate.get_method(method)
     if not camera_free([method]):
         raise InputError(f"--corners {corners!r}: {method} needs a camera model, which a calibration does not have "

@@ -14,10 +14,16 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.board.detect.charuco import board_of, charuco_model
+from edgetruth.evaluate.board.detect.chessboard import chessboard_model
 from edgetruth.evaluate.board.model import BoardModel, read_model
 from edgetruth.evaluate.board.reference import read_corners, read_zhang_calibration, shipped_set
+from edgetruth.evaluate.calibration import parse_pattern
+from edgetruth.evaluate.pattern import parse_board_pattern
 from edgetruth.fileio import check_input_file
-from edgetruth.image_io import SUFFIXES
+from edgetruth.image_io import SUFFIXES, read_gray_scaled
+from edgetruth.resources import shipped_real_set_names
+
 
 #: Leave-one-image-out calibrates on the other photos: Zhang's method needs at least 2 views.
 MIN_PHOTOS = 3
@@ -42,8 +48,6 @@ class BoardInputs:
 
 
 def _shipped_names() -> list[str]:
-    from edgetruth.resources import shipped_real_set_names
-
     return shipped_real_set_names()
 
 
@@ -54,9 +58,6 @@ def board_model(model_path: str | None, pattern: str | None, square: str | float
     unit of ``--square``).  One InputError line when there is none, or both."""
     if marker is not None and not str(pattern or "").lower().startswith("charuco:"):
         raise InputError("--marker: only a ChArUco board (--pattern charuco:COLSxROWS:DICT) has markers; drop it")
-    from edgetruth.evaluate.board.detect.chessboard import chessboard_model
-    from edgetruth.evaluate.calibration import parse_pattern
-
     if model_path is not None and pattern is not None:
         raise InputError("board study: --model and --pattern both given; give --model FILE for a board of separate "
                          "squares or --pattern COLSxROWS for a chessboard")
@@ -84,11 +85,8 @@ def board_model(model_path: str | None, pattern: str | None, square: str | float
 
 
 def _charuco_model(pattern: str, size: float, units: str, marker) -> BoardModel:
-    """A ChArUco board's model (``evaluate.board.charuco.charuco_model``): squares of ``size``, markers of
-    ``marker`` (the same unit)."""
-    from edgetruth.evaluate.board.detect.charuco import board_of, charuco_model
-    from edgetruth.evaluate.pattern import parse_board_pattern
-
+    """A ChArUco board's model (``detect.charuco.charuco_model``): squares of ``size``, markers of ``marker`` (the
+    same unit)."""
     bp = parse_board_pattern(pattern, kinds=("chessboard", "charuco"))
     if marker is None:
         raise InputError(f"--pattern {pattern}: give --marker, the printed side of one marker (its black border "
@@ -117,9 +115,6 @@ def resolve_inputs(items: list[str], model_path: str | None = None, pattern: str
             raise InputError(f"{name}: the shipped set supplies its own model; drop {' and '.join(given)}")
         s = shipped_set(name)
         if s is not None and "chessboard" in s:
-            from edgetruth.evaluate.board.detect.chessboard import chessboard_model
-            from edgetruth.evaluate.calibration import parse_pattern
-
             b = s["chessboard"]
             model = chessboard_model(parse_pattern(str(b["pattern"])), float(b["square"]), str(b["units"]),
                                      source=s["source"])
@@ -168,8 +163,6 @@ def load_photos(photos: list[Path], channel: str = "luma") -> list[np.ndarray]:
 
 def load_photos_scaled(photos: list[Path], channel: str = "luma") -> tuple[list[np.ndarray], list[float]]:
     """``load_photos``, and each photo's full scale of stored values (``image_io.full_scale``)."""
-    from edgetruth.image_io import read_gray_scaled
-
     images, scales = [], []
     for p in photos:
         img, scale = read_gray_scaled(p, channel=channel)

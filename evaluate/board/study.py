@@ -29,18 +29,21 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth import console, locate
-from edgetruth.locate.registry import camera_free
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board.detect import chessboard as cb
-from edgetruth.evaluate.board.tone import locator_fit as LF
-from edgetruth.evaluate.board.tone import values as tone_mod
-from edgetruth.evaluate.board.measure.compare import compare_all
-from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, load_photos_scaled, resolve_inputs
-from edgetruth.evaluate.board.measure.rows import OPENCV_ROW, REFERENCE_ROW, Row, calibrate_row, method_row
 from edgetruth.evaluate.board.detect.squares import locate_squares
-from edgetruth.evaluate.board.measure.summary import per_side_rows, row_summary
+from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, load_photos_scaled, resolve_inputs
+from edgetruth.evaluate.board.measure.compare import compare_all
+from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD
+from edgetruth.evaluate.board.measure.rows import OPENCV_ROW, REFERENCE_ROW, Row, calibrate_row, method_row
+from edgetruth.evaluate.board.measure.summary import INTRINSICS, per_side_rows, row_summary
+from edgetruth.evaluate.board.report.overlays import board_overlay, overlay_name, png_bytes
+from edgetruth.evaluate.board.tone import locator_fit as LF, values as tone_mod
 from edgetruth.evaluate.board.tone.fit import estimate_power, require_chessboard
+from edgetruth.evaluate.run_dir import check_same_settings, prepare_run_dir
+from edgetruth.locate.registry import camera_free
+
 
 KIND = "study board"
 
@@ -57,8 +60,6 @@ def _jsonable(options: dict) -> dict:
 
 def check_output(out: Path, settings: dict) -> Path:
     """Refuse a foreign directory or a board study of other settings, before any work."""
-    from edgetruth.evaluate.run_dir import check_same_settings
-
     return check_same_settings(out, KIND, settings, "a board study")
 
 
@@ -82,6 +83,8 @@ class BoardRun:
     locator: dict | None = None
     #: how the stored values were decoded (``tone_summary``); None: as stored
     tone: dict | None = None
+    #: per photo used: (file name in figures/, PNG bytes) of its overlay (``evaluate.board.report.overlays``)
+    overlays: list | None = None
 
 
 def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, channel: str = "luma",
@@ -90,8 +93,6 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
     """Steps 2-4 of the study (module docstring) on checked inputs; nothing is written.  ``images``: the photos
     already read, and decoded by their tone (else read here, as stored); ``keep_points``: each method row keeps its
     refined points (``Row.points``); ``tone``: how ``images`` were decoded (``tone_summary``), for the report."""
-    from edgetruth.evaluate.board.measure.summary import INTRINSICS
-
     t0 = time.perf_counter()
     images = load_photos(inp.photos, channel) if images is None else images
     h, w = images[0].shape
@@ -138,13 +139,24 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
             locator = LF.locator_summary(rows, summaries, label, misfit)
             break
     return BoardRun(inp, names, (w, h), rows, summaries, comparisons, per_side, photo_table, reference,
-                    ref_row, time.perf_counter() - t0, locator, tone)
+                    ref_row, time.perf_counter() - t0, locator, tone, board_overlays(rows, used_images, quads, names))
+
+
+def board_overlays(rows: list, images, quads, names) -> list:
+    """Per photo used, the overlay of its detected squares and one method's fitted sides (dynamic_erf_4p where
+    it ran, else the first method row): [(file name, PNG bytes)]."""
+    method_rows = [r for r in rows if r.is_method and r.sides]
+    row = next((r for r in method_rows if r.label == "dynamic_erf_4p"), method_rows[0] if method_rows else None)
+    out = []
+    for i, (img, q, name) in enumerate(zip(images, quads, names)):
+        sides = row.sides[i].corners if row is not None and row.sides[i] is not None else None
+        text = f"green: squares found; magenta: {row.label}'s side lines" if row is not None else "squares found"
+        out.append((overlay_name(name), png_bytes(board_overlay(img, q, sides, text=text))))
+    return out
 
 
 def check_tone(text: str | None, inp: BoardInputs) -> tone_mod.Tone:
     """``--tone`` parsed and checked before any work: ``auto`` needs a chessboard and a camera-free method."""
-    from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD
-
     t = tone_mod.parse_tone(text, DEFAULT_METHOD)
     if t.kind != "auto":
         return t
@@ -186,7 +198,7 @@ def tone_summary(tone: tone_mod.Tone, scales: list[float], fit=None) -> dict | N
 def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], options: dict, thresholds,
                     title: str | None = None) -> Path:
     """The study's files (``report.write_outputs``) of ``run`` into the existing directory ``out``."""
-    from edgetruth.evaluate.board.report.files import header_lines, write_outputs
+    from edgetruth.evaluate.board.report.files import header_lines, write_outputs  # lazy: files loads matplotlib
 
     inp = run.inp
     header = header_lines(inp, run.names, run.size, channel, methods, options, thresholds, run.reference,
@@ -195,7 +207,7 @@ def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], 
     return write_outputs(out, title=title, header_lines=header, photos_table=run.photo_table, rows=run.rows,
                          summaries=run.summaries, comparisons=run.comparisons, reference=run.reference,
                          model=inp.model, photo_names=run.names, per_side=run.per_side, locator=run.locator,
-                         tone=run.tone)
+                         tone=run.tone, overlays=run.overlays)
 
 
 def run_board_study(items: list[str], out, model: str | None = None, methods=None, channel: str = "luma",
@@ -204,8 +216,6 @@ def run_board_study(items: list[str], out, model: str | None = None, methods=Non
     """Run the board study (module docstring) into ``out``; returns the path of its report.md.  The board: ``model``
     (a model file of separate squares), ``pattern``/``square`` (a chessboard), or the shipped set's own.  ``tone``:
     how the stored values are decoded before locating (``tone.parse_tone``; default as stored)."""
-    from edgetruth.evaluate.run_dir import prepare_run_dir
-
     inp = resolve_inputs(list(items), model, pattern, square, marker)
     # all methods but those that need a camera model (patch_esf_fit's PSF tables): there is none here
     methods = mo.ordered(camera_free() if methods is None else methods)

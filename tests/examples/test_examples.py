@@ -62,6 +62,7 @@ def test_render_scene_reads_its_truth(fast_variant):
     assert all(np.isfinite(v) and v < 1.0 for v in out.values())
 
 
+@pytest.mark.slow  # renders 2 images and runs evaluate --photos: ~48 s on loaded shared cores
 def test_range_photos_ranges_against_the_reference(fast_variant):
     rows = run("range_photos.py", "--scale", "4", "--photos", "2")
     assert {r["method"] for r in rows} == {"canny_pixel", "erf4p_fixed11", "patch_psf_fit"}

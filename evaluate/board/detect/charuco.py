@@ -17,10 +17,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
 from edgetruth.errors import InputError
 from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.detect.correspond import Correspondence, project, rotation_deg
+from edgetruth.evaluate.board.detect.quads import BORDER_PX
+from edgetruth.evaluate.calibration import to_uint8
 from edgetruth.render.scene.charuco import CharucoBoard
 
 
@@ -38,16 +42,12 @@ def board_of(pattern, square_m: float, marker_m: float) -> CharucoBoard:
 
 def detector_input(image: np.ndarray) -> np.ndarray:
     """The 8-bit image OpenCV's detector reads: an 8-bit photo as it is, any other stretched to 8 bits."""
-    from edgetruth.evaluate.calibration import to_uint8
-
     img = np.asarray(image)
     return img if img.dtype == np.uint8 else to_uint8(img)
 
 
 def charuco_corners(image: np.ndarray, board: CharucoBoard, detector=None) -> tuple[np.ndarray, int]:
     """OpenCV's ChArUco corners in ``image``: ((K, 2) in id order, NaN where not found; markers found)."""
-    import cv2
-
     det = detector or cv2.aruco.CharucoDetector(board.cv_board())
     cc, ids, _, mids = det.detectBoard(detector_input(image))
     out = np.full(((board.cols - 1) * (board.rows - 1), 2), np.nan)
@@ -67,7 +67,6 @@ def parity(board: CharucoBoard) -> int:
 class CharucoGrid:
     """A ``BoardModel``'s ``charuco``: the board, and how ``chessboard.find_squares`` finds its grid (no import of
     this module there: the board study's modules import one way)."""
-
     board: CharucoBoard
 
     def find_squares(self, image: np.ndarray, model) -> cb.ChessboardView | None:
@@ -89,11 +88,6 @@ def charuco_view(image: np.ndarray, board: CharucoBoard, corners: np.ndarray,
                  model=None) -> tuple[object, cb.ChessboardView] | None:
     """(model, view): OpenCV's corners of every inner corner as the chessboard grid ``grid_corners`` fits on;
     None unless every corner was found.  ``model``: the chessboard model (default ``charuco_model``, squares)."""
-    import cv2
-
-    from edgetruth.evaluate.board.detect.correspond import Correspondence, project, rotation_deg
-    from edgetruth.evaluate.board.detect.quads import BORDER_PX
-
     if not np.all(np.isfinite(corners)):
         return None
     pattern = (board.cols - 1, board.rows - 1)

@@ -7,13 +7,20 @@ import io
 from pathlib import Path
 
 import numpy as np
+from scipy import stats as st
 
-from edgetruth.evaluate.board.report import figures
-from edgetruth.evaluate.board.tone import locator_fit as LF
+from edgetruth import __version__
+from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board.measure.rows import REFERENCE_ROWS
 from edgetruth.evaluate.board.measure.summary import INTRINSICS
+from edgetruth.evaluate.board.report import figures
+from edgetruth.evaluate.board.tone import locator_fit as LF
 from edgetruth.evaluate.report_format import ci, num, table
-from edgetruth.fileio import atomic_write_text, write_json
+from edgetruth.evaluate.run_dir import utc_stamp
+from edgetruth.evaluate.stats import spearman
+from edgetruth.fileio import atomic_write_bytes, atomic_write_text, write_json
+from edgetruth.resources import source_commit
+
 
 SUMMARY_COLUMNS = (
     "row", "label", "straightness_px", "straightness_ci_lo", "straightness_ci_hi", "straightness_ci_photos_lo",
@@ -89,11 +96,6 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
     """The report's header: version, time, inputs, method options, the procedure in one line.  ``reference_row``:
     the key of the reference row in ``REFERENCE_ROWS``, None when there is none; ``tone``: how the stored values
     were decoded (``study.tone_summary``; None: as stored)."""
-    from edgetruth import __version__
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.run_dir import utc_stamp
-    from edgetruth.resources import source_commit
-
     tau = mo.thresholds_in_use(thresholds)
     w, h = size
     chess = inp.model.pattern is not None
@@ -278,8 +280,6 @@ def _ranking(sums, key: str, nd: int = 3) -> str:
 def reading(sums, comparisons, reference, tone: dict | None = None, photos: list[dict] | None = None) -> list[str]:
     """A short reading of the measured tables: rankings as measured, nothing tuned.  ``photos``: the per-photo
     table, whose saturated whites (a chessboard's) get a line."""
-    from scipy import stats as st
-
     methods = [s for s in sums if s["row"] not in REFERENCE_ROWS]
     ref = next((s for s in sums if s["row"] in REFERENCE_ROWS), None)
     lines = ["Rankings as measured (lowest first):", "",
@@ -289,8 +289,6 @@ def reading(sums, comparisons, reference, tone: dict | None = None, photos: list
              f"- Side-length RMSE (px): {_ranking(sums, 'length_rmse_px')}."]
     both = [s for s in methods if np.isfinite(s["straightness_px"]) and np.isfinite(s.get("calib_rms_px", np.nan))]
     if len(both) >= 3:
-        from edgetruth.evaluate.stats import spearman
-
         sp = spearman([s["straightness_px"] for s in both], [s["calib_rms_px"] for s in both])
         rho, p = sp["rho"], sp["p"]
         lines += ["", f"Across the {len(both)} methods, straightness and calibration RMS rank alike to Spearman "
@@ -360,11 +358,17 @@ def reading(sums, comparisons, reference, tone: dict | None = None, photos: list
 
 
 def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_table: list[dict], rows, summaries,
-                  comparisons, reference, model, photo_names, per_side, locator=None, tone=None) -> Path:
+                  comparisons, reference, model, photo_names, per_side, locator=None, tone=None,
+                  overlays=None) -> Path:
     """Every output file of the study; returns report.md's path.  ``tone``: how the stored values were decoded
-    (``study.tone_summary``), written as tone.json when given."""
+    (``study.tone_summary``), written as tone.json when given; ``overlays``: [(file name, PNG bytes)] per photo
+    used, written into figures/ and linked from the "Squares found" table."""
     (out / "calibration").mkdir(exist_ok=True)
     (out / "figures").mkdir(exist_ok=True)
+    pictures = {}
+    for (fname, data), photo in zip(overlays or [], photo_names):
+        atomic_write_bytes(out / "figures" / fname, data)
+        pictures[photo] = f"[overlay](figures/{fname})"
     atomic_write_text(out / "summary.csv", _csv_text(SUMMARY_COLUMNS, [_flat_summary(s) for s in summaries]))
     atomic_write_text(out / "per_side.csv", _csv_text(
         ("image", "square", "side", "method", "n_points", "rms_px", "length_model", "length_measured", "length_err",
@@ -399,9 +403,12 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
             figures.side_length_error(summaries, errors_px, out / "figures")]
     labels = {s["row"]: s["label"] for s in summaries}
     lines = [f"# {title}", "", *header_lines, "",
-             "## Squares found", "", table([photo_headers[k] for k in photos_table[0]],
+             "## Squares found", "", table([photo_headers[k] for k in photos_table[0]] + (["picture"] if pictures else []),
                                            [[num(v, 2) if isinstance(v, float) else ("—" if v in ("", None) else v)
-                                             for v in p.values()] for p in photos_table]), "",
+                                             for v in p.values()] + ([pictures.get(p["photo"], "—")] if pictures else [])
+                                            for p in photos_table]), "",
+             *(["Overlays: the squares found (green) and one method's fitted side lines (magenta) on each photo used.",
+                ""] if pictures else []),
              "## Table 1 — straightness and coverage (per method)", "",
              "RMS of each side's refined points about its total-least-squares line, pooled over every covered side "
              "of every photo (95 % percentile bootstrap CIs resampling sides, and resampling photos with all their "

@@ -214,3 +214,30 @@ def test_a_board_study_of_other_settings_is_refused_untouched(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "other methods" in err[0]
     assert tree_hash(out) == before
+
+
+def test_an_overlay_per_photo_linked_from_the_squares_table(zhang_run):
+    """figures/board_overlay_<photo>.png for each photo used, linked from "Squares found"; its green squares
+    are the detected quads (the drawn pixels lie on their outlines)."""
+    import cv2
+
+    from edgetruth.evaluate.board.report.overlays import FOUND, board_overlay, overlay_name
+
+    _, out = zhang_run
+    text = (out / "report.md").read_text()
+    photos = [r["photo"] for r in _rows(out / "per_photo.csv") if r["used"] == "yes"]
+    assert len(photos) == 5
+    for p in photos:
+        png = out / "figures" / overlay_name(p)
+        assert png.read_bytes()[:4] == b"\x89PNG" and f"(figures/{overlay_name(p)})" in text
+    img = np.zeros((120, 160))
+    quad = np.array([[[20.3, 30.7], [80.2, 28.9], [82.6, 90.1], [18.8, 92.4]]])
+    rgb = board_overlay(img, quad)
+    ys, xs = np.nonzero(np.all(rgb == np.array(FOUND, np.uint8), axis=2))
+    q = quad[0]
+    def line_distance(a, b):  # of the drawn pixels to the line through a and b
+        t = (b - a) / np.linalg.norm(b - a)
+        return np.abs((xs - a[0]) * t[1] - (ys - a[1]) * t[0])
+
+    d = np.min([line_distance(q[k], q[(k + 1) % 4]) for k in range(4)], axis=0)
+    assert xs.size > 200 and d.max() <= 1.0

@@ -293,6 +293,7 @@ def test_every_photo_has_an_overlay_linked_from_the_photos_table(evaluated):
     from edgetruth.evaluate.ranging.target_finder import _segment_distance
 
     text = (evaluated / "report.md").read_text()
+    assert "Target finding per photo" in text and "runners-up" in text
     images = json.loads((evaluated / "ranging_images.json").read_text())
     assert len(images) == len(PHOTOS)
     for p in images:

@@ -160,7 +160,8 @@ def _snapshot(folder):
 
 
 @pytest.mark.parametrize("what", ["roi outside", "reference distance differs", "exif zero focal", "exif missing",
-                                  "point outside roi"])
+                                  "point outside roi", "roi three numbers", "roi zero width", "reference word",
+                                  "reference not in csv"])
 def test_bad_input_is_one_line_exit_2_and_nothing_written(room_set, calibrated, tmp_path, capsys, what):
     root, photos, table, cal, _ = room_set
     extra, t = [], table
@@ -175,6 +176,18 @@ def test_bad_input_is_one_line_exit_2_and_nothing_written(room_set, calibrated, 
                      't_140.jpg,140,0.13,square,g,"10,10,100,100","300,200"\n')
         extra = ["--calibration", str(cal)]
         words = ["line 2", "outside its roi_px"]
+    elif what in ("roi three numbers", "roi zero width", "reference word"):
+        t = tmp_path / "cols.csv"
+        cell = {"roi three numbers": ('"1,2,3"', ""), "roi zero width": ('"1 2 0 5"', ""),
+                "reference word": ("", "maybe")}[what]
+        t.write_text(f"image,distance_cm,size_m,shape,group,roi_px,reference\nt_140.jpg,140,0.13,square,g,{cell[0]},"
+                     f"{cell[1]}\n")
+        extra = ["--calibration", str(cal)]
+        words = ["line 2", {"roi three numbers": "not 4 numbers", "roi zero width": "width or height <= 0",
+                            "reference word": "write yes"}[what]]
+    elif what == "reference not in csv":
+        extra = ["--reference-photo", "elsewhere.jpg"]
+        words = ["not found"]
     elif what == "reference distance differs":
         extra = ["--reference-photo", "t_140.jpg=100"]
         words = ["test photo at 140 cm", "not 100 cm"]
