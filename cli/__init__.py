@@ -11,10 +11,12 @@ everything but errors; progress bars draw only on a terminal.
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
 import os
 import pkgutil
 import sys
+from pathlib import Path
 
 from edgetruth import __version__, console
 from edgetruth.errors import InputError
@@ -80,8 +82,6 @@ def add_square_m_option(p: argparse.ArgumentParser, what: str, required: bool = 
 
 def parse_square_m(text: str) -> float:
     """``--square-m``'s value: a positive number of metres below 1 km, else one ``InputError`` line."""
-    from edgetruth.errors import InputError
-
     try:
         v = float(text)
     except ValueError:
@@ -123,7 +123,7 @@ def methods_help(what: str = "comma-separated method ids (default: all, plug-ins
 def method_list(text: str | None) -> list[str] | None:
     """``--methods a,b:key=value`` -> ['a', 'b:key=value'] (each checked against the registry and the
     method's signature, written the canonical way), None for all."""
-    from edgetruth.evaluate.method_order import method_specs
+    from edgetruth.evaluate.method_order import method_specs  # lazy: the dispatcher stays light (--help)
 
     return method_specs(text)
 
@@ -136,9 +136,41 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}; see `{self.prog} --help`\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from edgetruth.cli import commands
+def _commands() -> list[tuple[str, str, str | None]]:
+    """(command, module, one-line help) of every module in ``cli/commands`` with a ``register`` function, read
+    from its source (the ``add_parser`` call), so that listing the commands imports none of them; help None where
+    the source does not spell it as a literal (that command's module is then imported to list it)."""
+    from edgetruth.cli import commands  # lazy: --version loads no part of the commands
 
+    out = []
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+        path = Path(commands.__path__[0]) / f"{info.name}.py"
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        reg = next((n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "register"), None)
+        if reg is None:
+            continue
+        call = next((c for c in ast.walk(reg) if isinstance(c, ast.Call) and isinstance(c.func, ast.Attribute)
+                     and c.func.attr == "add_parser" and c.args and isinstance(c.args[0], ast.Constant)), None)
+        name = call.args[0].value if call else info.name.replace("_", "-")
+        help_ = next((k.value.value for k in (call.keywords if call else ()) if k.arg == "help"
+                      and isinstance(k.value, ast.Constant)), None)
+        out.append((name, f"edgetruth.cli.commands.{info.name}", help_))
+    return out
+
+
+def _command_of(argv: list[str]) -> str:
+    """The command ``argv`` names ("" for none: ``edgetruth --help``): its first word after the global options."""
+    for tok in argv:
+        if tok in ("-q", "--quiet"):
+            continue
+        return "" if tok.startswith("-") else tok
+    return ""
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The command line's parser.  With ``argv``, only the command it names is imported and registered in full
+    (a command's module imports what it drives at its top); the others are listed by name and help.  Without,
+    every command is registered (what the tests of the conventions read)."""
     parser = OneLineParser(
         prog="edgetruth",
         description="Physically-based ground truth for subpixel edge localisation and monocular ranging.",
@@ -147,10 +179,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help="print the version and exit")
     parser.add_argument("-q", "--quiet", action="store_true", help="print errors only (no progress, no summaries)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
-        module = importlib.import_module(f"edgetruth.cli.commands.{info.name}")
-        if hasattr(module, "register"):
-            module.register(sub)
+    wanted = None if argv is None else _command_of(argv)
+    for name, module, help_ in _commands():
+        if wanted is None or name == wanted or help_ is None:
+            importlib.import_module(module).register(sub)
+        else:
+            sub.add_parser(name, help=help_)
     return parser
 
 
@@ -182,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
     if _asks_version(argv):  # as argparse's version action: print, exit 0
         print(f"edgetruth {__version__}")
         raise SystemExit(0)
-    parser = build_parser()
+    parser = build_parser(argv)
     args, extra = parser.parse_known_args(argv)  # argparse itself exits 2 on bad usage
     if extra:  # argparse would blame the top-level parser; name the command whose options they are not
         where = f"edgetruth {args.command}" if getattr(args, "command", None) else "edgetruth"
@@ -200,7 +234,7 @@ def main(argv: list[str] | None = None) -> int:
     console.set_progress(not getattr(args, "no_progress", False))
     try:
         if getattr(args, "plugin", None):
-            from edgetruth.locate.plugins import load_plugins
+            from edgetruth.locate.plugins import load_plugins  # lazy: only with --plugin
 
             load_plugins(args.plugin)
         return int(args.handler(args) or 0)

@@ -23,6 +23,14 @@ import tempfile
 import time
 from pathlib import Path
 
+import cv2
+import numpy as np
+
+from edgetruth import locate
+from edgetruth.cli.commands.locate import csv_cells, csv_text
+from edgetruth.image_io import read_gray
+
+
 N_IMAGES = 100
 SHAPE = (512, 640)
 METHOD = "dynamic_erf_4p"
@@ -53,9 +61,6 @@ def frame(seed: int, shape=SHAPE, dense: bool = False):
     or with ``dense`` a 5 x 4 grid of dark and light discs (every edge orientation, ~4x the edge
     pixels); blurred (sigma 0.8-1.5 px) with noise sigma 2 gray levels.  Drawn with OpenCV (1/16 px
     vertices): timing needs realistic edges, not exact truth."""
-    import cv2
-    import numpy as np
-
     rng = np.random.default_rng(seed)
     h, w = shape
     img = np.full(shape, 190.0)
@@ -82,8 +87,6 @@ def frame(seed: int, shape=SHAPE, dense: bool = False):
 
 def write_images(folder: Path, n: int = N_IMAGES, dense: bool = False, distinct: int = 10) -> list[Path]:
     """``n`` PNG frames (``distinct`` different ones, repeated under new names)."""
-    import cv2
-
     folder.mkdir(parents=True, exist_ok=True)
     frames = [frame(1000 + i, dense=dense) for i in range(min(n, distinct))]
     paths = []
@@ -97,10 +100,6 @@ def write_images(folder: Path, n: int = N_IMAGES, dense: bool = False, distinct:
 def method_times(paths: list[Path], method: str = METHOD) -> tuple[list[float], list[float]]:
     """Per image, in this process (warmed up: kernels compiled): (read + Canny + refinement, formatting
     and writing its CSV as ``edgetruth locate`` does)."""
-    from edgetruth import locate
-    from edgetruth.cli.commands.locate import csv_cells, csv_text
-    from edgetruth.image_io import read_gray
-
     locate.locate(read_gray(paths[0]), method)
     work, csv = [], []
     with tempfile.TemporaryDirectory() as tmp:

@@ -31,12 +31,20 @@ Backends:
 """
 from __future__ import annotations
 
+import itertools
 import os
+import pickle
 import signal
+import socket
 import sys
+import time
+import uuid
 from typing import Any, Callable, Iterable, Iterator
 
+import numpy as np
+
 from edgetruth.errors import InputError
+
 
 BACKENDS = ("local", "ray")
 #: Tasks in flight per worker: enough that no worker waits for the driver, few enough that
@@ -57,7 +65,7 @@ def _die_with_parent() -> None:
     """Linux: deliver SIGKILL to this process when its parent dies."""
     if sys.platform.startswith("linux"):
         try:
-            import ctypes
+            import ctypes  # lazy: optional
 
             libc = ctypes.CDLL("libc.so.6", use_errno=True)
             PR_SET_PDEATHSIG = 1
@@ -83,14 +91,14 @@ class numba_threads:
         self._before = None
 
     def __enter__(self):
-        import numba
+        import numba  # lazy: numba is heavy (edgetruth.jit compiles on first call)
 
         self._before = numba.get_num_threads()
         numba.set_num_threads(min(self.threads, numba.config.NUMBA_NUM_THREADS))
         return self
 
     def __exit__(self, *exc) -> None:
-        import numba
+        import numba  # lazy: numba is heavy (edgetruth.jit compiles on first call)
 
         numba.set_num_threads(self._before)
 
@@ -98,13 +106,11 @@ class numba_threads:
 def _limit_numba_threads(threads: int) -> None:
     """At most ``threads`` numba threads in this process (before numba is imported: its environment
     variable; after: ``numba.set_num_threads``); a smaller ``NUMBA_NUM_THREADS`` of the user's stays."""
-    import sys
-
     env = os.environ.get("NUMBA_NUM_THREADS", "")
     if env.isdigit() and 0 < int(env) <= threads:
         return
     if "numba" in sys.modules:
-        import numba
+        import numba  # lazy: numba is heavy (edgetruth.jit compiles on first call)
 
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     else:
@@ -183,9 +189,8 @@ class PoolBackend(Backend):
         self.threads = threads  # numba threads per worker; None: ``worker_threads(workers)``
 
     def map_unordered(self, fn, args_list, window=None):
-        import itertools
-        import multiprocessing as mp
-        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+        import multiprocessing as mp  # lazy: multiprocessing only for pools
+        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait  # lazy: only for pools
 
         if self._pool is None:  # created on first use, with the initializer set by then
             self._pool = ProcessPoolExecutor(max_workers=self.concurrency, mp_context=mp.get_context("spawn"),
@@ -225,7 +230,7 @@ class PoolBackend(Backend):
 def _CancelledWork():
     """A cancelled work item's future for a pool being aborted: cancelled, and deaf to the failure the broken
     pool's thread then sets on every item it still holds (concurrent.futures loads only here)."""
-    from concurrent.futures import Future
+    from concurrent.futures import Future  # lazy: only for pools
 
     class CancelledWork(Future):
         def set_exception(self, exception) -> None:
@@ -239,7 +244,7 @@ def _CancelledWork():
 def import_ray():
     """``ray``, or an InputError saying how to install it."""
     try:
-        import ray  # noqa: F401
+        import ray  # noqa: F401; lazy: Ray is heavy and optional
     except ImportError:
         raise InputError(RAY_INSTALL_HINT) from None
     return ray
@@ -281,10 +286,6 @@ class RayBackend(Backend):
         self.tasks_per_node: dict[str, int] = {}
 
     def map_unordered(self, fn, args_list, window=None):
-        import itertools
-        import time
-        import uuid
-
         ray = self._ray
         # a task that dies with its node (or worker) runs again elsewhere
         remote = ray.remote(num_cpus=self.num_cpus, num_gpus=self.num_gpus, max_retries=3)(_ray_call)
@@ -293,8 +294,7 @@ class RayBackend(Backend):
         # copy, and each worker process unpickles it once (the token says whether it has)
         token = blob = None
         if self._initializer is not None:
-            import cloudpickle  # as Ray would: an initializer defined in __main__ travels too
-            import numpy as np
+            import cloudpickle  # lazy: only to ship plug-ins (as Ray would: an initializer from __main__ travels too)
 
             token = uuid.uuid4().hex
             blob = ray.put(np.frombuffer(cloudpickle.dumps((self._initializer, self._initargs)), np.uint8))
@@ -334,11 +334,9 @@ def _ray_call(fn, token, blob, args):
     """In a Ray worker: run the map's initializer once per process (``blob``: the pickled
     (initializer, initargs), read-only from the object store), then ``fn(*args)``; returns
     (this node's id, the result)."""
-    import ray
+    import ray  # lazy: Ray is heavy and optional
 
     if token is not None and token not in _initialised:
-        import pickle
-
         initializer, initargs = pickle.loads(memoryview(blob))
         initializer(*initargs)
         _initialised.add(token)
@@ -362,8 +360,6 @@ def check_backend_args(backend: str = "local", workers: int | None = None, addre
 def check_reachable(address: str, timeout_s: float = 3.0) -> None:
     """A TCP connect to a ``HOST:PORT`` or ``ray://HOST:PORT`` address (Ray itself retries for
     minutes before giving up on a wrong address); ``auto``/``local`` are left to Ray."""
-    import socket
-
     if address in ("auto", "local"):
         return
     hostport = address.split("://", 1)[-1].rstrip("/")

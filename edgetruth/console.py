@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import sys
 
+
 _state = {"quiet": False, "progress": True}
 
 
@@ -41,7 +42,7 @@ def bars_enabled(requested: bool = True) -> bool:
 
 def bar(total: int | None = None, desc: str = "", unit: str = "it", enabled: bool = True, initial: int = 0):
     """A tqdm bar on stderr (a silent stand-in when bars are off: same methods, no output)."""
-    from tqdm import tqdm
+    from tqdm import tqdm  # lazy: tqdm only for progress bars
 
     return tqdm(total=total, desc=desc, unit=unit, initial=initial, file=sys.stderr, dynamic_ncols=True,
                 disable=not bars_enabled(enabled))
@@ -49,7 +50,7 @@ def bar(total: int | None = None, desc: str = "", unit: str = "it", enabled: boo
 
 def track(iterable, desc: str = "", unit: str = "it", enabled: bool = True, total: int | None = None):
     """Iterate ``iterable`` with a bar (on a terminal only)."""
-    from tqdm import tqdm
+    from tqdm import tqdm  # lazy: tqdm only for progress bars
 
     return tqdm(iterable, desc=desc, unit=unit, total=total, file=sys.stderr, dynamic_ncols=True,
                 disable=not bars_enabled(enabled))

@@ -31,6 +31,7 @@ import numpy as np
 from edgetruth.errors import InputError
 from edgetruth.fileio import check_input_file
 
+
 #: Largest image edgetruth reads (pixels): 2^27 ~ 11585^2; the refinement keeps several float64 copies.
 MAX_IMAGE_PIXELS = 1 << 27
 # OpenCV's own decoder limit (read on first use), for formats whose header we do not parse
@@ -38,6 +39,7 @@ os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(MAX_IMAGE_PIXELS))
 os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
 
 import cv2  # noqa: E402  (after the environment above)
+
 
 SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".pgm", ".bmp", ".exr", ".npy")
 
@@ -113,7 +115,7 @@ def _read_npy(p: Path) -> np.ndarray:
 def _read_exr(p: Path) -> tuple[np.ndarray, str]:
     """(pixels, channel order): ``R, G, B`` (and ``A``) as an (H, W, 3 or 4) array in RGB(A) order,
     else ``Y`` (and ``A``), else the file's first channel other than ``A``."""
-    import OpenEXR
+    import OpenEXR  # lazy: OpenEXR is only needed to write EXR
 
     try:
         with quiet_stderr():

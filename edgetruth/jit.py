@@ -34,11 +34,13 @@ even that fails the kernels compile in memory each run, and one line on stderr s
 from __future__ import annotations
 
 import os
+import stat
 import sys
 import tempfile
 import threading
 import types
 from pathlib import Path
+
 
 _LOCK = threading.RLock()
 _numba = None  # the numba module, once a kernel has been called
@@ -178,7 +180,7 @@ def materialise(kernel: LazyKernel):
             return kernel.dispatcher
         if _numba is None:
             _configure_cache()
-            import numba
+            import numba  # lazy: numba is heavy (edgetruth.jit compiles on first call)
 
             _numba = numba
         seen: dict = {}
@@ -254,14 +256,15 @@ def _guard_compile(dispatcher, kernel: LazyKernel) -> None:
     if not kernel.options.get("cache") or _CACHE["off"]:
         return
     try:
-        import fcntl
+        import fcntl  # lazy: optional
     except ImportError:  # Windows: no flock; the kernels compile unguarded, as numba does by default
         return
     folder = _lock_folder()
     if folder is None:
         return
-    from numba.core import sigutils
-    from numba.core.compiler_lock import global_compiler_lock
+    from numba.core import sigutils  # lazy: numba is heavy (edgetruth.jit compiles on first call)
+    from numba.core.compiler_lock import \
+        global_compiler_lock  # lazy: numba is heavy (edgetruth.jit compiles on first call)
 
     path = str(folder / f"{kernel.__module__}.{kernel.__qualname__}.lock")
     compile_sig = dispatcher.compile
@@ -311,7 +314,6 @@ def _private(folder: Path) -> bool:
         return False
     if not hasattr(os, "getuid"):
         return True
-    import stat
 
     return stat.S_ISDIR(st.st_mode) and st.st_uid == os.getuid() and not st.st_mode & 0o077
 
@@ -352,7 +354,7 @@ def _configure_cache() -> None:
         folder = cache_folder()
     except OSError as exc:
         _CACHE["off"] = True  # compile in memory
-        from edgetruth import console
+        from edgetruth import console  # lazy: optional
 
         console.warn(f"{exc}: the kernels compile again in every run (~5 s); set NUMBA_CACHE_DIR to a "
                      "writable folder to keep them")

@@ -15,7 +15,7 @@ from contextlib import contextmanager
 @contextmanager
 def one_thread():
     """OpenCV on one thread inside the block; its thread count as before after it."""
-    import cv2
+    import cv2  # lazy: OpenCV is slow to import
 
     before = cv2.getNumThreads()
     cv2.setNumThreads(1)
@@ -27,7 +27,7 @@ def one_thread():
 
 def calibrate_camera(*args, **kwargs):
     """``cv2.calibrateCamera(*args, **kwargs)`` on one OpenCV thread: the same bits on every run and machine."""
-    import cv2
+    import cv2  # lazy: OpenCV is slow to import
 
     with one_thread():
         return cv2.calibrateCamera(*args, **kwargs)

@@ -13,6 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import least_squares
+
 
 #: central-difference step, relative to max(|parameter|, STEP_FLOOR)
 STEP = 1e-6
@@ -127,8 +129,6 @@ def solve_dense(residual, shared0, blocks0, row_block, free_shared, free_block, 
     """The reference for ``solve``: scipy's MINPACK Levenberg-Marquardt on all free parameters at once, with a
     dense forward-difference Jacobian (time and memory grow with the square of the views; tests and
     ``edgetruth bench --only calibrate`` compare the two)."""
-    from scipy.optimize import least_squares
-
     shared0, blocks0 = np.asarray(shared0, float), np.asarray(blocks0, float)
     fs, fb = np.asarray(free_shared, bool), np.asarray(free_block, bool)
     n_views = len(blocks0)

@@ -38,9 +38,13 @@ flat twin: 1 % and 5 % (chance), ≤ 0.04 mm.  Zhang's own corners: 2 % against 
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
+from scipy.stats import f as f_dist
 
 from edgetruth.evaluate import block_lm
+from edgetruth.render.optics.distortion import distort_normalized
 from edgetruth.render.scene.bend import height_terms
+
 
 #: bend models: name -> the degrees of the monomials in the board's height
 ORDERS = {"quadratic": (2,), "cubic": (2, 3)}
@@ -69,10 +73,6 @@ def monomials(board_xy: np.ndarray, degrees=(2,)) -> tuple[np.ndarray, float]:
 def project(points: np.ndarray, view: np.ndarray, poses: np.ndarray, K4, dist5) -> np.ndarray:
     """(n, 2) pixel positions of board points (n, 3) seen in views ``view`` (n,) with ``poses`` (V, 6: rvec,
     tvec), K4 = (fx, fy, cx, cy) and OpenCV's dist5 = (k1, k2, p1, p2, k3) (``cv2.projectPoints``)."""
-    from scipy.spatial.transform import Rotation
-
-    from edgetruth.render.optics.distortion import distort_normalized
-
     R = Rotation.from_rotvec(poses[:, :3]).as_matrix()[view]
     X = np.einsum("nij,nj->ni", R, points) + poses[view, 3:6]
     xd, yd = distort_normalized(X[:, 0] / X[:, 2], X[:, 1] / X[:, 2], dist5)
@@ -112,8 +112,6 @@ def bend_check(board_xy: list[np.ndarray], image_xy: list[np.ndarray], K: np.nda
 
 def _nested_stats(r0, r1, n_flat: int, q: int, n_points: int) -> dict:
     """The F test of a flat fit (residual r0, ``n_flat`` free parameters) against one with ``q`` bend terms more."""
-    from scipy.stats import f as f_dist
-
     rss0, rss1 = float(r0 @ r0), float(r1 @ r1)
     dof0, dof1 = 2 * n_points - n_flat, 2 * n_points - n_flat - q
     share, chance = 1.0 - rss1 / rss0, q / dof0

@@ -19,14 +19,24 @@ regression test), and is used as it is.
 """
 from __future__ import annotations
 
+import glob
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from edgetruth import console
 from edgetruth.errors import InputError
+from edgetruth.evaluate.board_bend import MIN_CORNERS, bend_check
+from edgetruth.evaluate.pattern import parse_board_pattern
+from edgetruth.evaluate.residual_field import residual_structure
+from edgetruth.fileio import check_input_file, read_json
+from edgetruth.image_io import SUFFIXES, read_gray
 from edgetruth.opencv_threads import calibrate_camera
+from edgetruth.render.dataset.reader import open_dataset
+from edgetruth.resources import real_set, shipped_real_set_names
+
 
 #: cornerSubPix termination: 100 iterations or 1e-4 px.
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
@@ -286,8 +296,6 @@ def load_calibration(ref: str | Path, progress: bool = False) -> Calibration:
     edgetruth.errors.InputError
         Not a calibration, or a dataset without enough boards.
     """
-    from edgetruth.fileio import read_json
-
     p = Path(ref)
     if p.is_dir():
         return calibrate_dataset(p, progress=progress)
@@ -398,9 +406,6 @@ def calibrate(views: list[tuple[str, np.ndarray]], pattern_size: tuple[int, int]
 
 def calibrate_dataset(out_dir: str | Path, names: list[str] | None = None, progress: bool = False) -> Calibration:
     """Calibrate from every checkerboard image of a rendered dataset (``edgetruth.render.dataset.image`` layout)."""
-    from edgetruth import console
-    from edgetruth.render.dataset.reader import open_dataset
-
     ds = open_dataset(out_dir)
     boards = [s for s in ds.checkerboards() if names is None or s.name in set(names)]
     if not boards:
@@ -419,8 +424,6 @@ def use_bent_board(cal: Calibration, results: list, model: str = "quadratic") ->
     common to every view (``model`` = "common"; ``cal.board_bend[model]``,
     ``evaluate/board_bend.py``) in place of the flat one: K, distortion, RMS and each photo's RMS (``results``,
     ``PhotoResult``, updated).  Every found photo must have taken part (``board_bend.MIN_CORNERS`` corners)."""
-    from edgetruth.evaluate.board_bend import MIN_CORNERS
-
     b = cal.board_bend.get(model)
     if not b or b["views"] != cal.n_views:
         few = [r.photo for r in results if r.found and r.corners < MIN_CORNERS]
@@ -445,8 +448,6 @@ def parse_pattern(text: str, option: str = "--pattern") -> tuple[int, int]:
     pattern (``circles:4x11:asymmetric``; ``edgetruth.evaluate.pattern``) is refused, saying this reads a
     chessboard."""
     if ":" in str(text):
-        from edgetruth.evaluate.pattern import parse_board_pattern
-
         parse_board_pattern(text, option, kinds=("chessboard",))  # raises: a chessboard pattern has no ':'
     parts = str(text).strip().lower().replace("×", "x").split("x")
     try:
@@ -467,12 +468,6 @@ def find_photos(refs) -> list[tuple[str, Path]]:
     ``edgetruth.resources.real_set``).  Names are the ref as given (a folder's or a set's files as
     ``FOLDER/FILE``).  Raises ``InputError`` for a ref that names nothing.
     """
-    import glob
-
-    from edgetruth.fileio import check_input_file
-    from edgetruth.image_io import SUFFIXES
-    from edgetruth.resources import real_set, shipped_real_set_names
-
     def images_in(folder: Path, label: str) -> list[tuple[str, Path]]:
         files = sorted(f for f in folder.iterdir() if f.suffix.lower() in SUFFIXES and f.is_file())
         if not files:
@@ -576,8 +571,6 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     of different sizes, raise ``InputError``.  ``square_m`` (metres) scales the board, hence the
     poses only: K and the distortion do not depend on it.
     """
-    from edgetruth.image_io import read_gray
-
     if model not in DIST_MODELS:
         raise InputError(f"model {model!r}: unknown distortion model; choose one of {', '.join(DIST_MODELS)}")
     if not (np.isfinite(square_m) and square_m > 0):
@@ -618,8 +611,6 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
         raise InputError(f"the {nx}x{ny} board was found in only {len(used)} of {len(results)} photos (need >= 3; "
                          f"not found: {missing or 'none'}); check --pattern counts the inner corners (COLSxROWS) -- "
                          "a board of separate squares (zhang1998's) has none: run `edgetruth study board` on it")
-    from edgetruth.evaluate.board_bend import bend_check
-    from edgetruth.evaluate.residual_field import residual_structure
 
     flags, words = DIST_MODELS[model]
     residuals: list = []

@@ -10,13 +10,36 @@ Run directories (``run.json``): ``edgetruth.evaluate.run_dir``.
 """
 from __future__ import annotations
 
+import atexit
+import os
+import subprocess
+import sys
+import threading
 import time
+from contextlib import nullcontext
 from pathlib import Path
 
-from edgetruth import console
+import numpy as np
+
+from edgetruth import console, locate
+from edgetruth.backends import PoolBackend, default_workers, numba_threads, worker_threads
 from edgetruth.errors import InputError
-from edgetruth.fileio import read_json, write_json
+from edgetruth.evaluate import method_order as mo, threshold_calibration as tcal
+from edgetruth.evaluate.calibration import Calibration, calibrate_dataset
+from edgetruth.evaluate.points import report as points_report, scores as point_scores
+from edgetruth.evaluate.points.scores import score_image
+from edgetruth.evaluate.ranging.images import UNDISTORT_LINES, check_undistort, range_image, run_ranging
+from edgetruth.evaluate.ranging.report import write_report
+from edgetruth.evaluate.ranging.size import fit_line_robust
 from edgetruth.evaluate.run_dir import prepare_run_dir, utc_stamp
+from edgetruth.evaluate.threshold_calibration import check_disjoint
+from edgetruth.fileio import read_json, write_json
+from edgetruth.locate.plugins import init_worker, worker_payload
+from edgetruth.render.dataset.driver import RenderPool, check_variant_name, render_spec
+from edgetruth.render.dataset.reader import open_dataset
+from edgetruth.render.dataset.spec import load_spec
+from edgetruth.render.synthetic.scenarios import synthetic_image
+from edgetruth.resources import default_runs_dir
 
 
 STUDIES = {
@@ -29,10 +52,6 @@ def warm_kernels(methods=None, thresholds=None) -> None:
     """Call every method once on a small analytic image: numba compiles the kernels it has not cached
     yet and writes them to its on-disk cache (``edgetruth.jit``).  A method that fails here
     (a plug-in this process does not know) is skipped: the warm-up only saves time."""
-    from edgetruth import locate
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.render.synthetic.scenarios import synthetic_image
-
     options = mo.study_options(thresholds)
     s = synthetic_image("ideal", 0, split="unit")
     cand = locate.candidates(s.image)
@@ -42,9 +61,7 @@ def warm_kernels(methods=None, thresholds=None) -> None:
             locate.refine(s.image, cand, mid, **kw)
         except Exception:  # noqa: BLE001 -- the stage that runs the method reports its failure
             continue
-    import numpy as np
 
-    from edgetruth.evaluate.ranging.size import fit_line_robust  # the size model's line-fit kernels
 
     t = np.linspace(-20.0, 20.0, 200)  # > 128 points: the pairwise sum's halving path too
     fit_line_robust(10.0 + 0.01 * t, 5.0 + t)
@@ -55,14 +72,6 @@ def warm_on_render(dataset, name: str, methods=None, thresholds=None) -> None:
     and bounds) on one rendered target image, with the camera's true intrinsics standing in for the
     calibration: numba compiles every kernel the ranging workers call, with the argument types they pass
     (``warm_kernels``' analytic image reaches most, not those of a camera's ESF tables)."""
-    import numpy as np
-
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.calibration import Calibration
-    from edgetruth.evaluate.points.scores import score_image
-    from edgetruth.evaluate.ranging.images import range_image
-    from edgetruth.render.dataset.reader import open_dataset
-
     cam = open_dataset(dataset)[name].truth["camera"]
     cal = Calibration(K=np.asarray(cam["K"], float), dist=np.asarray(cam["dist_coeffs_opencv"], float), rms_px=float("nan"), n_views=0,
                       image_size=(int(cam["width_px"]), int(cam["height_px"])))
@@ -72,8 +81,6 @@ def warm_on_render(dataset, name: str, methods=None, thresholds=None) -> None:
 
 def _warm_main(argv) -> None:
     """The warm-up process: ``warm_kernels``, then ``warm_on_render`` for each "dataset<TAB>name" line on stdin."""
-    import sys
-
     thresholds, methods = argv[0] or None, argv[1:] or None
     warm_kernels(methods, thresholds)
     for line in sys.stdin:
@@ -95,11 +102,6 @@ class KernelWarmup:
     from the cache (``edgetruth.jit``'s compile locks) rather than compile it again."""
 
     def __init__(self, methods=None, thresholds=None, threads: int | None = None):
-        import atexit
-        import os
-        import subprocess
-        import sys
-
         code = "import sys; from edgetruth.evaluate.main_job import _warm_main; _warm_main(sys.argv[1:])"
         env = dict(os.environ)
         mine = env.get("NUMBA_NUM_THREADS", "")
@@ -137,7 +139,7 @@ class KernelWarmup:
 
 
 def _synthetic_task(out_dir: str, methods, thresholds, note: str, images_per_scenario: int | None) -> str:
-    from edgetruth.evaluate.synthetic.study import run_synthetic_study
+    from edgetruth.evaluate.synthetic.study import run_synthetic_study  # lazy: study loads numba
 
     return str(run_synthetic_study(out_dir, preset="quick", methods=methods, progress=False, thresholds=thresholds,
                                    workers=1, timing_note=note, images_per_scenario=images_per_scenario))
@@ -154,11 +156,6 @@ class SyntheticBeside:
 
     def __init__(self, out_dir: Path, methods=None, thresholds=None, images_per_scenario: int | None = None,
                  threads: int = 1):
-        import threading
-
-        from edgetruth.backends import PoolBackend
-        from edgetruth.locate.plugins import init_worker, worker_payload
-
         self.t0 = time.perf_counter()
         self.seconds = None
         self._out: dict = {}
@@ -241,14 +238,6 @@ def evaluate_datasets(datasets: list[Path], calibration, out: Path, methods=None
     of thresholds calibrated for the camera (``calibrate-thresholds --dataset``); the dynamic methods
     then also run with them (labels ``*_camera``).  ``windows_beside_full``: the report sets the dynamic
     methods' window shares beside the full study's (the quick run's report)."""
-    from edgetruth import locate
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.points import report as points_report, scores as point_scores
-    from edgetruth.evaluate.ranging.images import UNDISTORT_LINES, run_ranging
-    from edgetruth.evaluate.ranging.report import write_report
-    from edgetruth.evaluate.threshold_calibration import check_disjoint
-    from edgetruth.render.dataset.reader import open_dataset
-
     options = mo.study_options(thresholds, camera_thresholds)
     tau = mo.thresholds_in_use(thresholds)
     samples = [(f"{d}/{s.name}", s.truth) for d in datasets for s in open_dataset(d).targets()
@@ -330,17 +319,6 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
     tuple
         (path of ``report.md``, exit code: 0, or 1 when a check of the run failed).
     """
-    from contextlib import nullcontext
-
-    from edgetruth.backends import default_workers, numba_threads, worker_threads
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.calibration import calibrate_dataset
-    from edgetruth.evaluate.ranging.images import UNDISTORT_LINES, check_undistort
-
-    from edgetruth.render.dataset.driver import RenderPool, check_variant_name, render_spec
-    from edgetruth.render.dataset.spec import load_spec
-    from edgetruth.resources import default_runs_dir
-
     if study not in STUDIES:
         raise InputError(f"--study {study!r}: choose one of {', '.join(STUDIES)}")
     if limit is not None and limit < 1:
@@ -427,8 +405,6 @@ def run_main_job(study: str = "quick", out: str | Path | None = None, limit: int
 
         # 3b. entropy thresholds for this camera, from the disjoint threshold renders' per-point truth
         if thr_spec is not None:
-            from edgetruth.evaluate import threshold_calibration as tcal
-
             t = time.perf_counter()
             thr_names = [thr_spec.jobs[i].name for i in select_jobs(thr_spec, limit, "target")]
             record = tcal.calibrate_renders([render_dir / thr_spec.name], names=thr_names)

@@ -5,7 +5,8 @@ from pathlib import Path
 
 from edgetruth import locate
 from edgetruth.errors import InputError
-from edgetruth.locate import registry as _registry_mod
+from edgetruth.locate import registry as _registry_mod, thresholds as thr
+
 
 ORDER = _registry_mod.CANONICAL_ORDER
 
@@ -27,8 +28,6 @@ def study_options(thresholds=None, camera_thresholds=None) -> dict:
     ``camera_thresholds`` (a file from ``calibrate-thresholds --dataset``) adds the labels
     ``dynamic_erf_2p_camera`` and ``dynamic_erf_4p_camera``: the same methods with those thresholds
     (an option ``method`` names the registered method a label runs, ``resolve``)."""
-    from edgetruth.locate import thresholds as thr
-
     out = {m: dict(o) for m, o in STUDY_OPTIONS.items()}
     if thresholds is not None:
         for model in thr.MODELS:
@@ -122,8 +121,6 @@ def variant_labels(options: dict) -> list[str]:
 
 def thresholds_in_use(thresholds=None) -> dict:
     """{'2p': tau, '4p': tau, 'source': path, 'label': for reports} of the thresholds a study uses."""
-    from edgetruth.locate import thresholds as thr
-
     src = thr.source(thresholds)
     label = "shipped, assets/entropy_thresholds.json" if thresholds is None else f"from {Path(thresholds).name}"
     return {**{m: thr.load(m, thresholds) for m in thr.MODELS}, "source": str(src), "label": label}

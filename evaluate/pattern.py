@@ -15,7 +15,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
+
 from edgetruth.errors import InputError
+
 
 #: the board kinds ``--pattern`` names, in the order its help lists them
 PATTERN_KINDS = ("chessboard", "circles", "charuco")
@@ -64,8 +67,6 @@ class BoardPattern:
 
 def aruco_dictionaries() -> tuple[str, ...]:
     """The predefined dictionary names of the installed ``cv2.aruco`` (``DICT_4X4_50``, ...), sorted."""
-    import cv2
-
     return tuple(sorted(n for n in dir(cv2.aruco) if n.startswith("DICT_") and isinstance(getattr(cv2.aruco, n), int)))
 
 

@@ -17,9 +17,12 @@ from scipy.optimize import least_squares
 from scipy.special import ndtr
 
 from edgetruth import locate
+from edgetruth.evaluate.method_order import resolve
 from edgetruth.locate import erf_kernels as K
+from edgetruth.locate.profiles import sample_profiles
 from edgetruth.render.edge_truth import CircleEdge
 from edgetruth.render.synthetic.scenarios import render_edge_image
+
 
 BENCH_SHAPE = (1024, 1280)
 
@@ -47,8 +50,6 @@ def bench_image(shape=BENCH_SHAPE, tile: int = 128, seed: int = 0) -> np.ndarray
 def interleaved_times(img, cand, methods, repeats: int, options: dict | None = None) -> dict:
     """Wall times (s) of one refinement call per method, ``repeats`` rounds, every method once per round:
     a change of machine load hits all methods alike, so per-round ratios compare like with like."""
-    from edgetruth.evaluate.method_order import resolve
-
     run = {m: resolve(m, options) for m in methods}  # a label with options (pae2013:variant=floating) runs its method
     for m in methods:
         locate.refine(img, cand, run[m][0], **run[m][1])  # compile / warm caches
@@ -123,7 +124,7 @@ def esf_line(img, cand, repeats: int) -> str:
     """patch_esf_fit needs a camera's edge-spread tables, which a mosaic has not: it runs here with the tables of
     a Gaussian PSF of the mosaic's middle blur (its discs' blur spans 0.4-1.6x that, so some points leave the
     fitted scale's range), unweighted, after a warm-up; median of ``repeats`` calls."""
-    from edgetruth.evaluate import bound_psf as BP
+    from edgetruth.evaluate import bound_psf as BP  # lazy: bound_psf loads numba
 
     tab = BP.EdgeSpread(BP.Optics(sigma_x_px=ESF_SIGMA_PX, sigma_y_px=ESF_SIGMA_PX), 1.0, 1 << 12).tables()
     pts = locate.refine(img, cand, ESF_METHOD, esf=tab)
@@ -170,7 +171,6 @@ def run_bench(repeats: int = 7, scipy_points: int = 400, methods=None) -> list[s
         if m not in rates:
             continue
         pts = locate.refine(img, cand, m)
-        from edgetruth.locate.profiles import sample_profiles
         profiles = sample_profiles(img, cand)
         sel = np.linspace(0, n - 1, min(scipy_points, n)).astype(int)
         t0 = time.perf_counter()

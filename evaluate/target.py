@@ -49,7 +49,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from edgetruth import locate
 from edgetruth.errors import InputError
+
 
 DARK_RATIO = 0.55
 #: tried in turn when no compact region is darker than DARK_RATIO: a glossy target's specular sheen
@@ -284,8 +286,6 @@ def target_candidates(image: np.ndarray, valid: np.ndarray | None = None, margin
     """Find the target (or take ``region``, found elsewhere: ``target_finder.find_region``), crop around it,
     run Canny there and keep the candidates on its boundary (their dark -> bright normal points out of a dark
     target, into a light one)."""
-    from edgetruth import locate
-
     img = np.asarray(image, np.float64)
     if region is None:
         region = find_target(img, valid, polarity)

@@ -21,17 +21,20 @@ the optimal set (stable under tiny perturbations).
 from __future__ import annotations
 
 import datetime as _dt
+import json
 from dataclasses import dataclass
 
 import numpy as np
 
-from edgetruth import locate
-from edgetruth import __version__
+from edgetruth import __version__, locate
 from edgetruth.errors import InputError
-from edgetruth.resources import source_commit
 from edgetruth.evaluate.matching import MATCH_RADIUS_PX, on_edge
+from edgetruth.evaluate.points.scores import CORNER_EXCLUSION_PX, scored_candidates
+from edgetruth.fileio import write_json
 from edgetruth.locate.methods.erf import WINDOWS
-from edgetruth.render.synthetic.scenarios import SCENARIOS, DEFAULT_SHAPE, synthetic_image
+from edgetruth.render.dataset.reader import open_dataset
+from edgetruth.render.synthetic.scenarios import DEFAULT_SHAPE, SCENARIOS, synthetic_image
+from edgetruth.resources import source_commit
 
 
 @dataclass
@@ -74,9 +77,6 @@ def collect(split: str = "calibration", images_per_scenario: int = 100, shape=DE
 def collect_renders(dataset_dirs, progress=None, names=None) -> tuple[WindowErrors, list[dict]]:
     """Per-point window errors on the target images of rendered datasets (raw images, exact outline,
     the scoring rule of ``edgetruth.evaluate.points.scores``); also each image's seeds and spec."""
-    from edgetruth.evaluate.points.scores import scored_candidates
-    from edgetruth.render.dataset.reader import open_dataset
-
     ent, sc, used = [], [], []
     errs = {"2p": [], "4p": []}
     total = 0
@@ -128,8 +128,6 @@ def image_seed_keys(gt_or_record: dict) -> set:
 def check_disjoint(thresholds_path, samples) -> None:
     """Refuse to evaluate render-calibrated thresholds on an image rendered from the seeds they
     were calibrated on (calibration data must be disjoint from test data)."""
-    import json
-
     if thresholds_path is None:
         return
     try:
@@ -222,9 +220,6 @@ def _fit(data: WindowErrors, step: float) -> dict:
 def calibrate_renders(dataset_dirs, step: float = 0.01, progress=None, names=None) -> dict:
     """Thresholds for the camera of rendered datasets, from their per-point truth (JSON-ready record);
     ``names``: only these images (default: every target image)."""
-    from edgetruth.evaluate.points.scores import CORNER_EXCLUSION_PX
-    from edgetruth.render.dataset.reader import open_dataset
-
     data, used = collect_renders(dataset_dirs, progress, None if names is None else set(names))
     cams = {}
     for d in dataset_dirs:
@@ -260,6 +255,4 @@ def calibrate_renders(dataset_dirs, step: float = 0.01, progress=None, names=Non
 
 
 def write(record: dict, path) -> None:
-    from edgetruth.fileio import write_json
-
     write_json(path, record, indent=2)

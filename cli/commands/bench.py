@@ -2,10 +2,19 @@
 ``--against REV`` this working tree timed side by side with a baseline commit."""
 from __future__ import annotations
 
+import json
+
+from edgetruth.cli import positive_int
+from edgetruth.cli.commands.bench_against import run_against as against
+from edgetruth.cli.commands.bench_run import run_alone
+from edgetruth.cli.startup_bench import run_bench as startup_bench
+from edgetruth.errors import InputError
+from edgetruth.evaluate.bend_bench import run_bench as bend_bench
+from edgetruth.fileio import atomic_write_text
+from edgetruth.render.bench import default_mode_lines, run_bench as render_bench
+
 
 def register(sub) -> None:
-    from edgetruth.cli import positive_int
-
     p = sub.add_parser("bench", help="print performance figures (medians, ratios from one run)",
                        description="Start-up costs (edgetruth --version, import edgetruth.locate, edgetruth locate "
                                    "on 100 images in one call), refinement throughput per method on a 1280x1024 "
@@ -38,30 +47,20 @@ def run(args) -> int:
     if args.against is not None:
         return run_against(args)
     if args.only == "modes":
-        from edgetruth.render.bench import default_mode_lines
-
         print("\n".join(default_mode_lines()), flush=True)
         return 0
     repeats = args.repeats or 7
     if args.only in (None, "startup"):
-        from edgetruth.cli.startup_bench import run_bench as startup_bench
-
         print("\n".join(startup_bench(repeats=repeats)), flush=True)
     if args.only in (None, "locate"):
-        from edgetruth.evaluate.refine_bench import run_bench
+        from edgetruth.evaluate.refine_bench import run_bench  # lazy: refine_bench loads numba
 
         print("\n".join(run_bench(repeats=repeats)), flush=True)
     if args.only in (None, "calibrate"):
-        from edgetruth.evaluate.bend_bench import run_bench as bend_bench
-
         print("\n".join(bend_bench(repeats=min(repeats, 3))), flush=True)
     if args.only in (None, "render"):
-        from edgetruth.render.bench import run_bench as render_bench
-
         print("\n".join(render_bench()), flush=True)
     if args.only in (None, "run"):
-        from edgetruth.cli.commands.bench_run import run_alone
-
         run_args = (["--limit", str(args.limit)] if args.limit else []) + (["--skip-synthetic"] if args.skip_synthetic
                                                                            else [])
         run_alone(run_args=run_args, say=lambda s: print(s, flush=True))
@@ -69,11 +68,6 @@ def run(args) -> int:
 
 
 def run_against(args) -> int:
-    import json
-
-    from edgetruth.cli.commands.bench_against import run_against as against
-    from edgetruth.errors import InputError
-
     if args.only not in (None, "run", "render"):
         raise InputError(f"--only {args.only} with --against: choose run or render (or leave --only out for both)")
     parts = ("run", "render") if args.only is None else (args.only,)
@@ -83,8 +77,6 @@ def run_against(args) -> int:
                   parts=parts, say=lambda s: print(s, flush=True))
     print("\n".join(res["lines"]), flush=True)
     if args.json:
-        from edgetruth.fileio import atomic_write_text
-
         atomic_write_text(args.json, json.dumps({k: v for k, v in res.items() if k != "lines"}, indent=1,
                                                 default=str) + "\n")
     return 0

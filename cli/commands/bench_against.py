@@ -37,7 +37,9 @@ import tempfile
 import time
 from pathlib import Path
 
+import edgetruth
 from edgetruth.errors import InputError
+
 
 #: ``run: report PATH (T s in all: render_s 1.0, calibrate_s 2.0, ...)`` -- the main job's last line.
 _RUN_LINE = re.compile(r"run: report .*\(([\d.]+) s in all: ([^)]*)\)")
@@ -94,8 +96,6 @@ print("BENCH_JSON " + json.dumps({"names": [j.name for j in pick], "distances_cm
 
 def repo_root() -> Path:
     """The checkout this ``edgetruth`` runs from (its ``pyproject.toml`` and ``.git``); InputError otherwise."""
-    import edgetruth
-
     root = Path(edgetruth.__file__).resolve().parent.parent
     if not (root / "pyproject.toml").is_file():
         raise InputError("bench --against: edgetruth is not running from a git checkout (an installed wheel has "

@@ -10,11 +10,22 @@ from __future__ import annotations
 
 import argparse
 
+from edgetruth import console, locate
+from edgetruth.cli import (add_image_options, add_pattern_option, add_progress_option, add_square_m_option,
+                           parse_square_m)
+from edgetruth.errors import InputError
+from edgetruth.evaluate import board_bend, method_order as mo, residual_field
+from edgetruth.evaluate.board import charuco
+from edgetruth.evaluate.board.detect.chessboard import chessboard_model
+from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD, grid_points, line_corners
+from edgetruth.evaluate.calibration import (DEFAULT_DIST_MODEL, DIST_MODELS, calibrate_photos, find_photos,
+                                            parse_pattern, use_bent_board)
+from edgetruth.evaluate.pattern import parse_board_pattern
+from edgetruth.fileio import check_output_file, write_json
+from edgetruth.locate.registry import camera_free
+
 
 def register(sub) -> None:
-    from edgetruth.cli import add_image_options, add_pattern_option, add_progress_option, add_square_m_option
-    from edgetruth.evaluate.calibration import DEFAULT_DIST_MODEL, DIST_MODELS
-
     p = sub.add_parser("calibrate", help="calibrate a camera from photos of a chessboard (Zhang) -> JSON",
                        description="Zhang's calibration (cv2.findChessboardCorners, cornerSubPix, calibrateCamera) "
                                    "from real photos of a printed chessboard; writes K, the distortion "
@@ -68,8 +79,6 @@ def register(sub) -> None:
 
 
 def _window(text: str) -> int | None:
-    from edgetruth.errors import InputError
-
     if str(text).strip().lower() == "auto":
         return None
     try:
@@ -85,8 +94,6 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, line
     """``--corners``: (corner_finder, label, undistort_lines) for ``calibrate_photos``; (None, None, False) for
     cornerSubPix.  Line corners are fitted in the undistorted image unless ``line_frame`` is 'photo'; for that the
     finder returns each photo's grid (``grid_corners.grid_points``), which ``calibrate_photos`` refits."""
-    from edgetruth.errors import InputError
-
     kind, _, spec = str(text).partition(":")
     if kind == "subpix" and not spec:
         if line_frame is not None:
@@ -98,11 +105,6 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, line
     if window is not None:
         raise InputError("--subpix-window: only with --corners subpix (the line corners use no cornerSubPix window); "
                          "drop one")
-    from edgetruth import locate
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.board.detect.chessboard import chessboard_model
-    from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD, grid_points, line_corners
-    from edgetruth.locate.registry import camera_free
 
     spec = spec or DEFAULT_METHOD
     method, options = mo.resolve(spec, mo.study_options())
@@ -130,9 +132,6 @@ def _corner_finder(text: str, pattern: tuple[int, int], window: int | None, line
 def _charuco(args, board_pattern, square_m: float, window):
     """A ChArUco board's corner finder (``edgetruth.evaluate.board.charuco``) -> (finder, label, undistort_lines,
     the inner corners' pattern size)."""
-    from edgetruth.errors import InputError
-    from edgetruth.evaluate.board import charuco
-
     if args.marker_m is None:
         raise InputError(f"--pattern {board_pattern.text}: give --marker-m, the printed side of one marker in metres "
                          "(its black border included), as OpenCV's CharucoBoard takes it")
@@ -149,14 +148,6 @@ def _charuco(args, board_pattern, square_m: float, window):
 
 
 def run(args: argparse.Namespace) -> int:
-    from edgetruth import console
-    from edgetruth.cli import parse_square_m
-    from edgetruth.errors import InputError
-    from edgetruth.evaluate.calibration import calibrate_photos, find_photos, parse_pattern
-    from edgetruth.fileio import check_output_file, write_json
-
-    from edgetruth.evaluate.pattern import parse_board_pattern
-
     board_pattern = parse_board_pattern(args.pattern, kinds=("chessboard", "charuco"))
     square_m = parse_square_m(args.square_m)
     window = _window(args.subpix_window)
@@ -175,8 +166,6 @@ def run(args: argparse.Namespace) -> int:
         corner_finder=finder, corner_label=corner_label, undistort_lines=undistort_lines,
         progress=lambda it: console.track(it, desc="calibrate", unit="photo", enabled=not args.no_progress))
     if args.board != "flat":
-        from edgetruth.evaluate.calibration import use_bent_board
-
         cal = use_bent_board(cal, results, "quadratic" if args.board == "bent" else "common")
     doc = cal.to_dict()
     if board_pattern.kind == "charuco":
@@ -198,8 +187,6 @@ def run(args: argparse.Namespace) -> int:
                 + (f" (not found: {', '.join(missing)})" if missing else "")
                 + f"; RMS {cal.rms_px:.4f} px, fx {cal.fx:.2f} fy {cal.fy:.2f} cx {cal.cx:.2f} cy {cal.cy:.2f} px"
                 + f" -> {out}")
-    from edgetruth.evaluate import board_bend, residual_field
-    from edgetruth.evaluate.calibration import DEFAULT_DIST_MODEL
 
     console.say("calibrate: " + residual_field.reading(cal.residual_structure))
     console.say("calibrate: " + board_bend.reading(cal.board_bend, full_lens=args.model == DEFAULT_DIST_MODEL))

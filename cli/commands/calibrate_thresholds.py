@@ -1,10 +1,18 @@
 """``edgetruth calibrate-thresholds``: choose tau1 <= tau2 <= tau3 on the calibration split."""
 from __future__ import annotations
 
+from pathlib import Path
+
+from edgetruth import console
+from edgetruth.cli import add_progress_option, positive_int
+from edgetruth.errors import InputError
+from edgetruth.evaluate import threshold_calibration as tc
+from edgetruth.fileio import check_output_file
+from edgetruth.render.dataset.reader import open_dataset
+from edgetruth.render.synthetic.scenarios import SCENARIOS
+
 
 def register(sub) -> None:
-    from edgetruth.cli import add_progress_option, positive_int
-
     p = sub.add_parser("calibrate-thresholds", help="calibrate the dynamic window's entropy thresholds",
                        description="Exhaustive grid search of tau1 <= tau2 <= tau3 minimising the dynamic ERF RMSE "
                                    "on the synthetic calibration split (seeds disjoint from every test set), or, with "
@@ -26,19 +34,11 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from edgetruth import console
-    from edgetruth.errors import InputError
-    from edgetruth.evaluate import threshold_calibration as tc
-    from edgetruth.fileio import check_output_file
-    from edgetruth.render.synthetic.scenarios import SCENARIOS
-
     out = check_output_file(args.output, "-o")  # before the calibration, not after it
     if not 0 < args.step <= 0.25:
         raise InputError(f"--step {args.step}: must be in (0, 0.25]")
     if args.dataset:  # the camera's own renders
-        from pathlib import Path
 
-        from edgetruth.render.dataset.reader import open_dataset
 
         dirs = [Path(d) for d in args.dataset]
         n, desc, where = sum(len(open_dataset(d).targets()) for d in dirs), "calibration renders", "the renders"
@@ -58,8 +58,6 @@ def run(args) -> int:
 
 
 def _say(record: dict, where: str) -> None:
-    from edgetruth import console
-
     for model, r in record["models"].items():
         fixed = min(r["fixed_window_rmse_px"].values())
         shares = ", ".join(f"{w}: {100 * v:.0f} %" for w, v in r["window_shares"].items())

@@ -15,11 +15,25 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from edgetruth import console
+from edgetruth.backends import check_backend_args, default_workers
+from edgetruth.cli import (add_backend_options, add_image_options, add_plugin_option, add_progress_option,
+                           add_undistort_option, method_list, methods_help)
+from edgetruth.errors import InputError
+from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.calibration import calibrate, load_calibration
+from edgetruth.evaluate.main_job import evaluate_datasets
+from edgetruth.evaluate.ranging.focal_length import exif_fx
+from edgetruth.evaluate.ranging.photos import (camera_without_board, check_photos, evaluate_photos, read_distances,
+                                               resolve_references, unlisted_photos)
+from edgetruth.evaluate.run_dir import check_run_dir, prepare_run_dir, utc_stamp
+from edgetruth.evaluate.threshold_calibration import check_disjoint
+from edgetruth.fileio import check_input_file, write_json
+from edgetruth.render.dataset.reader import open_dataset
+from edgetruth.resources import default_runs_dir
+
 
 def register(sub) -> None:
-    from edgetruth.cli import (add_backend_options, add_image_options, add_plugin_option, add_progress_option,
-                               add_undistort_option, methods_help)
-
     p = sub.add_parser("evaluate", help="rank every method on datasets you rendered (ranging + edge error report)",
                        description=__doc__.split("\n\n")[1], formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("datasets", nargs="*", metavar="DATASET", type=Path,
@@ -58,18 +72,6 @@ def register(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from edgetruth import console
-    from edgetruth.backends import check_backend_args, default_workers
-    from edgetruth.cli import method_list
-    from edgetruth.errors import InputError
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.calibration import calibrate, load_calibration
-    from edgetruth.evaluate.main_job import evaluate_datasets
-    from edgetruth.evaluate.run_dir import check_run_dir, prepare_run_dir, utc_stamp
-    from edgetruth.fileio import write_json
-    from edgetruth.render.dataset.reader import open_dataset
-    from edgetruth.resources import default_runs_dir
-
     check_backend_args(args.backend, args.workers, args.address)
     methods = method_list(args.methods)
     mo.thresholds_in_use(args.thresholds)
@@ -88,12 +90,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("no checkerboard images among the datasets; pass --calibration FILE|DIR "
                          "(a calibration.json, or a dataset of checkerboard renders)")
     if args.calibration is not None:
-        from edgetruth.fileio import check_input_file
-
         p = Path(args.calibration)
         if not p.is_dir():
             check_input_file(p, "calibration JSON")
-    from edgetruth.evaluate.threshold_calibration import check_disjoint
 
     samples = [(f"{d}/{s.name}", s.truth) for d, ds in zip(args.datasets, sets) for s in ds.targets()]
     for f in (args.thresholds, args.camera_thresholds):
@@ -126,16 +125,6 @@ def run(args: argparse.Namespace) -> int:
 
 def run_photos(args: argparse.Namespace, methods) -> int:
     """``--photos DIR --distances FILE.csv --calibration FILE|DIR``: every check before anything is written."""
-    from edgetruth import console
-    from edgetruth.backends import default_workers
-    from edgetruth.errors import InputError
-    from edgetruth.evaluate.calibration import load_calibration
-    from edgetruth.evaluate.ranging.photos import (camera_without_board, check_photos, evaluate_photos, read_distances,
-                                                   resolve_references, unlisted_photos)
-    from edgetruth.evaluate.run_dir import check_run_dir, prepare_run_dir, utc_stamp
-    from edgetruth.fileio import check_input_file, write_json
-    from edgetruth.resources import default_runs_dir
-
     if args.datasets:
         raise InputError(f"{args.datasets[0]}: give either DATASET... (renders) or --photos DIR (real photos), not both")
     if args.photos is None:
@@ -177,8 +166,6 @@ def run_photos(args: argparse.Namespace, methods) -> int:
             focal = (f"from the reference photo(s) {refs}, per method (fx = Z·l/S); principal point and distortion "
                      f"from {args.calibration}")
     elif args.exif_focal_length:
-        from edgetruth.evaluate.ranging.focal_length import exif_fx
-
         found = [exif_fx(r.path, size[0], size[1], f"{args.distances} line {r.line} ({r.image})") for r in records]
         cals = [camera_without_board(fx, size, f"no board: {src}") for fx, src in found]
         cal = cals[0]

@@ -9,8 +9,25 @@ what was there before untouched.
 from __future__ import annotations
 
 import argparse
+import csv
+import glob
+import io
 import os
+from collections import deque
 from pathlib import Path
+
+import numpy as np
+
+from edgetruth import console, locate
+from edgetruth.cli import METHOD_SYNTAX, add_image_options, add_plugin_option, add_progress_option
+from edgetruth.errors import InputError
+from edgetruth.evaluate import method_order as mo
+from edgetruth.fileio import (atomic_write_text, check_input_file, check_output_dir, check_output_file, make_output_dir,
+                              tmp_path)
+from edgetruth.image_io import SUFFIXES, read_gray
+from edgetruth.locate import thresholds as thr
+from edgetruth.locate.registry import OPTION_SEP, format_option_value
+
 
 BATCH_HELP = ("One IMAGE file: -o is its CSV file.  Several IMAGEs, a folder (its image files, sorted, "
               "not recursive) or a glob pattern (quoted: 'shots/*.png'; ** matches folders too): -o DIR "
@@ -21,8 +38,6 @@ BATCH_HELP = ("One IMAGE file: -o is its CSV file.  Several IMAGEs, a folder (it
 
 
 def register(sub) -> None:
-    from edgetruth.cli import METHOD_SYNTAX, add_image_options, add_plugin_option, add_progress_option
-
     p = sub.add_parser("locate", help="subpixel edge points of images -> CSV (one or many images per call)",
                        description="Canny candidates refined by METHOD; one CSV row per point "
                                    "(x, y in OpenCV pixel coordinates: pixel centres at integers; columns in "
@@ -57,12 +72,6 @@ def expand_images(refs: list[str]) -> tuple[list[tuple[str, Path]], bool]:
     """([(name, path)], batch): the images ``refs`` name, in order, each once; ``batch`` is True unless
     ``refs`` is a single file (then ``-o`` is that file's CSV).  A ref is a file, a folder (its image
     files by name, not recursive) or a glob pattern (its image files, sorted)."""
-    import glob
-
-    from edgetruth.errors import InputError
-    from edgetruth.fileio import check_input_file
-    from edgetruth.image_io import SUFFIXES
-
     kinds = ", ".join(SUFFIXES)
     found: list[tuple[str, Path]] = []
     batch = len(refs) > 1
@@ -95,9 +104,6 @@ def expand_images(refs: list[str]) -> tuple[list[tuple[str, Path]], bool]:
 
 def plan_outputs(images: list[tuple[str, Path]], output: str) -> tuple[Path, list[Path] | None]:
     """(the output, None: one combined CSV | one CSV path per image), every path checked, nothing written."""
-    from edgetruth.errors import InputError
-    from edgetruth.fileio import check_output_dir, check_output_file
-
     inputs = [p for _, p in images]
     out = Path(output)
     if output.lower().endswith(".csv") and not out.is_dir():
@@ -117,8 +123,6 @@ def plan_outputs(images: list[tuple[str, Path]], output: str) -> tuple[Path, lis
 def csv_cells(pts) -> tuple[list[str], list[list[str]]]:
     """(column names, one list of formatted cells per column): the text ``EdgePoints.to_csv`` writes
     (ints as ints, floats by ``repr``), made column by column."""
-    import numpy as np
-
     names, cells = [], []
     for name, col in pts.columns().items():
         a = np.asarray(col)
@@ -142,9 +146,6 @@ def csv_text(names: list[str], cells: list[list[str]], image: str | None = None)
 
 
 def _quote(text: str) -> str:
-    import csv
-    import io
-
     buf = io.StringIO()
     csv.writer(buf, lineterminator="").writerow([text])
     return buf.getvalue()
@@ -153,9 +154,6 @@ def _quote(text: str) -> str:
 def method_and_options(spec: str) -> tuple[str, dict]:
     """``-m METHOD[:key=value...]`` -> (method id, the options it runs with): the studies' options for it
     (``method_order.STUDY_OPTIONS``) overridden by the spec's own, every one checked first."""
-    from edgetruth.errors import InputError
-    from edgetruth.evaluate import method_order as mo
-
     labels = mo.method_specs(spec)
     if not labels or len(labels) != 1:
         raise InputError(f"-m {spec!r}: give one method, METHOD[:key=value...] (for several, call locate once "
@@ -165,9 +163,6 @@ def method_and_options(spec: str) -> tuple[str, dict]:
 
 def options_note(method: str, options: dict, spec: str) -> str | None:
     """The line that says which options ran (None: the method's own defaults, none given)."""
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.locate.registry import OPTION_SEP, format_option_value
-
     shown = {k: v for k, v in options.items() if k != "tau"}
     if not shown:
         return None
@@ -180,11 +175,6 @@ def options_note(method: str, options: dict, spec: str) -> str | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from edgetruth import console, locate
-    from edgetruth.errors import InputError
-    from edgetruth.fileio import atomic_write_text, check_output_file
-    from edgetruth.locate import thresholds as thr
-
     method, options = method_and_options(args.method)
     if locate.METHODS[method].needs_camera and "esf" not in options:
         raise InputError(f"-m {method}: it needs the camera's model (its edge-spread tables), which a photo alone does "
@@ -217,18 +207,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _say_options(args, options: dict) -> None:
-    from edgetruth import console
-
     note = options_note(args.method, options, args.method_label)
     if note:
         console.say(note)
 
 
 def _points(name: str, path: Path, args, options):
-    from edgetruth import locate
-    from edgetruth.errors import InputError
-    from edgetruth.image_io import read_gray
-
     img = read_gray(path, channel=args.channel)
     try:
         return locate.locate(img, args.method, sigma_px=args.sigma, low=args.low, high=args.high, **options)
@@ -265,8 +249,8 @@ def _formatter(n_images: int):
     second process overlaps it with the next image's work."""
     if n_images < POOL_FROM_IMAGES:
         return None
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
+    import multiprocessing as mp  # lazy: multiprocessing only for pools
+    from concurrent.futures import ProcessPoolExecutor  # lazy: only for pools
 
     try:
         return ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"))
@@ -279,14 +263,6 @@ def _write_batch(images, targets, out: Path, args, options) -> tuple[int, int]:
     are done (on any error or interrupt the temporary files go and nothing else is touched).  The CSV
     text of image k is made (by a second process on long batches: ``_formatter``) while image k + 1 is
     read and refined, and written in image order, so the files are those of the one-by-one loop."""
-    from collections import deque
-
-    import numpy as np
-
-    from edgetruth import console
-    from edgetruth.errors import InputError
-    from edgetruth.fileio import make_output_dir, tmp_path
-
     temps: list[Path] = []
     n_pts = n_conv = 0
     combined = None

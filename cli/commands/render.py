@@ -4,11 +4,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from edgetruth import console
+from edgetruth.backends import check_backend_args
+from edgetruth.cli import add_backend_options, add_progress_option
+from edgetruth.errors import InputError
+from edgetruth.fileio import check_output_dir
+from edgetruth.render.dataset.driver import render_spec
+from edgetruth.render.dataset.spec import load_spec
+from edgetruth.resources import default_runs_dir, shipped_spec_names
+
 
 def register(subparsers) -> None:
-    from edgetruth.cli import add_backend_options, add_progress_option
-    from edgetruth.resources import shipped_spec_names
-
     shipped = ", ".join(shipped_spec_names()) or "none (broken install)"
 
     p = subparsers.add_parser(
@@ -34,8 +40,6 @@ def register(subparsers) -> None:
 
 
 def parse_indices(text: str | None) -> list[int] | None:
-    from edgetruth.errors import InputError
-
     if text is None:
         return None
     out: list[int] = []
@@ -56,13 +60,6 @@ def parse_indices(text: str | None) -> list[int] | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from edgetruth import console
-    from edgetruth.backends import check_backend_args
-    from edgetruth.fileio import check_output_dir
-    from edgetruth.render.dataset.driver import render_spec
-    from edgetruth.render.dataset.spec import load_spec
-    from edgetruth.resources import default_runs_dir
-
     check_backend_args(args.backend, args.workers, args.address)
     only = parse_indices(args.only)
     spec = load_spec(args.spec)

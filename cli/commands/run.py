@@ -17,11 +17,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from edgetruth.cli import (add_plugin_option, add_progress_option, add_undistort_option, method_list, methods_help,
+                           positive_int)
+from edgetruth.evaluate.main_job import STUDIES, run_main_job
+
 
 def register(subparsers) -> None:
-    from edgetruth.cli import add_plugin_option, add_undistort_option, add_progress_option, methods_help, positive_int
-    from edgetruth.evaluate.main_job import STUDIES
-
     p = subparsers.add_parser(
         "run", help="render, calibrate, locate (all methods), evaluate and report, in one go",
         description=__doc__.split("\n\n")[1], formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -49,9 +50,6 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from edgetruth.cli import method_list
-    from edgetruth.evaluate.main_job import run_main_job
-
     _, code = run_main_job(args.study, args.output, args.limit, args.calib_limit, method_list(args.methods),
                            args.variant, args.skip_synthetic, progress=not args.no_progress,
                            thresholds=args.thresholds, workers=args.workers,

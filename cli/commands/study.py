@@ -6,19 +6,24 @@ from __future__ import annotations
 import datetime as _dt
 from pathlib import Path
 
+from edgetruth import console
+from edgetruth.cli import (add_backend_options, add_image_options, add_pattern_option, add_plugin_option,
+                           add_progress_option, method_list, methods_help, positive_int)
 from edgetruth.errors import InputError
+from edgetruth.evaluate.board.study import run_board_study
+from edgetruth.evaluate.board.twin.study import run_twin_study
+from edgetruth.resources import default_runs_dir
+
 
 #: options that belong to one kind of study only (dest -> the kind), refused with the other
 _SYNTHETIC_ONLY = {"preset": "--preset", "images_per_scenario": "--images-per-scenario", "workers": "-j/--workers",
                    "address": "--address"}
-_BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model", "pattern": "--pattern", "square": "--square", "tone": "--tone"}
+_BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model", "pattern": "--pattern", "square": "--square", "tone": "--tone",
+               "marker": "--marker"}
 _TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant", "twin": "--twin"}
 
 
 def register(sub) -> None:
-    from edgetruth.cli import (add_backend_options, add_image_options, add_pattern_option, add_plugin_option,
-                               add_progress_option, methods_help, positive_int)
-
     p = sub.add_parser("study", help="run a study and write its report",
                        description="synthetic: the seed's synthetic study (Tables 3-8, Figures 4-7) on analytic "
                                    "edges with exact ground truth; re-running into the same directory resumes. "
@@ -47,11 +52,14 @@ def register(sub) -> None:
     p.add_argument("--model", default=None, metavar="FILE",
                    help="board: the board model, one square per line, x y of its four corners in board units "
                         "(Zhang's Model.txt layout)")
-    add_pattern_option(p, "board, and twin of your own photos: the photos show this chessboard, and its dark squares "
+    add_pattern_option(p, "board, and twin of your own photos (a chessboard): the photos show this board, and its dark squares "
                           "between the inner corners are studied (in place of --model)")
     p.add_argument("--square", default=None, metavar="SIZE",
                    help="board, with --pattern: the side of one square, in the unit side lengths are reported in "
                         "(default 1: lengths in squares)")
+    p.add_argument("--marker", default=None, metavar="SIZE",
+                   help="board, with --pattern charuco:COLSxROWS:DICT: the printed side of one marker (its black "
+                        "border included), in the unit of --square (in squares without it, e.g. 0.75)")
     p.add_argument("--tone", default=None, metavar="stored|srgb|power:G|auto[:METHOD]",
                    help="board: how the photos' stored values are decoded before locating: 'stored' (default) as "
                         "stored; 'srgb' the sRGB curve; 'power:G' full*(v/full)**G (e.g. power:2.2); 'auto' (a "
@@ -94,15 +102,9 @@ def _refuse(args, only: dict, kind: str) -> None:
 
 
 def run(args) -> int:
-    from edgetruth import console
-    from edgetruth.cli import method_list
-    from edgetruth.resources import default_runs_dir
-
     out = Path(args.output) if args.output else default_runs_dir() / (
         _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%d-%H%M%S") + f"-{args.kind}")
     if args.kind == "twin":
-        from edgetruth.evaluate.board.twin.study import run_twin_study
-
         # one name that is not a path: a shipped set; else your own photos, with their twin scene (--twin)
         shipped = len(args.inputs) == 1 and not Path(args.inputs[0]).exists()
         board_only = {k: v for k, v in _BOARD_ONLY.items() if k != "inputs" and (shipped or k == "tone")}
@@ -120,18 +122,16 @@ def run(args) -> int:
         console.say(f"report: {report}")
         return 0
     if args.kind == "board":
-        from edgetruth.evaluate.board.study import run_board_study
-
         _refuse(args, _SYNTHETIC_ONLY | _TWIN_ONLY, "board")
         if args.backend != "local":
             raise InputError("--backend: not an option of `study board` (it runs in-process); drop it")
         report = run_board_study(args.inputs, out, model=args.model, pattern=args.pattern, square=args.square,
-                                 tone=args.tone,
+                                 tone=args.tone, marker=args.marker,
                                  methods=method_list(args.methods),
                                  channel=args.channel, thresholds=args.thresholds, progress=not args.no_progress)
         console.say(f"report: {report}")
         return 0
-    from edgetruth.evaluate.synthetic.study import run_synthetic_study
+    from edgetruth.evaluate.synthetic.study import run_synthetic_study  # lazy: study loads numba
 
     _refuse(args, _BOARD_ONLY | _TWIN_ONLY, "synthetic")
     report = run_synthetic_study(out, args.preset or "quick", method_list(args.methods), progress=not args.no_progress,

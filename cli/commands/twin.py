@@ -10,7 +10,24 @@ with exact truth.
 from __future__ import annotations
 
 import argparse
+import math
+import shlex
 from pathlib import Path
+
+from edgetruth import console
+from edgetruth.cli import (add_image_options, add_pattern_option, add_progress_option, add_square_m_option,
+                           parse_square_m)
+from edgetruth.errors import InputError
+from edgetruth.evaluate.board.model import read_model
+from edgetruth.evaluate.board.twin.derive import TwinAssumptions, safe_name, twin_texts
+from edgetruth.evaluate.board.twin.measure import measure_chessboard
+from edgetruth.evaluate.board.twin.measure_squares import measure_squares
+from edgetruth.evaluate.calibration import find_photos, parse_pattern
+from edgetruth.fileio import atomic_write_bytes, atomic_write_text, check_output_dir, make_output_dir, write_json
+from edgetruth.render.dataset.spec import load_spec
+from edgetruth.render.schema import NAME_RE
+from edgetruth.resources import real_set, shipped_real_set_names
+
 
 FILES = ("twin.toml", "camera.toml", "measurements.json", "model.txt")
 #: a board of separate squares' tone when not given: sRGB's (close to a power of 2.2)
@@ -18,8 +35,6 @@ DEFAULT_TONE_POWER = 2.2
 
 
 def register(sub) -> None:
-    from edgetruth.cli import add_image_options, add_pattern_option, add_progress_option, add_square_m_option
-
     p = sub.add_parser("twin", help="derive a digital twin (a render spec) of your own board photos",
                        description="Measure on photos of a chessboard (--pattern) or of a board of separate squares "
                                    "(--model) what a digital twin of them needs -- the camera (Zhang's calibration "
@@ -72,16 +87,6 @@ def register(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import math
-    import shlex
-
-    from edgetruth import console
-    from edgetruth.errors import InputError
-    from edgetruth.evaluate.board.twin.derive import TwinAssumptions, safe_name, twin_texts
-    from edgetruth.evaluate.board.twin.measure import measure_chessboard
-    from edgetruth.evaluate.calibration import find_photos
-    from edgetruth.fileio import atomic_write_bytes, atomic_write_text, check_output_dir, make_output_dir, write_json
-
     pattern, model, unit_m = _board(args)
     for flag, v, lo, hi in (("--pitch-um", args.pitch_um, 0.5, 50.0), ("--f-number", args.f_number, 0.5, 64.0),
                             ("--tone-power", args.tone_power, 0.2, 5.0),
@@ -96,7 +101,6 @@ def run(args: argparse.Namespace) -> int:
     photos = find_photos(args.photos)
     if len(photos) < 3:
         raise InputError(f"{len(photos)} photo(s): Zhang's calibration needs 3 or more views of the board")
-    from edgetruth.render.schema import NAME_RE
 
     if args.name is not None and not (NAME_RE.match(args.name) and ".." not in args.name):
         raise InputError(f"--name {args.name!r}: use 1-100 letters, digits, '_', '-', '.', starting with a letter or "
@@ -106,8 +110,6 @@ def run(args: argparse.Namespace) -> int:
     if model is None:
         m = measure_chessboard([p for _, p in photos], pattern, channel=args.channel, progress=track)
     else:
-        from edgetruth.evaluate.board.twin.measure_squares import measure_squares
-
         m = measure_squares([p for _, p in photos], model, DEFAULT_TONE_POWER if args.tone_power is None else
                             args.tone_power, channel=args.channel, progress=track)
     assumptions = TwinAssumptions(pitch_um=args.pitch_um, f_number=args.f_number, white_noise_dn=args.white_noise_dn,
@@ -125,7 +127,6 @@ def run(args: argparse.Namespace) -> int:
         atomic_write_bytes(out / "model.txt", Path(args.model).read_bytes())
     atomic_write_text(out / "camera.toml", cam)
     atomic_write_text(out / "twin.toml", scene)  # last: its presence says the directory is complete
-    from edgetruth.render.dataset.spec import load_spec
 
     spec = load_spec(out / "twin.toml")
     tone = m["tone"]
@@ -141,7 +142,6 @@ def run(args: argparse.Namespace) -> int:
     console.say(f"twin: render it with `edgetruth render {shlex.quote(str(out / 'twin.toml'))} -o RENDERS`")
     # the photos as given (the study pairs the twin's images with the photos its groups name); a shipped set's name
     # as its folder: `study twin NAME` is the set's own study, with its own twin
-    from edgetruth.resources import real_set, shipped_real_set_names
 
     given = [str(real_set(r)) if not Path(r).exists() and "/" not in r and r in shipped_real_set_names() else r
              for r in args.photos]
@@ -155,11 +155,6 @@ def run(args: argparse.Namespace) -> int:
 def _board(args):
     """(pattern, model, unit_m): a chessboard's (``--pattern``, ``--square-m``) or a model's (``--model``,
     ``--model-unit-m``); one ``InputError`` line for a mix or a missing half."""
-    from edgetruth.cli import parse_square_m
-    from edgetruth.errors import InputError
-    from edgetruth.evaluate.board.model import read_model
-    from edgetruth.evaluate.calibration import parse_pattern
-
     if (args.pattern is None) == (args.model is None):
         raise InputError("twin: give the board the photos show, either --pattern COLSxROWS --square-m METRES (a "
                          "chessboard) or --model FILE --model-unit-m METRES (separate squares), not both")

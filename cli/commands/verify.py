@@ -12,6 +12,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from edgetruth import console
+from edgetruth.render.dataset.driver import compact_if_idle
+from edgetruth.render.dataset.reader import check_dataset
+
 
 def register(sub) -> None:
     p = sub.add_parser("verify", help="check a dataset's files against its manifest (hashes)",
@@ -24,10 +28,6 @@ def register(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from edgetruth import console
-    from edgetruth.render.dataset.driver import compact_if_idle
-    from edgetruth.render.dataset.reader import check_dataset
-
     d: Path = args.dir
     if compact_if_idle(d):  # a killed run's journal (unless a render is writing it now)
         console.say(f"verify: {d}: compacted journal.jsonl into manifest.json")

@@ -12,7 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth.errors import InputError
-from edgetruth.fileio import check_input_file
+from edgetruth.fileio import check_input_file, read_toml
+from edgetruth.image_io import SUFFIXES
+from edgetruth.resources import real_set
+
 
 ZHANG_CALIBRATION = "calibration-result-zhang-withdistortion.txt"
 
@@ -52,14 +55,10 @@ def shipped_set(name: str) -> dict | None:
     """{'photos': [...], 'model': Path, 'corners': [Path per photo], 'calibration': Path} of a shipped set that
     has a board model (``Model.txt``); {'photos': [...], 'chessboard': {'pattern', 'square', 'units'}, 'source'}
     of one that has a chessboard (``board.toml``); else None."""
-    from edgetruth.fileio import read_toml
-    from edgetruth.resources import real_set
-
     root = Path(real_set(name))
     model = root / "Model.txt"
     if (root / CHESSBOARD_FILE).is_file():
         board = read_toml(root / CHESSBOARD_FILE)
-        from edgetruth.image_io import SUFFIXES
 
         photos = sorted(p for p in root.iterdir() if p.suffix.lower() in SUFFIXES and p.is_file())
         return {"name": name, "photos": photos, "chessboard": board, "source": f"{name}/{CHESSBOARD_FILE}"}

@@ -29,19 +29,21 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth import console, locate
-from edgetruth.locate.registry import camera_free
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board.detect import chessboard as cb
-from edgetruth.evaluate.board.tone import locator_fit as LF
-from edgetruth.evaluate.board.tone import values as tone_mod
-from edgetruth.evaluate.board.measure.compare import compare_all
-from edgetruth.evaluate.board.report.overlays import board_overlay, overlay_name, png_bytes
-from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, load_photos_scaled, resolve_inputs
-from edgetruth.evaluate.board.measure.rows import OPENCV_ROW, REFERENCE_ROW, Row, calibrate_row, method_row
 from edgetruth.evaluate.board.detect.squares import locate_squares
-from edgetruth.evaluate.board.measure.summary import per_side_rows, row_summary
+from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, load_photos_scaled, resolve_inputs
+from edgetruth.evaluate.board.measure.compare import compare_all
+from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD
+from edgetruth.evaluate.board.measure.rows import OPENCV_ROW, REFERENCE_ROW, Row, calibrate_row, method_row
+from edgetruth.evaluate.board.measure.summary import INTRINSICS, per_side_rows, row_summary
+from edgetruth.evaluate.board.report.overlays import board_overlay, overlay_name, png_bytes
+from edgetruth.evaluate.board.tone import locator_fit as LF, values as tone_mod
 from edgetruth.evaluate.board.tone.fit import estimate_power, require_chessboard
+from edgetruth.evaluate.run_dir import check_same_settings, prepare_run_dir
+from edgetruth.locate.registry import camera_free
+
 
 KIND = "study board"
 
@@ -58,8 +60,6 @@ def _jsonable(options: dict) -> dict:
 
 def check_output(out: Path, settings: dict) -> Path:
     """Refuse a foreign directory or a board study of other settings, before any work."""
-    from edgetruth.evaluate.run_dir import check_same_settings
-
     return check_same_settings(out, KIND, settings, "a board study")
 
 
@@ -93,8 +93,6 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
     """Steps 2-4 of the study (module docstring) on checked inputs; nothing is written.  ``images``: the photos
     already read, and decoded by their tone (else read here, as stored); ``keep_points``: each method row keeps its
     refined points (``Row.points``); ``tone``: how ``images`` were decoded (``tone_summary``), for the report."""
-    from edgetruth.evaluate.board.measure.summary import INTRINSICS
-
     t0 = time.perf_counter()
     images = load_photos(inp.photos, channel) if images is None else images
     h, w = images[0].shape
@@ -159,8 +157,6 @@ def board_overlays(rows: list, images, quads, names) -> list:
 
 def check_tone(text: str | None, inp: BoardInputs) -> tone_mod.Tone:
     """``--tone`` parsed and checked before any work: ``auto`` needs a chessboard and a camera-free method."""
-    from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD
-
     t = tone_mod.parse_tone(text, DEFAULT_METHOD)
     if t.kind != "auto":
         return t
@@ -202,7 +198,7 @@ def tone_summary(tone: tone_mod.Tone, scales: list[float], fit=None) -> dict | N
 def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], options: dict, thresholds,
                     title: str | None = None) -> Path:
     """The study's files (``report.write_outputs``) of ``run`` into the existing directory ``out``."""
-    from edgetruth.evaluate.board.report.files import header_lines, write_outputs
+    from edgetruth.evaluate.board.report.files import header_lines, write_outputs  # lazy: files loads matplotlib
 
     inp = run.inp
     header = header_lines(inp, run.names, run.size, channel, methods, options, thresholds, run.reference,
@@ -216,13 +212,11 @@ def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], 
 
 def run_board_study(items: list[str], out, model: str | None = None, methods=None, channel: str = "luma",
                     thresholds=None, progress: bool = True, pattern: str | None = None, square=None,
-                    tone: str | None = None) -> Path:
+                    tone: str | None = None, marker=None) -> Path:
     """Run the board study (module docstring) into ``out``; returns the path of its report.md.  The board: ``model``
     (a model file of separate squares), ``pattern``/``square`` (a chessboard), or the shipped set's own.  ``tone``:
     how the stored values are decoded before locating (``tone.parse_tone``; default as stored)."""
-    from edgetruth.evaluate.run_dir import prepare_run_dir
-
-    inp = resolve_inputs(list(items), model, pattern, square)
+    inp = resolve_inputs(list(items), model, pattern, square, marker)
     # all methods but those that need a camera model (patch_esf_fit's PSF tables): there is none here
     methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:

@@ -32,6 +32,10 @@ import math
 from collections import OrderedDict
 
 import numpy as np
+from scipy.spatial import cKDTree
+
+from edgetruth.render.optics import mtf
+
 
 ANGLE_STEP_DEG = 1.0  # table bins of the normal's direction: < 4e-5 on the bound against 0.25 deg
 FFT_LEN = 1 << 12  # 64 px period on the 1/64-px grid: < 6e-5 on the bound against 1 << 16 (512 px)
@@ -42,8 +46,7 @@ _CACHE_SIZE = 12
 
 def optics_at(gt: dict, field_h: float):
     """``bound_psf.Optics`` of the image's camera at field height ``field_h`` (JSON keys only)."""
-    from edgetruth.evaluate.bound_psf import Optics
-    from edgetruth.render.optics import mtf
+    from edgetruth.evaluate.bound_psf import Optics  # lazy: bound_psf loads numba
     cam = gt["camera"]
     psf = cam.get("optics", {}).get("psf", {})
     p = float(cam["pitch_um"])
@@ -69,7 +72,7 @@ def field_heights(gt: dict, x, y) -> np.ndarray:
 
 def spread_for(optics):
     """The ``EdgeSpread`` of ``optics`` (tables kept for the next images with the same optics)."""
-    from edgetruth.evaluate.bound_psf import EdgeSpread
+    from edgetruth.evaluate.bound_psf import EdgeSpread  # lazy: bound_psf loads numba
 
     key = tuple(round(float(v), 9) for v in (optics.cutoff_cy_px if math.isfinite(optics.cutoff_cy_px) else -1,
                                               optics.sigma_x_px, optics.sigma_y_px, optics.defocus_px,
@@ -113,8 +116,6 @@ def outline_geometry(truth, x, y) -> dict:
     ρ, the normal φ towards the bright board (> 0 side) from the nearest chord, and for a smooth outline
     (no corners: a circle, an ellipse) the local radius of curvature and the normal at the point from the
     circle through the vertices two either side of the nearest."""
-    from scipy.spatial import cKDTree
-
     poly = np.asarray(truth.polyline_px, float)
     q = np.column_stack([np.ravel(x), np.ravel(y)]).astype(float)
     n, nv = len(q), len(poly)
@@ -197,7 +198,8 @@ def point_bounds(gt: dict, radiance: np.ndarray, truth, x, y, masks: dict, blur_
     ``blur_known`` get the bound with the PSF's scale known.  NaN where the levels cannot be fitted
     (no contrast), the sensor block is missing, or the output is not the raw monochrome signal (a CFA,
     JPEG or processed output: its noise is not the EMVA model's)."""
-    from edgetruth.evaluate.bound_psf import bounds_from_derivatives, means_and_derivatives, offsets_of
+    from edgetruth.evaluate.bound_psf import (bounds_from_derivatives,  # lazy: bound_psf loads numba
+                                              means_and_derivatives, offsets_of)
 
     x = np.asarray(x, float)
     y = np.asarray(y, float)

@@ -26,16 +26,21 @@ from pathlib import Path
 
 import numpy as np
 
-from edgetruth.evaluate.design import INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, factor_tables, main_rows, plain_groups
+from edgetruth.evaluate.design import (INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, factor_tables, main_rows,
+                                       plain_groups)
+from edgetruth.evaluate.method_order import label
+from edgetruth.evaluate.points.scores import CORNER_EXCLUSION_PX, MATCH_RADIUS_PX
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, table as _table
-from edgetruth.evaluate.stats import bootstrap_indices, holm, rank_biserial, wilcoxon_paired
+from edgetruth.evaluate.stats import (bootstrap_indices, common_subset, friedman, holm, paired_comparisons,
+                                      rank_biserial, wilcoxon_paired)
+from edgetruth.fileio import atomic_write_text
+
 
 N_BOOT = 2000
 MAD_TO_SD = 1.4826
 
 
 def _label(m: str) -> str:
-    from edgetruth.evaluate.method_order import label
     return label(m)
 
 
@@ -75,8 +80,6 @@ def cluster_rmse_ci(sse: np.ndarray, n: np.ndarray, n_boot: int = N_BOOT, seed: 
 def common_mask(table, methods) -> np.ndarray:
     """Points every method in ``methods`` refines (``edgetruth.evaluate.stats.common_subset``) with a
     finite error for each."""
-    from edgetruth.evaluate.stats import common_subset
-
     methods = [m for m in methods if m in table.errors]
     if not methods:
         return np.ones(len(table.image), bool)
@@ -212,8 +215,6 @@ def level_tests(table, m: str, level_masks: dict) -> dict:
     same spec and slot): Friedman's test across the levels (three or more), Kendall's W, Wilcoxon
     signed-rank between consecutive levels with Holm's correction and the rank-biserial r
     (``steps``), and whether the pooled RMSE never falls."""
-    from edgetruth.evaluate.stats import friedman, paired_comparisons
-
     n_img = len(table.images)
     sse, n = per_image_sums(table.image, table.errors[m], n_img)
 
@@ -316,8 +317,6 @@ SUMMARY_FIELDS = ("cell", "level", "interval", "method", "n_points", "n_images",
 
 
 def write_summary(path: Path, rows: list[dict]) -> None:
-    from edgetruth.fileio import atomic_write_text
-
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=SUMMARY_FIELDS, extrasaction="ignore", lineterminator="\n")
     w.writeheader()
@@ -327,9 +326,9 @@ def write_summary(path: Path, rows: list[dict]) -> None:
 
 
 def figures(table, methods, fig_dir: Path) -> dict:
-    import matplotlib
+    import matplotlib  # lazy: matplotlib is heavy
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: matplotlib is heavy
 
     fig_dir.mkdir(parents=True, exist_ok=True)
     bound, interval = image_columns(table)
@@ -381,8 +380,6 @@ def figures(table, methods, fig_dir: Path) -> dict:
 
 def report_section(table, methods, out_dir: Path) -> list[str]:
     """The report's per-point section (markdown lines); writes ``render_points_summary.csv`` and figures."""
-    from edgetruth.evaluate.points.scores import CORNER_EXCLUSION_PX, MATCH_RADIUS_PX
-
     bound, interval = image_columns(table)
     write_summary(out_dir / "render_points_summary.csv", summary_rows(table, methods))
     c = cells(table)

@@ -44,13 +44,23 @@ and 2-D methods.
 """
 from __future__ import annotations
 
+import io
+import json
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from edgetruth import locate
+from edgetruth.errors import InputError
 from edgetruth.evaluate.matching import MATCH_RADIUS_PX
-from edgetruth.evaluate.target import is_scene
+from edgetruth.evaluate.method_order import resolve
+from edgetruth.evaluate.points.bound import esf_for_points, point_bounds, sensor_variance
+from edgetruth.evaluate.target import TargetCandidates, is_scene, target_candidates
+from edgetruth.fileio import atomic_write_bytes
+from edgetruth.render.optics.optical_edge import nearest_offsets
+from edgetruth.render.scene.ground_truth import image_outline
+
 
 CORNER_EXCLUSION_PX = 4.0
 BOUND_WINDOW_PX = 11
@@ -100,8 +110,6 @@ class PointScores:
 def candidate_optical_offsets(gt: dict, truth, x, y) -> tuple[np.ndarray, np.ndarray]:
     """(centroid, 50 % level) offsets of the optical edge at image points, from the JSON's
     ``outline.optical_edge`` (NaN where the JSON has none)."""
-    from edgetruth.render.optics.optical_edge import nearest_offsets
-
     oe = gt.get("outline", {}).get("optical_edge")
     x, y = np.asarray(x, float), np.asarray(y, float)
     if not oe or is_scene(truth):  # the JSON's optical edge is shape 0's outline
@@ -125,10 +133,6 @@ def scene_candidates(image: np.ndarray, truth, margin_px: int = 12, boundary_tol
     """``TargetCandidates`` of an image with several outlines: no one target to find, so Canny runs on the crop
     around every visible edge (+ ``margin_px``) and keeps the candidates within ``boundary_tol_px`` of one, as
     ``target_candidates`` keeps those on its target's boundary (``region`` None)."""
-    from edgetruth import locate
-    from edgetruth.errors import InputError
-    from edgetruth.evaluate.target import TargetCandidates
-
     img = np.asarray(image, np.float64)
     seg = truth.visible_points_px()
     if not len(seg):
@@ -149,8 +153,6 @@ def scored_candidates(image: np.ndarray, truth):
     (``TargetCandidates``, scored ``Candidates``, their signed truth distance).  One definition for
     the per-point tables and the threshold calibration on renders.  An image with several outlines
     (``is_scene``) has its candidates along every visible edge (``scene_candidates``)."""
-    from edgetruth.evaluate.target import target_candidates
-
     img = np.asarray(image, np.float64)
     tc = scene_candidates(img, truth) if is_scene(truth) else target_candidates(img)
     keep, d = scored_subset(truth, tc.candidates, tc.offset)
@@ -173,7 +175,7 @@ def gaussian_equivalent_blur_px(gt: dict) -> float:
 def point_bound_px(gt: dict, radiance: np.ndarray, truth) -> float:
     """The 11-pixel-row reference figure (px) of one rendered target image (module docstring): an
     approximation kept for comparison, not a floor."""
-    from edgetruth.evaluate.crb import position_std_bound
+    from edgetruth.evaluate.crb import position_std_bound  # lazy: crb loads numba
 
     s = gt["sensor"]
     poly = truth.polyline_px
@@ -203,8 +205,6 @@ def camera_options(gt: dict, x, y) -> dict:
     the edge-spread tables of its PSF per field-height bin (``esf``, ``bin_index``: binned as the bound) and
     the sensor's pixel variance (``variance``: the bound's EMVA model; left out -- an unweighted fit -- without
     a sensor block or on an output that is not the raw signal)."""
-    from edgetruth.evaluate.points.bound import esf_for_points, sensor_variance
-
     if "camera" not in gt:
         return {}
     esf, bin_index = esf_for_points(gt, x, y)
@@ -241,10 +241,6 @@ def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict |
     PointScores
         The scored candidates and every method's errors, px.
     """
-    from edgetruth import locate
-    from edgetruth.evaluate.method_order import resolve
-    from edgetruth.render.scene.ground_truth import image_outline
-
     truth = image_outline(gt)
     tc, sub, d = scored_candidates(image, truth)
     # the bounds follow one outline's geometry and the shading either side of it: not computed for scenes
@@ -275,8 +271,6 @@ def score_image(image: np.ndarray, gt: dict, methods: list[str], options: dict |
         out.errors[label] = np.asarray(err, np.float32)
         out.converged[label] = conv
     if bounded and len(sub):
-        from edgetruth.evaluate.points.bound import point_bounds
-
         b = point_bounds(gt, radiance, truth, sub.x + x0, sub.y + y0, masks, blur_known)
         out.bounds = {m: np.asarray(v, np.float32) for m, v in b.items()}
     else:
@@ -326,10 +320,6 @@ class PointTable:
 
 
 def read_points(path) -> PointTable:
-    import json
-
-    from edgetruth.errors import InputError
-
     try:
         z = np.load(path, allow_pickle=False)
         images = json.loads(str(z["images_json"]))
@@ -351,11 +341,6 @@ def write_points(path, table: "PointTable") -> None:
     (per point, the optical edge's offset, px; NaN without one), and ``images_json`` (one record per
     image: dataset, image, spec, group, slot, levels, off_base, target, interval, true_distance_m,
     bound_row_px (the 11-pixel-row reference), n_candidates, n_scored)."""
-    import io
-    import json
-
-    from edgetruth.fileio import atomic_write_bytes
-
     arrays = {"image": table.image.astype(np.int32), "images_json": np.array(json.dumps(table.images))}
     for m in table.methods:
         arrays[f"error/{m}"] = table.errors[m].astype(np.float32)

@@ -19,8 +19,10 @@ import math
 from pathlib import Path
 
 import numpy as np
+from PIL import Image, UnidentifiedImageError
 
 from edgetruth.errors import InputError
+
 
 TAG_EXIF_IFD = 0x8769
 TAG_FOCAL_LENGTH = 37386
@@ -44,8 +46,6 @@ def _value(v) -> float:
 
 def read_exif_focal(path: str | Path) -> dict:
     """The focal-length tags of a photo's EXIF ({} when it has none): focal_mm, focal_35mm, fp_xres, fp_unit."""
-    from PIL import Image, UnidentifiedImageError
-
     try:
         with Image.open(path) as im:  # lazy: the header only, no pixels decoded
             exif = im.getexif()

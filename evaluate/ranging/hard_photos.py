@@ -23,37 +23,36 @@ from pathlib import Path
 
 import numpy as np
 
+from edgetruth.evaluate.calibration import Calibration
+from edgetruth.evaluate.ranging.images import true_size_px
+from edgetruth.evaluate.ranging.photos import PhotoRecord, range_photo
+from edgetruth.evaluate.ranging.target_finder import contour_mask
+from edgetruth.evaluate.report_format import num, table
+from edgetruth.render.synthetic.room_photos import hard_set, render_room_photo
+
+
 FOUND_IOU = 0.9
 BENCH_METHODS = ("dynamic_erf_4p", "erf4p_fixed11", "canny_devernay", "ser_cis", "canny_pixel")
 
 
 def true_calibration(truth: dict, image_shape):
-    from edgetruth.evaluate.calibration import Calibration
-
     return Calibration.from_dict({"K": truth["K"], "dist_coeffs_opencv": [0.0] * 5,
                                   "image_size": [int(image_shape[1]), int(image_shape[0])]}, "room photo")
 
 
 def floor_cm(truth: dict) -> float:
     """The ranging-model floor: 100 (fx S / l_true - Z) with l_true the size model on the true outline."""
-    from edgetruth.evaluate.ranging.images import true_size_px
-
     l_true = true_size_px({"outline": {"undistorted_px": truth["outline_px"]}, "target": {"shape": truth["shape"]}})
     return 100.0 * (truth["fx_px"] * truth["size_m"] / l_true - truth["true_distance_m"])
 
 
 def record_for(name: str, truth: dict, path: str = "", roi=None, point=None, polarity: str | None = None):
-    from edgetruth.evaluate.ranging.photos import PhotoRecord
-
     return PhotoRecord(0, name, path, 100.0 * truth["true_distance_m"], truth["size_m"], truth["shape"],
                        truth["kind"], polarity or truth["polarity"], truth["height_m"], roi, point)
 
 
 def score_photo(image: np.ndarray, truth: dict, methods, polarity: str | None = None, name: str = "photo") -> dict:
     """One photo through the photo pipeline, scored against its truth (see the module docstring)."""
-    from edgetruth.evaluate.ranging.photos import range_photo
-    from edgetruth.evaluate.ranging.target_finder import contour_mask
-
     rec = record_for(name, truth, polarity=polarity)
     t0 = time.process_time()
     res = range_photo(image, rec, true_calibration(truth, image.shape), list(methods), keep_points=False)
@@ -77,8 +76,6 @@ def score_photo(image: np.ndarray, truth: dict, methods, polarity: str | None = 
 def run(n: int = 64, seed: int = 0, methods=BENCH_METHODS, auto_every: int = 2, progress: bool = False) -> dict:
     """``n`` hard photos (``room_photos.hard_set``); every ``auto_every``-th asks for polarity auto, the
     others declare it (both are what a CSV row may say)."""
-    from edgetruth.render.synthetic.room_photos import hard_set, render_room_photo
-
     per = []
     for k, design in enumerate(hard_set(n, seed)):
         img, truth = render_room_photo(design)
@@ -112,8 +109,6 @@ def summarise(per: list[dict], methods: list[str]) -> dict:
 
 
 def markdown(s: dict) -> str:
-    from edgetruth.evaluate.report_format import num, table
-
     lines = ["# Hard room photos: target finding and ranging", "",
              f"{s['n']} analytic room photos (`render/synthetic/room_photos.py`, `hard_set`): dark squares and discs "
              "printed on white sheets, light sheets and cards with a drawing, text and a logo printed inside, on a "

@@ -21,17 +21,29 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 import json
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
+from edgetruth import console, locate
 from edgetruth.errors import InputError
 from edgetruth.evaluate.design import interval_label
-from edgetruth.evaluate.ranging.size import distance_from_size, fit_circle, fit_square
+from edgetruth.evaluate.method_order import resolve
+from edgetruth.evaluate.ranging.pose import pose_distance
+from edgetruth.evaluate.ranging.size import Line, _line_gap, circle_taubin, distance_from_size, fit_circle, fit_square
+from edgetruth.evaluate.ranging.undistort import from_calibration, from_truth
+from edgetruth.evaluate.target import is_scene, target_candidates
+from edgetruth.fileio import atomic_write_text
+from edgetruth.locate import plugins
+from edgetruth.render.dataset.reader import open_dataset
+from edgetruth.render.optics.optical_edge import OpticalOutline, outward_normals
+from edgetruth.render.scene.ground_truth import image_outline
+
 
 @dataclass
 class ImageResult:
@@ -62,9 +74,6 @@ def rectangle_height_m(gt: dict) -> float:
 def ranging_scope(gt: dict) -> str:
     """Why a rendered target image is not ranged ("" where it is): ranging sizes one target of a shape it models
     (``SHAPES``); an own scene of several outlines, or another shape, is scored per point only."""
-    from edgetruth.render.scene.ground_truth import image_outline
-    from edgetruth.evaluate.target import is_scene
-
     if is_scene(image_outline(gt)):
         return "a scene of several outlines (ranging sizes one target); scored per point"
     shape = gt["target"]["shape"]
@@ -77,8 +86,6 @@ def ranging_scope(gt: dict) -> str:
 def rectangle_pose_distance(corners_px, K, width_m: float, height_m: float) -> float:
     """Z (m) of the centre of a ``width_m`` x ``height_m`` rectangle from its image corners (4, 2):
     top-left, top-right, bottom-right, bottom-left (undistorted px); ``cv2.solvePnP`` with IPPE."""
-    import cv2
-
     c = np.asarray(corners_px, np.float64).reshape(4, 2)
     if not np.all(np.isfinite(c)):
         raise InputError("rectangle pose: corners are not finite")
@@ -99,8 +106,6 @@ def size_of(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float, K=None, s
     ``size_m`` is its horizontal side.  With ``height_m`` its pose is PnP on the four corners, and a
     rectangle whose measured width/height is closer to height_m/size_m than to size_m/height_m
     (turned by 90 degrees) is refused; without it there is no pose distance."""
-    from edgetruth.evaluate.ranging.pose import pose_distance
-
     if shape in ("square", "rectangle"):
         fit = fit_square(x, y, nx, ny)
         out = {"size_px": fit.width_px, "size_tb_px": fit.height_px * fx / fy, "size_seed_px": fit.width_seed_px,
@@ -148,8 +153,6 @@ def fit_geometry(shape: str, x, y, nx, ny, fx: float, fy: float, cy: float) -> d
 def outline_pose_distance(gt: dict, points_px, K) -> float:
     """The pose-based estimate from the truth's outline points (undistorted px: a square's four corners, a
     circle's polyline) with the intrinsic matrix ``K``."""
-    from edgetruth.evaluate.ranging.pose import pose_distance
-
     pts = np.asarray(points_px, float)
     K = np.asarray(K, float)
     size_m = float(gt["target"]["size_m"])
@@ -176,8 +179,6 @@ def calibrated_pose_distance(gt: dict, undistorter, K) -> float:
 def polyline_pose_distance(shape: str, size_m: float, points_px, undistorter, K) -> float:
     """The pose-based estimate from a dense closed outline polyline of the raw (distorted) image, through
     the ranging's own size fits: undistorted with ``undistorter``'s model, the pose with ``K``."""
-    from edgetruth.render.optics.optical_edge import outward_normals
-
     u = undistorter.undistort_points(np.asarray(points_px, float))
     n = outward_normals(u, np.roll(u, -1, axis=0) - np.roll(u, 1, axis=0))
     K = np.asarray(K, float)
@@ -189,9 +190,6 @@ def optics_pose_distance(gt: dict) -> float:
     """The pose-based estimate on the OPTICAL edge (the outline moved by the displacement the lens makes,
     ``outline.optical_edge``, its centroid) through the true camera: its error is the optics' share of
     every method's pose error.  NaN without an optical edge in the truth."""
-    from edgetruth.render.optics.optical_edge import OpticalOutline
-    from edgetruth.evaluate.ranging.undistort import from_truth
-
     if not gt.get("outline", {}).get("optical_edge") or "polyline_distorted_px" not in gt["outline"]:
         return float("nan")
     poly = OpticalOutline.from_ground_truth(gt).polyline("centroid")
@@ -223,7 +221,6 @@ def true_size_px(gt: dict) -> float:
     pts = np.asarray(gt["outline"]["undistorted_px"])
     if gt["target"]["shape"] in ("square", "rectangle"):  # l: the left and right sides' gap (a rectangle's width)
         tl, tr, br, bl = pts
-        from edgetruth.evaluate.ranging.size import Line, _line_gap
 
         def through(a, b):
             t = (b - a) / np.linalg.norm(b - a)
@@ -231,7 +228,6 @@ def true_size_px(gt: dict) -> float:
             return Line(n, float(n @ a), np.ones(2, bool), 0.0)
 
         return _line_gap(through(tl, bl), np.array([tl, bl]), through(tr, br), np.array([tr, br]))
-    from edgetruth.evaluate.ranging.size import circle_taubin
     return 2.0 * circle_taubin(pts[:, 0], pts[:, 1])[2]
 
 
@@ -294,15 +290,11 @@ def range_undistorted(und: np.ndarray, valid, shape: str, size_m: float, z_ref_m
     and pose fits (``Undistorter.undistort_points``), so no resampling touches the pixels.  With ``finder``
     (the priors of a photo's CSV row: shape, aspect, polarity, roi, point) the declared-target finder
     (``target_finder.find_region``) finds the target instead of the render's dark-region finder."""
-    from edgetruth import locate
-    from edgetruth.evaluate.method_order import resolve
-    from edgetruth.evaluate.target import target_candidates
-
     fx, fy, cy = cal.fx, cal.fy, cal.cy
     try:
         region = None
         if finder is not None:
-            from edgetruth.evaluate.ranging.target_finder import find_region
+            from edgetruth.evaluate.ranging.target_finder import find_region  # lazy: optional
 
             region = find_region(und, valid, K=cal.K, **finder)
         tc = target_candidates(und, valid, polarity=polarity, region=region)
@@ -373,8 +365,6 @@ ROW_FIELDS = ("dataset", "image", "spec", "group", "slot", "levels", "off_base",
 
 def write_rows(path: Path, rows: list[dict]) -> None:
     """``ranging_rows.csv``: one row per (image, method), columns ``ROW_FIELDS`` (docs/formats.md)."""
-    from edgetruth.fileio import atomic_write_text
-
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=ROW_FIELDS, extrasaction="ignore", lineterminator="\n")
     w.writeheader()
@@ -401,8 +391,6 @@ _undistorters: dict = {}
 
 
 def _undistorter(cal):
-    from edgetruth.evaluate.ranging.undistort import from_calibration
-
     key = (cal.K.tobytes(), cal.dist.tobytes(), tuple(cal.image_size))
     if key not in _undistorters:
         _undistorters[key] = from_calibration(cal)
@@ -412,9 +400,6 @@ def _undistorter(cal):
 def ranging_methods(labels: list[str], options: dict | None = None) -> list[str]:
     """The labels of ``labels`` that size and range the undistorted image: all but those whose method
     needs the camera's model (``Method.needs_camera``; they are scored per point on the raw image)."""
-    from edgetruth import locate
-    from edgetruth.evaluate.method_order import resolve
-
     return [m for m in labels if not getattr(locate.METHODS.get(resolve(m, options)[0]), "needs_camera", False)]
 
 
@@ -424,8 +409,6 @@ def range_image(dataset: str, name: str, cal, methods: list[str], keep_points: b
     every method and, with ``score`` (the per-point study's ``score_image(image, gt, methods, options,
     radiance=)``, passed by the main job: ranging does not import that study), score every method's points on
     the raw image against the exact outline; None for a checkerboard.  Runs in worker processes."""
-    from edgetruth.render.dataset.reader import open_dataset
-
     s = open_dataset(dataset)[name]
     gt = s.truth
     if gt.get("kind") != "target":
@@ -491,10 +474,7 @@ def run_ranging(datasets: list[Path], cal, out_dir: Path, methods: list[str] | N
     plug-in methods shipped to the workers); rows come back in dataset/index order whatever the
     backend.  Returns {"rows": [...], "examples": [ImageResult with points, ...], "per_image": [...], ...}.
     """
-    from edgetruth import console, locate
-    from edgetruth.backends import make_backend
-    from edgetruth.locate import plugins
-    from edgetruth.render.dataset.reader import open_dataset
+    from edgetruth.backends import make_backend  # lazy: the tests patch it on its module
 
     methods = list(methods or locate.METHODS)
     out_dir = Path(out_dir)

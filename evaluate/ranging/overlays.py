@@ -16,6 +16,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from edgetruth.fileio import atomic_write_bytes
+
+
 MAX_SIDE_PX = 1600
 OUTLINE = (0, 255, 0)
 FIT = (255, 0, 255)
@@ -95,8 +98,6 @@ def overlay_name(image_name: str) -> str:
 def write_photo_overlay(path: Path, image: np.ndarray, region: dict, fit: dict | None, points, method: str,
                         z_m: float, ref_m: float) -> None:
     """One photo's overlay PNG (``region``: ``ImageResult.region``, with the finder's ``outline_px``)."""
-    from edgetruth.fileio import atomic_write_bytes
-
     fin = region.get("finder") or {}
     l_px = (fit or {}).get("l_px", float("nan"))
     text = [f"{method}: l = {l_px:.2f} px, Z = {z_m:.3f} m (reference {ref_m:.3f} m)",

@@ -27,6 +27,7 @@ verdicts as a render study's (``ranging_report.write_report``).  There is no per
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -34,9 +35,22 @@ from pathlib import Path
 
 import numpy as np
 
+from edgetruth import console, locate
 from edgetruth.errors import InputError
-from edgetruth.evaluate.design import interval_label
-from edgetruth.evaluate.ranging.images import SHAPES, ImageResult
+from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.calibration import Calibration
+from edgetruth.evaluate.design import REFERENCE_METHOD, interval_label
+from edgetruth.evaluate.ranging.focal_length import apply_fx, reference_fx
+from edgetruth.evaluate.ranging.images import (SHAPES, UNDISTORT_LINES, ImageResult, check_undistort, range_undistorted,
+                                               write_rows)
+from edgetruth.evaluate.ranging.overlays import overlay_name, write_photo_overlay
+from edgetruth.evaluate.ranging.report import write_report
+from edgetruth.evaluate.ranging.undistort import from_calibration
+from edgetruth.evaluate.report_format import num, table
+from edgetruth.fileio import check_input_file, write_json
+from edgetruth.image_io import SUFFIXES, read_gray
+from edgetruth.locate import plugins
+
 
 REQUIRED_COLUMNS = ("image", "distance_cm", "size_m", "shape", "group")
 OPTIONAL_COLUMNS = ("height_m", "polarity", "roi_px", "point_px", "reference", "note")
@@ -97,8 +111,6 @@ REFERENCE_WORDS = {"": False, "no": False, "0": False, "false": False, "yes": Tr
 
 
 def _resolve(image: str, where: str, photos_dir: Path | None, csv_dir: Path) -> Path:
-    from edgetruth.fileio import check_input_file
-
     p = Path(image)
     if p.is_absolute():
         tried = [p]
@@ -117,8 +129,6 @@ def _resolve(image: str, where: str, photos_dir: Path | None, csv_dir: Path) -> 
 def read_distances(csv_path: str | Path, photos_dir: str | Path | None = None) -> list[PhotoRecord]:
     """The checked rows of a distances CSV (see the module docstring); one-line ``InputError`` for the
     first bad row (missing file, bad number, unknown shape or polarity, duplicate photo, ...)."""
-    from edgetruth.fileio import check_input_file
-
     csv_path = check_input_file(csv_path, "distances CSV")
     photos_dir = Path(photos_dir) if photos_dir is not None else None
     if photos_dir is not None and not photos_dir.is_dir():
@@ -210,9 +220,6 @@ def check_photos(records: list[PhotoRecord], image_size: tuple[int, int] | None,
                  channel: str = "luma", progress: bool = True) -> tuple[int, int]:
     """Decode every photo and check it against the calibration's image size (before anything is written);
     ``image_size`` None (no calibration): every photo must have the first one's size.  Returns the size."""
-    from edgetruth import console
-    from edgetruth.image_io import read_gray
-
     w = h = None if image_size is None else 0
     if image_size is not None:
         w, h = (int(v) for v in image_size)
@@ -243,8 +250,6 @@ def resolve_references(records: list[PhotoRecord], specs: list[str], photos_dir,
     """``--reference-photo IMAGE[=DISTANCE_CM]``: mark the CSV's row of IMAGE as a reference photo (with a
     distance, it must agree with the row's), or add IMAGE as one (then the distance is needed and the CSV's
     rows must share one shape and size).  At least one test row must remain."""
-    import dataclasses
-
     out = list(records)
     by_path = {os.path.realpath(r.path): k for k, r in enumerate(out)}
     for spec in specs:
@@ -278,8 +283,6 @@ def resolve_references(records: list[PhotoRecord], specs: list[str], photos_dir,
 
 def camera_without_board(fx_px: float, image_size: tuple[int, int], method: str):
     """A calibration with no board: fx = fy = ``fx_px``, the principal point at the image centre, no distortion."""
-    from edgetruth.evaluate.calibration import Calibration
-
     w, h = image_size
     K = np.array([[fx_px, 0.0, (w - 1) / 2.0], [0.0, fx_px, (h - 1) / 2.0], [0.0, 0.0, 1.0]])
     return Calibration(K=K, dist=np.zeros(5), image_size=(int(w), int(h)), rms_px=float("nan"), n_views=0,
@@ -307,8 +310,6 @@ def check_pointers(r: PhotoRecord, shape, where: str) -> None:
 
 def unlisted_photos(records: list[PhotoRecord], photos_dir: str | Path) -> list[str]:
     """Image files directly in ``photos_dir`` that no row names (reported, not evaluated)."""
-    from edgetruth.image_io import SUFFIXES
-
     listed = {os.path.realpath(r.path) for r in records}
     return sorted(p.name for p in Path(photos_dir).iterdir()
                   if p.is_file() and p.suffix.lower() in SUFFIXES and os.path.realpath(p) not in listed)
@@ -327,9 +328,6 @@ def range_photo(image: np.ndarray, record: PhotoRecord, cal, methods: list[str],
                 options: dict | None = None, undistorter=None, undistort: str = "image") -> ImageResult:
     """Undistort one photo (a 2-D array) with ``cal``, find its target and range it with every method;
     ``undistort="points"``: refine the raw photo and undistort the points instead (``process_image``)."""
-    from edgetruth.evaluate.ranging.images import check_undistort, range_undistorted
-    from edgetruth.evaluate.ranging.undistort import from_calibration
-
     und = undistorter or from_calibration(cal)
     raw = np.asarray(image, np.float64)
     kw = dict(keep_points=keep_points, name=record.image, options=options, polarity=record.polarity,
@@ -347,9 +345,6 @@ def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options,
                 figures_dir=None):
     """One photo (a pure function of its arguments; runs in worker processes); with ``figures_dir`` it also
     writes the photo's overlay there (``overlays.write_photo_overlay``)."""
-    from edgetruth.evaluate.ranging.undistort import from_calibration
-    from edgetruth.image_io import read_gray
-
     key = (cal.K.tobytes(), cal.dist.tobytes(), tuple(cal.image_size))
     if key not in _undistorters:
         _undistorters[key] = from_calibration(cal)
@@ -365,14 +360,10 @@ def _photo_task(k: int, record: PhotoRecord, cal, methods, keep_points, options,
 
 def overlay_method(res: ImageResult) -> str:
     """The method an overlay shows: the reference method where it ranged, else the first that did."""
-    from edgetruth.evaluate.ranging.images import REFERENCE_METHOD
-
     return REFERENCE_METHOD if REFERENCE_METHOD in res.fits else next(iter(res.fits))
 
 
 def write_overlay(figures_dir, record: PhotoRecord, res: ImageResult, und: np.ndarray) -> None:
-    from edgetruth.evaluate.ranging.overlays import overlay_name, write_photo_overlay
-
     m = overlay_method(res)
     row = next(r for r in res.rows if r["method"] == m)
     write_photo_overlay(Path(figures_dir) / overlay_name(record.image), und, res.region, res.fits[m],
@@ -391,11 +382,7 @@ def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir
     Reference rows (``PhotoRecord.reference``) set each method's fx (``focal_length.reference_fx``) and
     leave the error tables; the others are re-ranged with it.
     Returns {"rows", "examples", "per_image", "methods", "reference_fx"} (as ``ranging.run_ranging``)."""
-    from edgetruth import console, locate
-    from edgetruth.backends import make_backend
-    from edgetruth.evaluate.ranging.images import write_rows
-    from edgetruth.fileio import write_json
-    from edgetruth.locate import plugins
+    from edgetruth.backends import make_backend  # lazy: the tests patch it on its module
 
     methods = list(methods or locate.registry.camera_free())  # photos: no camera model to give a method
     out_dir = Path(out_dir)
@@ -433,8 +420,6 @@ def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir
                           **({"fx_px": (cals[k] if cals else cal).fx} if cals else {})})
     ref_fx = None
     if any(r.reference for r in records):
-        from edgetruth.evaluate.ranging.focal_length import apply_fx, reference_fx
-
         refs = {r.image for r in records if r.reference}
         size_of_image = {r.image: r.size_m for r in records}
         ref_fx = reference_fx([row for row in rows if row["image"] in refs], size_of_image)
@@ -447,8 +432,6 @@ def run_photo_ranging(records: list[PhotoRecord], cal, out_dir: Path, photos_dir
 
 def photo_section(per_image: list[dict]) -> list[str]:
     """The report's table of photos: what each row declared and what target finding saw."""
-    from edgetruth.evaluate.report_format import num, table
-
     body = []
     for p in per_image:
         pol = p.get("polarity", "—")
@@ -519,10 +502,6 @@ def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_d
                     cals: list | None = None, focal_source: str = "") -> Path:
     """Range every photo of ``records`` with every method and write ``report.md`` into ``out``
     (Tables 13-17, paired tests and verdicts against the reference distances)."""
-    from edgetruth import locate
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.ranging.report import write_report
-
     options = mo.study_options(thresholds, camera_thresholds)
     tau = mo.thresholds_in_use(thresholds)
     if camera_thresholds is not None:
@@ -534,7 +513,6 @@ def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_d
                                undistort=undistort, cals=cals)
     head = dict(header or {})
     head.setdefault("photos", len(records))
-    from edgetruth.evaluate.ranging.images import UNDISTORT_LINES
 
     head.setdefault("undistortion", UNDISTORT_LINES[undistort])
     head.setdefault("methods", len(result["methods"]))
@@ -552,8 +530,6 @@ def evaluate_photos(records: list[PhotoRecord], calibration, out: Path, photos_d
 
 def focal_section(records: list[PhotoRecord], ref_fx: dict | None, source: str) -> list[str]:
     """The report's "Focal length" section: where fx came from and what that means for the figures."""
-    from edgetruth.evaluate.report_format import num, table
-
     if not source:
         return []
     out = ["", "## Focal length", "", source + "."]

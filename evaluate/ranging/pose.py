@@ -17,16 +17,17 @@ Inputs are undistorted pixel coordinates with the camera matrix ``K`` of that im
 """
 from __future__ import annotations
 
+import cv2
 import numpy as np
+from scipy.optimize import least_squares
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.ranging.size import circle_taubin
 
 
 def square_pose_distance(corners_px, K, side_m: float) -> float:
     """Z (m) of the centre of a square of side ``side_m`` from its image corners
     (4, 2): top-left, top-right, bottom-right, bottom-left (OpenCV coordinates, undistorted)."""
-    import cv2
-
     c = np.asarray(corners_px, np.float64).reshape(4, 2)
     if not np.all(np.isfinite(c)):
         raise InputError("square pose: corners are not finite")
@@ -64,10 +65,6 @@ def sampson_distance(conic: np.ndarray, x, y) -> np.ndarray:
 
 def circle_pose_distance(x, y, K, diameter_m: float) -> float:
     """Z (m) of the centre of a circle of ``diameter_m`` from edge points on its image (undistorted px)."""
-    from scipy.optimize import least_squares
-
-    from edgetruth.evaluate.ranging.size import circle_taubin
-
     x = np.asarray(x, np.float64)
     y = np.asarray(y, np.float64)
     if x.size < 8:

@@ -7,15 +7,22 @@ signed ranging error e = Z_hat - Z_true (cm); summaries of |e|; mean relative er
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
+from scipy import stats as st
+from scipy.stats import kendalltau, kruskal
 
 from edgetruth.evaluate.design import (INTERVALS_CM, REFERENCE_METHOD, SEED_ROBUSTNESS, SEED_TABLE13, factor_tables,
                                        group_rows, main_rows, plain_groups)
+from edgetruth.evaluate.method_order import label, options_line
+from edgetruth.evaluate.ranging.window_shares import beside_section
 from edgetruth.evaluate.report_format import ci as _ci, num as _f, signed as _signed, table as _table
-from edgetruth.evaluate.stats import (bootstrap_ci, holm, rank_biserial, rmse, rmse_ci, rmse_difference_ci,
-                                      spearman, summary, wilcoxon_paired)
+from edgetruth.evaluate.stats import (bootstrap_ci, friedman, holm, paired_comparisons, rank_biserial, rmse, rmse_ci,
+                                      rmse_difference_ci, spearman, summary, wilcoxon_paired)
+from edgetruth.fileio import atomic_write_text
+
 
 #: Fewer valid images than this: claims are reported as inconclusive.
 MIN_IMAGES_FOR_VERDICT = 20
@@ -28,13 +35,11 @@ SEED_TARGET_WINNER = {"T1": "dynamic_erf_4p", "T2": "ser_cis", "T3": "dynamic_er
 
 
 def _label(m: str) -> str:
-    from edgetruth.evaluate.method_order import label
     return label(m)
 
 
 def _options_line(methods) -> str:
     """The options each method ran with (the studies' ``STUDY_OPTIONS`` and any ``METHOD:key=value`` label)."""
-    from edgetruth.evaluate.method_order import options_line
     return options_line(methods)
 
 
@@ -146,7 +151,6 @@ def method_comparisons(per: dict, methods, reference: str = REFERENCE_METHOD, ke
 
 # --- claims ---------------------------------------------------------------------------
 def _kendall(order_a, order_b) -> float:
-    from scipy.stats import kendalltau
     if len(order_a) < 2:
         return float("nan")
     pos = {m: i for i, m in enumerate(order_b)}
@@ -160,10 +164,6 @@ def level_analysis(rows, groups: list[str]) -> dict:
     Kendall's W, and Holm-adjusted Wilcoxon steps between consecutive levels.  Otherwise (each
     level drew its own poses) the levels can only be compared unpaired: Kruskal–Wallis, and
     Spearman's rho of |e| against the level index."""
-    from scipy import stats as st
-
-    from edgetruth.evaluate.stats import friedman, paired_comparisons
-
     ok = _ok(rows)
     by = {g: {(r.get("spec", ""), r.get("slot")): abs(r["error_cm"]) for r in ok if r["group"] == g} for g in groups}
     slots = set.intersection(*(set(v) for v in by.values())) if by else set()
@@ -351,9 +351,9 @@ def level_table(ft, methods) -> list[str]:
 def figures(rows, methods, examples, fig_dir: Path, groups: bool = True) -> dict:
     """Figures 8-12, one per other design factor, and (``groups``) one over the groups outside the
     design; returns {key: path} (``figure_name`` captions a key)."""
-    import matplotlib
+    import matplotlib  # lazy: matplotlib is heavy
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: matplotlib is heavy
 
     fig_dir.mkdir(parents=True, exist_ok=True)
     out = {}
@@ -464,8 +464,6 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
     dynamic methods' window shares beside the full study's (``window_shares.beside_section``; the quick run).
     ``points_section``: the per-point study's Markdown lines (Tables E1-E4, written by the main job, which scores
     the points; ranging does not import that study), None where no points were scored."""
-    from edgetruth.fileio import atomic_write_text
-
     out_dir = Path(out_dir)
     all_rows = rows
     # methods with no ranging rows (those that need the camera's model: ranging reads the undistorted image)
@@ -482,8 +480,6 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
         L.append(f"- **{k}**: {v}")
     L.append(f"- **method options**: {_options_line(methods)}")
     if synthetic_report:
-        import os
-
         link = os.path.relpath(Path(synthetic_report).resolve(), out_dir.resolve())  # relative to this report
         L += ["", f"Synthetic study (seed §4.2–4.3): see [{link}]({link})"]
     L += ["", "## Claim-by-claim verdict against the seed (ranging, §4.4)", ""]
@@ -599,8 +595,6 @@ def write_report(out_dir: Path, rows, methods, calibration=None, examples=(), he
                   "which describes the raw image, while the size and pose rows read the undistorted one."]
         L += points_section
         if windows_beside_full and (out_dir / "render_points_summary.csv").is_file():
-            from edgetruth.evaluate.ranging.window_shares import beside_section
-
             L += beside_section(out_dir / "render_points_summary.csv")
     L += ["", "## Figures", ""]
     for k, p in figs.items():
@@ -625,8 +619,6 @@ def group_table(rows, methods, shown, title: str = ("Tables 16–17 — per grou
     """Tables 16-17 for rows whose ``group`` is free text (a photo CSV's, or the groups outside a
     design): the ``shown`` methods per group, the lowest-RMSE method of all per group, and a
     Kruskal–Wallis test across the groups (``unit``: what a group holds, in the text)."""
-    from scipy.stats import kruskal
-
     groups = sorted({str(r["group"]) for r in rows})
     per = by_method(rows, methods)
     body, best = [], []

@@ -26,6 +26,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.ranging import line_kernels as lk
+
 
 MIN_SIDE_POINTS = 5
 MIN_CIRCLE_POINTS = 8
@@ -74,8 +76,6 @@ def fit_line_robust(x, y, ransac_threshold_px: float = 1.0, iterations: int = 20
     1.4826 MAD, at least ``SIGMA_FLOOR_PX``; to ``IRLS_TOL_PX``, at most 30 steps).  Past the random draws
     it is one numba kernel (``edgetruth.evaluate.ranging.line_kernels.robust_line``), bit for bit the numpy
     code it replaced."""
-    from edgetruth.evaluate.ranging import line_kernels as lk
-
     x = np.ascontiguousarray(x, np.float64)
     y = np.ascontiguousarray(y, np.float64)
     n_pts = x.size

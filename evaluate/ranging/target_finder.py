@@ -45,6 +45,8 @@ import cv2
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.target import TargetRegion, _shape_guess, local_contrast
+
 
 #: long side (px) of the working copy candidates are found on
 WORK_PX = 960
@@ -405,8 +407,6 @@ def find_region(image: np.ndarray, valid: np.ndarray | None = None, shape: str =
                 polarity: str = "auto", roi=None, point=None, K=None):
     """``find_declared_target`` then ``refine_mask``, as the ``target.TargetRegion`` the candidate step takes;
     its ``finder`` holds the choice, the runners-up and whether the choice was close."""
-    from edgetruth.evaluate.target import TargetRegion, _shape_guess, local_contrast
-
     img = np.asarray(image, np.float64)
     res = find_declared_target(img, shape, aspect, polarity, valid, roi, point, K)
     mask, inside, outside = refine_mask(img, res.best)

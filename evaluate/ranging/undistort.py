@@ -38,6 +38,9 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from edgetruth.evaluate.calibration import undistort_px
+
+
 INTERPOLATIONS = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC, "lanczos4": cv2.INTER_LANCZOS4}
 DEFAULT_INTERPOLATION = "linear"
 
@@ -74,8 +77,6 @@ class Undistorter:
 
     def undistort_points(self, pts_px: np.ndarray) -> np.ndarray:
         """Distorted pixel coordinates (N, 2) -> undistorted pixel coordinates with the same K."""
-        from edgetruth.evaluate.calibration import undistort_px
-
         return undistort_px(np.asarray(pts_px, np.float64).reshape(-1, 2), self.K, self.dist)
 
 

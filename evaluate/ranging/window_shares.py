@@ -12,9 +12,17 @@ that the minutes-long run can be read against the hour-long one.
 """
 from __future__ import annotations
 
+import csv
 import sys
 
 import numpy as np
+
+from edgetruth import locate
+from edgetruth.evaluate.design import interval_label
+from edgetruth.evaluate.method_order import label as method_label
+from edgetruth.evaluate.target import target_candidates
+from edgetruth.render.dataset.reader import open_dataset
+
 
 WINDOWS = (5, 7, 9, 11)
 
@@ -58,9 +66,6 @@ FULL_STUDY_SHARES = {
 
 
 def image_window_counts(image: np.ndarray, method: str = "dynamic_erf_4p") -> dict[int, int]:
-    from edgetruth import locate
-    from edgetruth.evaluate.target import target_candidates
-
     tc = target_candidates(np.asarray(image, np.float64))
     pts = locate.refine(tc.crop, tc.candidates, method)
     w = np.asarray(pts.window)
@@ -69,9 +74,6 @@ def image_window_counts(image: np.ndarray, method: str = "dynamic_erf_4p") -> di
 
 def window_shares(dataset_dirs, method: str = "dynamic_erf_4p", groups=None) -> dict:
     """{"total": {5: share, ...}, "by_interval": {"50-100": {...}, ...}, "n_points": N, "n_images": M}."""
-    from edgetruth.evaluate.design import interval_label
-    from edgetruth.render.dataset.reader import open_dataset
-
     total = dict.fromkeys(WINDOWS, 0)
     by_interval: dict = {}
     n_images = 0
@@ -98,8 +100,6 @@ def window_shares(dataset_dirs, method: str = "dynamic_erf_4p", groups=None) -> 
 def summary_shares(path) -> dict:
     """{(cell, method): (share5, share7, share9, share11, n_points)} of a ``render_points_summary.csv``
     (its ``interval == all`` rows with window shares; cell: ``base`` or a level such as ``G2``)."""
-    import csv
-
     out = {}
     with open(path, newline="") as fh:
         for r in csv.DictReader(fh):
@@ -114,8 +114,6 @@ def beside_section(summary_csv, reference: dict | None = None, source: str = FUL
                    label: str = "this run") -> list[str]:
     """Markdown: the window shares of ``summary_csv`` beside ``reference`` (default: the full study's), per
     dynamic method and design cell both have; [] when they share none."""
-    from edgetruth.evaluate.method_order import label as method_label
-
     ref = FULL_STUDY_SHARES if reference is None else reference
     mine = summary_shares(summary_csv)
     keys = [k for k in ref if k in mine]  # the reference's order: base, G2-G4, T2-T4, per method

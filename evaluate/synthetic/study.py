@@ -15,6 +15,7 @@ are independent pure tasks: ``backend="local"`` with ``workers > 1`` or
 """
 from __future__ import annotations
 
+import csv
 import json
 import os
 import time
@@ -23,15 +24,19 @@ from pathlib import Path
 
 import numpy as np
 
-from edgetruth import locate
-from edgetruth.locate.registry import camera_free
+from edgetruth import __version__, console, locate
+from edgetruth.backends import check_backend_args
 from edgetruth.errors import InputError
-from edgetruth.evaluate import method_order as mo
-from edgetruth.evaluate import crb
-from edgetruth.evaluate import stats as st
+from edgetruth.evaluate import crb, method_order as mo, stats as st
 from edgetruth.evaluate.matching import MATCH_RADIUS_PX, on_edge
 from edgetruth.evaluate.stats import summary, wilcoxon_paired
+from edgetruth.evaluate.synthetic import claims as synthetic_claims
+from edgetruth.fileio import make_output_dir, read_json, write_json
+from edgetruth.locate import plugins
+from edgetruth.locate.registry import camera_free
 from edgetruth.render.synthetic.scenarios import DEFAULT_SHAPE, SCENARIOS, synthetic_image
+from edgetruth.resources import source_commit
+
 
 #: throughput_rounds: interleaved rounds of the time-per-point measurement (``batch_throughput``, in the
 #: driver after the blocks); 3 in the quick preset (`make run`: ~1/4 of its synthetic stage at 7 rounds),
@@ -179,10 +184,7 @@ def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAP
     """The study's per-point data (from the cache, computing missing blocks); ``throughput``: also
     measure every method's batch throughput (``refine_bench.batch_throughput``) in this process (an
     int: over that many interleaved rounds; True: the default 7)."""
-    from edgetruth import console
-    from edgetruth.backends import make_backend
-    from edgetruth.fileio import read_json, write_json
-    from edgetruth.locate import plugins
+    from edgetruth.backends import make_backend  # lazy: the tests patch it on its module
 
     options = mo.study_options(thresholds) if options is None else options
     cache = out_dir / "cache"
@@ -225,7 +227,7 @@ def collect(out_dir: Path, images_per_scenario: int, methods, shape=DEFAULT_SHAP
     conv = {m: cat(f"conv__{m}").astype(bool) for m in methods}
     rates = ratios = None
     if throughput:
-        from edgetruth.evaluate.refine_bench import REFERENCE, batch_throughput
+        from edgetruth.evaluate.refine_bench import REFERENCE, batch_throughput  # lazy: refine_bench loads numba
 
         rounds = 7 if throughput is True else int(throughput)
         shape = {} if throughput_shape is None else {"shape": tuple(throughput_shape)}  # None: make bench's
@@ -372,7 +374,7 @@ def _f(v, fmt="{:.4f}") -> str:
 
 
 def markdown_tables(t: dict) -> dict:
-    from tabulate import tabulate
+    from tabulate import tabulate  # lazy: only for tables
 
     lab = mo.label
     md = {}
@@ -446,8 +448,6 @@ def bound_findings(t: dict) -> list[str]:
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
-    import csv
-
     if not rows:
         return
     keys = [k for k in rows[0] if not isinstance(rows[0][k], dict)]
@@ -464,10 +464,7 @@ def write_csv(path: Path, rows: list[dict]) -> None:
 
 def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, elapsed_s: float,
                  timing_note: str = "") -> Path:
-    from edgetruth.evaluate.synthetic import claims as synthetic_claims
-    from edgetruth.evaluate.synthetic import figures as figs
-    from edgetruth import __version__
-    from edgetruth.resources import source_commit
+    from edgetruth.evaluate.synthetic import figures as figs  # lazy: figures loads matplotlib
 
     mosaic_h, mosaic_w = PRESETS.get(preset, PRESETS["full"])["throughput_shape"]
 
@@ -496,7 +493,7 @@ def write_report(out_dir: Path, d: StudyData, t: dict, preset: str, n_per: int, 
     f6 = figs.boxplots(d, fig_dir)
     f7 = figs.per_scenario(t, fig_dir)
     claims = synthetic_claims.check_all(t)
-    from tabulate import tabulate
+    from tabulate import tabulate  # lazy: only for tables
 
     claims_md = tabulate([[c["claim"], c["figure"], f"**{c['verdict']}**", c.get("verdict_all", "—"), c["evidence"]]
                           for c in claims],
@@ -660,8 +657,6 @@ def run_synthetic_study(out_dir, preset: str = "quick", methods=None, progress: 
     methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:
         locate.get_method(mo.resolve(m)[0])
-    from edgetruth.backends import check_backend_args
-    from edgetruth.fileio import make_output_dir
 
     check_backend_args(backend, workers, address)
     options = mo.study_options(thresholds)

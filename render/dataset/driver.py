@@ -316,6 +316,41 @@ class RenderPool:
         self.close(abort=exc_type is not None)
 
 
+def unit_tasks(spec, todo: np.ndarray) -> list[tuple]:
+    """The tasks of a paired spec's images ``todo``: one per radiance unit (the images that share one render, a
+    design slot's cells, go to one worker together, which renders the unit once; every other image is a unit of
+    its own), and one for the units of a slot whose preset targets share an outline (T1, T3, T4: the worker
+    computes their exact coverage once, ``edge_band.band_coverage`` keeps it).  A unit's images are consecutive
+    in index order; the tasks come in the order of their first unit."""
+    rank = np.empty(spec.n_images, dtype=np.int64)
+    task = np.empty(spec.n_images, dtype=np.int64)
+    shared = outline_sharing(spec)
+    ids: dict = {}
+    for u, unit in enumerate(spec.units()):
+        rank[unit] = u
+        task[unit] = ids.setdefault(shared.get(unit[0], ("unit", u)), len(ids))
+    todo = np.asarray(todo, dtype=np.int64)
+    todo = todo[np.lexsort((todo, rank[todo], task[todo]))]
+    cuts = np.flatnonzero(np.diff(task[todo])) + 1
+    return [tuple(int(i) for i in part) for part in np.split(todo, cuts)]
+
+
+def outline_sharing(spec) -> dict:
+    """{image index: (slot, outline shape, camera)} for the images of paired target cells whose coverage is exact
+    and depends only on the outline (``edge_mode`` "analytic" or "frame", a preset target): the units of one slot
+    with one shape and camera share it.  Other images are absent."""
+    from edgetruth.render.scene.targets import TARGETS
+
+    if spec.render.edge_mode not in ("analytic", "frame"):
+        return {}
+    out = {}
+    for g in spec.groups:
+        if g.paired and g.kind == "target" and isinstance(g.target, str) and g.target in TARGETS:
+            shape = TARGETS[g.target]["shape"]
+            for k in range(g.count):
+                out[g.first_index + k] = ("slot", k, shape, g.camera)
+    return out
+
 def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, backend, workers, address,
                    files, window, pool=None) -> ManifestView:
     from edgetruth.backends import default_workers, make_backend
@@ -325,15 +360,9 @@ def _render_locked(spec, out_dir, variant, progress, selected, stats, announce, 
     spec_key = spec.identity_sha256  # computed once: it hashes every image's distance
     header, done, scan = _open_dataset(spec, spec_key, out_dir, selected, announce)
     todo = np.flatnonzero(selected & ~done)  # index order, so the journal is nearly sorted
-    # one task per radiance unit: the images that share one render (a design slot's cells) go to one
-    # worker together, which renders the unit once; every other image is a unit of its own
     if any(g.paired for g in spec.groups):
-        rank = np.empty(spec.n_images, dtype=np.int64)
-        for u, unit in enumerate(spec.units()):
-            rank[unit] = u
-        todo = todo[np.lexsort((todo, rank[todo]))]
-        cuts = np.flatnonzero(np.diff(rank[todo])) + 1
-        task_indices = [tuple(int(i) for i in part) for part in np.split(todo, cuts)]
+        task_indices = unit_tasks(spec, todo)
+        todo = np.asarray([i for ix in task_indices for i in ix], dtype=np.int64)
     else:
         task_indices = None
     n_sel = int(selected.sum())

@@ -25,6 +25,7 @@ beyond the kernel's reach need none.  "path" (the default) is the reference.
 """
 from __future__ import annotations
 
+import collections
 import functools
 import hashlib
 import math
@@ -163,11 +164,18 @@ def _park_active(rig, target: str) -> None:
     rig.params.update()
 
 
+#: the last few ``band_coverage`` results of this process, by their inputs (the outline's shape, not the target's
+#: material): the cells of a paired design slot whose targets share a shape (T1, T3 and T4 are the same square at
+#: the same pose) compute the coverage once.  The same inputs give the same bits, so a hit changes nothing.
+_COVERAGE_CACHE: collections.OrderedDict = collections.OrderedDict()
+COVERAGE_CACHE_SIZE = 4
+
+
 def band_coverage(camera, target: str, pose, size_m: float, frame: tuple[int, int, int, int], tiles,
                   tile_px: int = TILE_PX) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(rows, cols, c): every pixel of ``tiles`` within ``frame`` = (x0, y0, width, height), frame-relative,
-    and the exact lens-weighted coverage c of preset target ``target`` there."""
-    from edgetruth.render.scene.edge_coverage import outline_curve, pixel_coverage
+    and the exact lens-weighted coverage c of preset target ``target`` there (read-only arrays: the last
+    ``COVERAGE_CACHE_SIZE`` results are kept for the next image of the same outline)."""
     from edgetruth.render.scene.targets import TARGETS
 
     if not isinstance(target, str) or target not in TARGETS:
@@ -175,6 +183,25 @@ def band_coverage(camera, target: str, pose, size_m: float, frame: tuple[int, in
                          f"got {target!r}: use edge_mode = 'path'")
     if camera.moving:
         raise ValueError("edge_mode = 'analytic' needs a static camera (a moving outline sweeps); use 'path'")
+    key = (camera, TARGETS[target]["shape"], pose, float(size_m), tuple(int(v) for v in frame),
+           tuple((int(x), int(y)) for x, y in tiles), int(tile_px))
+    hit = _COVERAGE_CACHE.get(key)
+    if hit is None:
+        hit = _band_coverage(camera, target, pose, size_m, frame, tiles, tile_px)
+        for a in hit:
+            a.setflags(write=False)
+        _COVERAGE_CACHE[key] = hit
+        while len(_COVERAGE_CACHE) > COVERAGE_CACHE_SIZE:
+            _COVERAGE_CACHE.popitem(last=False)
+    else:
+        _COVERAGE_CACHE.move_to_end(key)
+    return hit
+
+
+def _band_coverage(camera, target: str, pose, size_m: float, frame: tuple[int, int, int, int], tiles,
+                   tile_px: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    from edgetruth.render.scene.edge_coverage import outline_curve, pixel_coverage
+
     fx0, fy0, fw, fh = frame
     inside = np.zeros((fh, fw), bool)
     for x0, y0 in tiles:

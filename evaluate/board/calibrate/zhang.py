@@ -25,7 +25,9 @@ import cv2
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.calibration import undistort_px
 from edgetruth.opencv_threads import calibrate_camera
+
 
 FLAGS = cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3
 CRITERIA = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-12)
@@ -125,7 +127,6 @@ def board_points(cal: Calibration, view: int, image_pts: np.ndarray) -> np.ndarr
     ok = np.all(np.isfinite(p), axis=1)
     if not ok.any():
         return out.reshape(shape)
-    from edgetruth.evaluate.calibration import undistort_px
 
     und = undistort_px(p[ok], cal.K, cal.dist, normalised=True)
     rays = np.c_[und, np.ones(len(und))]

@@ -44,8 +44,10 @@ import numpy as np
 
 from edgetruth.errors import InputError
 from edgetruth.evaluate.board.detect.correspond import Correspondence, project, rotation_deg
-from edgetruth.evaluate.board.model import BoardModel
 from edgetruth.evaluate.board.detect.quads import BORDER_PX
+from edgetruth.evaluate.board.model import MIN_SQUARES, BoardModel, check_model
+from edgetruth.evaluate.board.sides.lines import BAND_PASS2_PX, MIN_POINTS, along_segments, intersect, tls_lines
+from edgetruth.evaluate.calibration import detect_corners
 
 
 @dataclass(frozen=True)
@@ -64,8 +66,6 @@ def chessboard_model(pattern: tuple[int, int], square: float, units: str = "mode
                      source: str | None = None) -> BoardModel:
     """The dark squares between the inner corners of a chessboard of ``pattern`` = (COLS, ROWS) inner corners and
     square side ``square`` (module docstring)."""
-    from edgetruth.evaluate.board.model import MIN_SQUARES, check_model
-
     cols, rows = (int(v) for v in pattern)
     if not (np.isfinite(square) and square > 0):
         raise InputError(f"--square {square!r}: give the side of one square, a positive number")
@@ -113,13 +113,13 @@ def _turned(grid: np.ndarray) -> tuple[np.ndarray, bool] | None:
 
 
 def _detect(image: np.ndarray, pattern: tuple[int, int]) -> np.ndarray | None:
-    from edgetruth.evaluate.calibration import detect_corners
-
     return detect_corners(image, tuple(pattern))
 
 
 def find_squares(image: np.ndarray, model: BoardModel) -> ChessboardView | None:
     """The model's dark squares in ``image`` (module docstring), or None when OpenCV does not find the board."""
+    if model.charuco is not None:  # a ChArUco board: OpenCV's CharucoDetector gives the grid (detect.charuco)
+        return model.charuco.find_squares(image, model)
     cols, rows = model.pattern
     inner = _detect(image, model.pattern)
     if inner is None:
@@ -148,7 +148,9 @@ def find_squares(image: np.ndarray, model: BoardModel) -> ChessboardView | None:
 def settle_parity(images, model: BoardModel) -> BoardModel:
     """The model with the photos' dark class when COLS and ROWS are both even (no symmetry of the board swaps its
     colours, so which class is dark is a fact of the print): the class most photos show.  Any other board's model
-    is returned as it is."""
+    is returned as it is (a ChArUco board's too: its layout fixes the parity)."""
+    if model.charuco is not None:
+        return model
     cols, rows = model.pattern
     if _turned(np.zeros((rows, cols, 2))) is not None:
         return model
@@ -211,8 +213,6 @@ def junction_corners(j: Junctions, sides, x, y, nx, ny, converged) -> np.ndarray
     A dark square's own side lines lie off the inner corner by whatever makes dark squares print or image larger
     or smaller than light ones (ink spread, blur on a tone curve); the two halves of a grid line lie off by
     opposite amounts, so a line through both is free of it."""
-    from edgetruth.evaluate.board.sides.lines import BAND_PASS2_PX, MIN_POINTS, along_segments, intersect, tls_lines
-
     x, y, nx, ny = (np.asarray(v, float) for v in (x, y, nx, ny))
     n_sq = len(sides.n_points)
     labels = np.asarray(sides.labels, np.int64)

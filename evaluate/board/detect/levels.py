@@ -9,8 +9,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from edgetruth.conventions import inside_image
+
 
 #: half width (px) of the patch whose median is a square's level
 LEVEL_HALF_PX = 2
@@ -35,8 +37,6 @@ def light_centres(quads: np.ndarray) -> np.ndarray:
     mirrored through its sides' midpoints (on a chessboard a light square lies across every side of a dark one),
     kept where two dark squares or more reach it (the light squares among the dark ones, not those of the outer
     ring that a board's edge may cut), in the order first reached."""
-    from scipy.spatial import cKDTree
-
     q = np.asarray(quads, float)
     centre = q.mean(axis=1)
     light = (q + np.roll(q, -1, axis=1) - centre[:, None]).reshape(-1, 2)  # centre mirrored through each side's mid

@@ -8,13 +8,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from edgetruth import console
+from edgetruth import console, locate
 from edgetruth.evaluate.board.detect import chessboard as cb
 from edgetruth.evaluate.board.detect.correspond import Correspondence, match_squares
 from edgetruth.evaluate.board.detect.levels import SquareLevels, saturated, square_levels
-from edgetruth.evaluate.board.model import BoardModel
 from edgetruth.evaluate.board.detect.quads import find_quads
-from edgetruth.evaluate.board.sides.lines import square_map
+from edgetruth.evaluate.board.model import BoardModel
+from edgetruth.evaluate.board.sides.lines import CANDIDATE_MARGIN_PX, near_segments, near_sides, square_map
+
 
 if TYPE_CHECKING:
     from edgetruth.evaluate.board.inputs import BoardInputs
@@ -38,9 +39,6 @@ def board_candidates(image: np.ndarray, corners: np.ndarray, chessboard: bool, e
     found square's side (``corners`` (S, 4, 2), NaN rows for squares not found) and, on a chessboard, of those
     sides continued past their corners (``chessboard.grid_segments``: its grid lines run on into the outer ring),
     and of ``extra_segments`` (M, 2, 2) when given."""
-    from edgetruth import locate
-    from edgetruth.evaluate.board.sides.lines import CANDIDATE_MARGIN_PX, near_segments, near_sides
-
     cand = locate.candidates(image)
     near = near_sides(corners, cand.x, cand.y, CANDIDATE_MARGIN_PX)
     if chessboard:

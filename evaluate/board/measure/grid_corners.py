@@ -25,7 +25,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from edgetruth import locate
 from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.detect.squares import board_candidates
+from edgetruth.evaluate.board.sides.lines import (BAND_PASS1_PX, BAND_PASS2_PX, MIN_POINTS, along_segments, intersect,
+                                                  side_fits, square_map, tls_lines)
+from edgetruth.evaluate.calibration import distort_px, undistort_px
+
 
 #: The edge method ``line_corners`` uses unless told otherwise: on rendered boards its corners lie 0.0004 px from
 #: the truth on average (tests/evaluate/board/detect/test_chessboard.py), the best of the ERF windows on this camera.
@@ -69,9 +75,6 @@ class GridPoints:
         200-300 px from the centre; fx +0.17 %).  With ``lens`` = (K, dist) (OpenCV's model) the points, their
         normals, the squares and the halves are undistorted first, the lines fitted there, where the model
         says they are straight, and the corners distorted back."""
-        from edgetruth.evaluate.board.sides.lines import side_fits, square_map
-        from edgetruth.evaluate.calibration import distort_px, undistort_px
-
         quads, halves, x, y, nx, ny, shape = self.quads, self.halves, self.x, self.y, self.nx, self.ny, self.shape
         shift = np.zeros(2)
         if lens is not None:
@@ -104,9 +107,6 @@ def grid_points(image: np.ndarray, pattern: tuple[int, int], method: str = DEFAU
                 **options) -> GridPoints | None:
     """The board of ``pattern`` in ``image`` and ``method``'s refined points near its squares' sides and the
     sides continued into the outer ring (``GridPoints``); None when OpenCV does not find the board."""
-    from edgetruth import locate
-    from edgetruth.evaluate.board.detect.squares import board_candidates
-
     img = np.asarray(image)
     model = cb.settle_parity([img], cb.chessboard_model(pattern, 1.0))
     view = cb.find_squares(img, model)
@@ -127,8 +127,6 @@ def undistort_points(x, y, nx, ny, K: np.ndarray, dist: np.ndarray, step_px: flo
     """Refined points (x, y) and their unit normals (nx, ny) in the photo -> in the undistorted image: each
     normal turned with the local map (the tangent ``step_px`` along the edge, mapped, turned back a right
     angle)."""
-    from edgetruth.evaluate.calibration import undistort_px
-
     p = np.stack([x, y], axis=1)
     t = np.stack([-np.asarray(ny), np.asarray(nx)], axis=1)
     q, q2 = undistort_px(p, K, dist), undistort_px(p + step_px * t, K, dist)
@@ -163,9 +161,6 @@ def open_corners(halves: np.ndarray, x, y, nx, ny, converged) -> np.ndarray:
     end of the half, their normal within ``MAX_NORMAL_ANGLE_DEG`` of the chord's.  NaN where a half has fewer than
     ``MIN_POINTS`` points.  The two halves of a line have the dark square on opposite sides, so whatever makes dark
     squares image larger or smaller moves them by opposite amounts, and the line is free of it."""
-    from edgetruth.evaluate.board.sides.lines import (BAND_PASS1_PX, BAND_PASS2_PX, MIN_POINTS, along_segments, intersect,
-                                                tls_lines)
-
     h = np.asarray(halves, float).reshape(-1, 2, 2)  # (4M, 2, 2): every half, two per line, two lines per corner
     x, y, nx, ny = (np.asarray(v, float) for v in (x, y, nx, ny))
     p, q = h[:, 0], h[:, 1]

@@ -8,10 +8,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from edgetruth import locate
+from edgetruth.errors import InputError
 from edgetruth.evaluate.board.calibrate import zhang as cb
 from edgetruth.evaluate.board.detect.chessboard import junction_corners
 from edgetruth.evaluate.board.model import BoardModel
 from edgetruth.evaluate.board.sides.lines import SideFits, side_fits
+
 
 #: The label of the reference row: the shipped set's own corners in place of a method's.
 REFERENCE_ROW = "zhang_corners"
@@ -73,8 +75,6 @@ def method_row(label: str, method: str, options: dict, images, cands, quads, sma
 
 def calibrate_row(row: Row, model: BoardModel, image_size: tuple[int, int]) -> Row:
     """Fill ``row.cal``, ``row.loo`` and ``row.lengths``; a row whose corners cannot calibrate gets ``failure``."""
-    from edgetruth.errors import InputError
-
     try:
         row.cal = cb.calibrate(model.corners, row.corners, image_size)
         row.loo = cb.leave_one_out(model.corners, row.corners, image_size)

@@ -20,8 +20,11 @@ from functools import lru_cache
 
 import numpy as np
 
+from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.board.detect.chessboard import junction_split, junctions
 from edgetruth.evaluate.board.measure.rows import REFERENCE_ROWS, Row
 from edgetruth.evaluate.board.model import BoardModel
+
 
 N_BOOT = 2000
 SEED = 0
@@ -134,7 +137,6 @@ def row_summary(row: Row, model: BoardModel, reference: dict | None, reference_c
                    points_per_side=float(np.mean(n[covered])) if covered.any() else float("nan"),
                    refine_s=row.refine_s)
         if model.pattern is not None:  # a chessboard: how far apart the two dark squares put a junction
-            from edgetruth.evaluate.board.detect.chessboard import junction_split, junctions
 
             jn = junctions(model)
             split = _flat([junction_split(jn, f.corners) for f in row.sides])
@@ -202,8 +204,6 @@ def outward_offsets(row: Row, jn) -> list[np.ndarray]:
 
 
 def _label(method_label: str) -> str:
-    from edgetruth.evaluate import method_order as mo
-
     return mo.label(method_label)
 
 

@@ -7,13 +7,20 @@ import io
 from pathlib import Path
 
 import numpy as np
+from scipy import stats as st
 
-from edgetruth.evaluate.board.report import figures
-from edgetruth.evaluate.board.tone import locator_fit as LF
+from edgetruth import __version__
+from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board.measure.rows import REFERENCE_ROWS
 from edgetruth.evaluate.board.measure.summary import INTRINSICS
+from edgetruth.evaluate.board.report import figures
+from edgetruth.evaluate.board.tone import locator_fit as LF
 from edgetruth.evaluate.report_format import ci, num, table
+from edgetruth.evaluate.run_dir import utc_stamp
+from edgetruth.evaluate.stats import spearman
 from edgetruth.fileio import atomic_write_bytes, atomic_write_text, write_json
+from edgetruth.resources import source_commit
+
 
 SUMMARY_COLUMNS = (
     "row", "label", "straightness_px", "straightness_ci_lo", "straightness_ci_hi", "straightness_ci_photos_lo",
@@ -89,17 +96,16 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
     """The report's header: version, time, inputs, method options, the procedure in one line.  ``reference_row``:
     the key of the reference row in ``REFERENCE_ROWS``, None when there is none; ``tone``: how the stored values
     were decoded (``study.tone_summary``; None: as stored)."""
-    from edgetruth import __version__
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.run_dir import utc_stamp
-    from edgetruth.resources import source_commit
-
     tau = mo.thresholds_in_use(thresholds)
     w, h = size
     chess = inp.model.pattern is not None
+    if chess and inp.model.charuco is not None:
+        squares = ("OpenCV's ChArUco corners (CharucoDetector: markers, interpolation, cornerSubPix; every corner "
+                   "found) → the dark squares between them (the board's own layout)")
     if chess:
-        squares = ("OpenCV's chessboard corners (findChessboardCorners, cornerSubPix) → the dark squares between "
-                   "them (a 180° turn or a mirror puts the dark squares on the model's)")
+        squares = squares if inp.model.charuco is not None else (
+            "OpenCV's chessboard corners (findChessboardCorners, cornerSubPix) → the dark squares between "
+            "them (a 180° turn or a mirror puts the dark squares on the model's)")
         model_line = (f"- Model: {inp.model.source}: the {len(inp.model)} dark squares between the "
                       f"{inp.model.pattern[0]}×{inp.model.pattern[1]} inner corners, side "
                       f"{inp.model.square:.4g} {inp.model.units}.")
@@ -274,8 +280,6 @@ def _ranking(sums, key: str, nd: int = 3) -> str:
 def reading(sums, comparisons, reference, tone: dict | None = None, photos: list[dict] | None = None) -> list[str]:
     """A short reading of the measured tables: rankings as measured, nothing tuned.  ``photos``: the per-photo
     table, whose saturated whites (a chessboard's) get a line."""
-    from scipy import stats as st
-
     methods = [s for s in sums if s["row"] not in REFERENCE_ROWS]
     ref = next((s for s in sums if s["row"] in REFERENCE_ROWS), None)
     lines = ["Rankings as measured (lowest first):", "",
@@ -285,8 +289,6 @@ def reading(sums, comparisons, reference, tone: dict | None = None, photos: list
              f"- Side-length RMSE (px): {_ranking(sums, 'length_rmse_px')}."]
     both = [s for s in methods if np.isfinite(s["straightness_px"]) and np.isfinite(s.get("calib_rms_px", np.nan))]
     if len(both) >= 3:
-        from edgetruth.evaluate.stats import spearman
-
         sp = spearman([s["straightness_px"] for s in both], [s["calib_rms_px"] for s in both])
         rho, p = sp["rho"], sp["p"]
         lines += ["", f"Across the {len(both)} methods, straightness and calibration RMS rank alike to Spearman "

@@ -12,6 +12,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+
 MAX_SIDE_PX = 1600
 FOUND = (0, 255, 0)
 SIDES = (255, 0, 255)

@@ -29,15 +29,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import brentq
+from scipy.stats import chi2
 
 from edgetruth.errors import InputError
 from edgetruth.evaluate.board.detect import chessboard as cb
 from edgetruth.evaluate.board.detect.levels import square_levels
-from edgetruth.evaluate.board.measure.rows import method_row
-from edgetruth.evaluate.board.sides.lines import square_map
 from edgetruth.evaluate.board.detect.squares import MIN_FOUND_SHARE, board_candidates, find_board
+from edgetruth.evaluate.board.measure.rows import method_row
 from edgetruth.evaluate.board.measure.summary import outward_offsets
+from edgetruth.evaluate.board.sides.lines import square_map
 from edgetruth.evaluate.board.tone.values import POWER_RANGE, Tone, decode
+from edgetruth.evaluate.stats import spearman
+
 
 #: the half step (in G) of the finite difference that gives each photo's slope d offset / d G
 SLOPE_STEP = 0.05
@@ -124,9 +128,6 @@ def estimate_power(inp, images: list[np.ndarray], full_scales: list[float], labe
     """The power G (module docstring) for the photos ``images`` (stored values, full scales ``full_scales``) of the
     chessboard ``inp.model``, from ``method`` (with ``options``; ``label`` names it).  An ``InputError`` when the
     board is not a chessboard, too few photos show it, or no power in ``POWER_RANGE`` makes the offset 0."""
-    from scipy.optimize import brentq
-    from scipy.stats import chi2
-
     require_chessboard(inp.model)
     found, _, model = find_board(inp, images, progress=False)
     keep = [i for i, c in enumerate(found) if c is not None and c.found.sum() >= MIN_FOUND_SHARE * len(model)]
@@ -194,7 +195,5 @@ def estimate_power(inp, images: list[np.ndarray], full_scales: list[float], labe
 def _spearman(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     """Spearman's ρ and p (``stats.spearman``: exact for small n); NaN where undefined (fewer than 3 pairs, or
     one side constant)."""
-    from edgetruth.evaluate.stats import spearman
-
     s = spearman(a, b)
     return s["rho"], s["p"]

@@ -17,6 +17,10 @@ import math
 import numpy as np
 
 from edgetruth import locate
+from edgetruth.evaluate import stats
+from edgetruth.evaluate.board.measure.compare import family_values
+from edgetruth.evaluate.board.tone.photo_model import board_lines, noise
+
 
 METHOD = "patch_psf_fit"
 N_PARAMS = 5  # rho, phi, A, B, s: the PSF estimated from the image
@@ -41,8 +45,6 @@ def misfit_ratio(residual_sd_dn: float, noise_sd_dn: float) -> float:
 def locator_misfit(images, cands, model, names, **options) -> list[dict]:
     """Per photo: ``photo``, ``residual_sd``, ``noise_sd`` (DN, the larger flat-region SD), ``misfit_ratio``,
     ``points`` (the candidates refined).  Photos whose board lines or flat regions are not found get NaN."""
-    from edgetruth.evaluate.board.tone.photo_model import board_lines, noise
-
     out = []
     for name, img, cand in zip(names, images, cands):
         res, n = residual_sd(img, cand, **options)
@@ -59,9 +61,6 @@ def locator_misfit(images, cands, model, names, **options) -> list[dict]:
 
 def _versus_best(rows, sums, family: str, key: str, label: str) -> dict | None:
     """The locator's row against the best other method row on ``key`` (lowest), paired on ``family``'s units."""
-    from edgetruth.evaluate import stats
-    from edgetruth.evaluate.board.measure.compare import family_values
-
     by_row = {s["row"]: s for s in sums}
     ranked = sorted((r for r in rows if r.is_method and np.isfinite(by_row[r.label].get(key, np.nan))),
                     key=lambda r: by_row[r.label][key])

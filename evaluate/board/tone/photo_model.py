@@ -41,10 +41,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
+import cv2
 import numpy as np
+from scipy.optimize import least_squares
+from scipy.special import ndtr, ndtri
 
+from edgetruth import locate
+from edgetruth.evaluate.board.detect.squares import board_candidates, board_squares
 from edgetruth.evaluate.board.model import BoardModel
+from edgetruth.evaluate.board.sides.lines import intersect as meet, intersect_sides, side_fits, square_map
+from edgetruth.image_io import quiet_stderr, read_gray
+from edgetruth.render.optics import mtf
+from edgetruth.render.sensor.pipeline import srgb_decode, srgb_encode
+
 
 SIDE_MIDDLE = (0.2, 0.8)
 ESF_HALF_WIDTH_PX = 6.0
@@ -70,10 +81,6 @@ class BoardLines:
 
 def board_lines(image: np.ndarray, model: BoardModel) -> BoardLines | None:
     """The side lines of the model's squares found on ``image`` (None when the board is not found)."""
-    from edgetruth import locate
-    from edgetruth.evaluate.board.sides.lines import side_fits, square_map
-    from edgetruth.evaluate.board.detect.squares import board_candidates, board_squares
-
     c = board_squares(image, model)[0]
     if c is None:
         return None
@@ -119,8 +126,6 @@ def side_samples(image: np.ndarray, lines: BoardLines) -> SideSamples:
 def fit_erf_batch(d_list: list, v_list: list) -> dict:
     """Least-squares I(d) = A + B Φ((d − μ)/σ) per side (batched Levenberg–Marquardt); arrays A, B, mu, sigma
     (> 0), rms (residual RMS), converged."""
-    from scipy.special import ndtr
-
     n = len(d_list)
     m = max((len(d) for d in d_list), default=0)
     d = np.zeros((n, m))
@@ -229,8 +234,6 @@ def overshoot_pct(t: np.ndarray, esf: np.ndarray) -> tuple[float, float]:
 def blur(image: np.ndarray, lines: BoardLines) -> dict:
     """Per orientation: median ERF σ (stored and sRGB-decoded values), relative fit residuals, e-SFR MTF50 and
     overshoot of the pooled ESF (module docstring)."""
-    from edgetruth.render.sensor.pipeline import srgb_decode
-
     smp = side_samples(image, lines)
     enc = fit_erf_batch(smp.d, smp.v)
     lin_v = [srgb_decode(v / 255.0) for v in smp.v]
@@ -284,8 +287,6 @@ def _outward(lines: BoardLines) -> tuple[np.ndarray, np.ndarray]:
 def _offset_quads(lines: BoardLines, margin_px: float) -> np.ndarray:
     """(S, 4, 2) each square's outline moved ``margin_px`` outward (< 0: inward) along its side normals; NaN
     where a side is missing."""
-    from edgetruth.evaluate.board.sides.lines import intersect_sides
-
     n, d = _outward(lines)
     return intersect_sides(n, d + margin_px)
 
@@ -294,8 +295,6 @@ def _side_bands(lines: BoardLines, near_px: float, far_px: float, cap_px: float)
     """(S, 4, 4, 2) beside each side k, the quad between its line moved ``near_px`` and ``far_px`` outward, capped
     by the neighbouring sides' lines moved ``cap_px`` inward: the light ground beside the side alone, clear of
     what lies diagonally off the square's corners (on a chessboard, the next dark square)."""
-    from edgetruth.evaluate.board.sides.lines import intersect as meet
-
     n, d = _outward(lines)
     n0, d0 = np.roll(n, 1, axis=1), np.roll(d, 1, axis=1) - cap_px  # side k - 1, moved inward
     n1, d1 = np.roll(n, -1, axis=1), np.roll(d, -1, axis=1) - cap_px  # side k + 1
@@ -308,8 +307,6 @@ def flat_labels(shape: tuple[int, int], lines: BoardLines, beside_sides: bool = 
     (``FLAT_MARGIN_PX`` to ``RING_OUTER_PX`` out); 0 elsewhere.  Squares with a missing side are left out.
     ``beside_sides`` (a chessboard, whose dark squares touch at their corners): the white region is only the ring's
     parts beside the sides (``_side_bands``), ``FLAT_MARGIN_PX`` clear of the lines through the corners."""
-    import cv2
-
     inner = _offset_quads(lines, -FLAT_MARGIN_PX)
     near = _offset_quads(lines, FLAT_MARGIN_PX)
     outer = _offset_quads(lines, RING_OUTER_PX)
@@ -392,8 +389,6 @@ def falloff(centres: np.ndarray, means: np.ndarray, counts: np.ndarray) -> dict:
 
 def srgb_slope(encoded_8bit: float) -> float:
     """d(linear) / d(stored value) of the sRGB curve at an 8-bit stored value."""
-    from edgetruth.render.sensor.pipeline import srgb_decode
-
     e = float(encoded_8bit)
     h = 0.5
     return float((srgb_decode((e + h) / 255.0) - srgb_decode((e - h) / 255.0)) / (2 * h))
@@ -407,8 +402,6 @@ def noise(image: np.ndarray, lines: BoardLines, beside_sides: bool = False) -> d
     for k in ("black", "white"):
         r = out[k]
         if np.isfinite(r["mean"]):
-            from edgetruth.render.sensor.pipeline import srgb_decode
-
             r["mean_linear"] = float(srgb_decode(r["mean"] / 255.0))
             r["sd_linear"] = r["sd"] * srgb_slope(r["mean"])
     return out
@@ -417,10 +410,6 @@ def noise(image: np.ndarray, lines: BoardLines, beside_sides: bool = False) -> d
 def colours(path) -> dict | None:
     """For a colour file: the number of colours used and each channel's distinct values over them (a product
     palette shows as few values per channel); None for a gray file."""
-    import cv2
-
-    from edgetruth.image_io import quiet_stderr
-
     with quiet_stderr():
         img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if img is None:
@@ -454,10 +443,6 @@ def measure_photo(image: np.ndarray, model: BoardModel, name: str = "", path=Non
 
 def measure_photos(paths, model: BoardModel, channel: str = "luma") -> list[dict]:
     """``measure_photo`` of each photo file (read with ``edgetruth.image_io.read_gray``)."""
-    from pathlib import Path
-
-    from edgetruth.image_io import read_gray
-
     return [measure_photo(read_gray(p, channel=channel), model, Path(p).name, p) for p in paths]
 
 
@@ -479,9 +464,6 @@ def esf_model(t: np.ndarray, camera, sigma_ab_um: float, defocus_px: float, blac
     of full scale), through the sRGB curve (or with ``gamma`` the power curve v^(1/gamma), the sensor's
     ``output_gamma``), ``gain``, and an unsharp mask of ``amount`` and ``sigma_s`` (px) on the pixel grid (the
     renderer's pipeline, ``edgetruth.render.sensor.pipeline``)."""
-    from edgetruth.render.optics import mtf
-    from edgetruth.render.sensor.pipeline import srgb_encode
-
     p = camera.pitch_um
     cutoff = mtf.diffraction_cutoff_cy_px(p, camera.diffraction_wavelength_nm, camera.f_number)
     step, n = 1.0 / 64.0, 8192
@@ -518,8 +500,6 @@ def normalised_model(t_bins: np.ndarray, **kw) -> np.ndarray:
 def fit_esf(t_bins, esf_bins, camera, defocus_px: float, black: float, white: float, sharpen: bool) -> dict:
     """The aberration σ (µm) -- and with ``sharpen`` the unsharp mask's amount and σ -- whose ``normalised_model``
     best fits a photo's pooled ESF along one axis (least squares over the bins)."""
-    from scipy.optimize import least_squares
-
     base = dict(camera=camera, defocus_px=defocus_px, black=black, white=white)
 
     def resid(q):
@@ -556,8 +536,6 @@ def clipped_white(white: dict, noise_dn: float, clip: float = 255.0) -> float:
     """The white level before a clip: ``white`` (``region_noise`` of a white region) has ``at_max_fraction`` of its
     pixels at the clip; with Gaussian noise of SD ``noise_dn`` the level lies ``noise_dn`` Φ⁻¹(1 − f) below the
     photo's clip, returned at the same distance below ``clip``."""
-    from scipy.special import ndtri
-
     f = float(np.clip(white["at_max_fraction"], 1e-3, 0.999))
     return clip + noise_dn * float(ndtri(f))
 
@@ -584,8 +562,6 @@ def derive_twin(measurements: list[dict], camera, defocus_px: list[float], base_
       and white (``base_black``, ``base_white``) to the photo's; a clipped white (more than ``CLIPPED_SHARE`` of
       its pixels at its largest value) is first carried to its level before the clip (``clipped_white``).
     """
-    from edgetruth.render.sensor.pipeline import srgb_decode
-
     per = []
     clean = [m for m in measurements if m["levels"] >= PALETTE_LEVELS]
     noise_dn = float(np.min([math.sqrt(max(m["noise"]["black"]["sd"] ** 2 - 1.0 / 12.0, 0.0))
@@ -619,10 +595,6 @@ def derive_twin(measurements: list[dict], camera, defocus_px: list[float], base_
 def channel_means(path, lines: BoardLines, shape) -> dict | None:
     """For a colour file: per channel (R, G, B) the mean of the black and white flat regions, and the gains g_c that
     best map their luma to them (least squares through 0)."""
-    import cv2
-
-    from edgetruth.image_io import quiet_stderr
-
     with quiet_stderr():
         bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if bgr is None or (np.array_equal(bgr[..., 0], bgr[..., 1]) and np.array_equal(bgr[..., 1], bgr[..., 2])):

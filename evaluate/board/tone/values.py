@@ -24,6 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.render.sensor.pipeline import srgb_decode
+
 
 KINDS = ("stored", "srgb", "power", "auto")
 #: the powers ``power:G`` accepts (and ``auto`` searches): beyond them a tone curve is not a camera's
@@ -90,7 +92,5 @@ def decode(image: np.ndarray, tone: Tone, full: float) -> np.ndarray:
         raise ValueError("an auto tone is estimated first (tone_fit.estimate_power), then decoded as a power")
     v = np.clip(np.asarray(image, np.float64) / full, 0.0, 1.0)
     if tone.kind == "srgb":
-        from edgetruth.render.sensor.pipeline import srgb_decode
-
         return full * srgb_decode(v)
     return full * np.power(v, tone.power)

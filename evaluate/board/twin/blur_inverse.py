@@ -15,8 +15,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.optimize import brentq
 
 from edgetruth.evaluate.board.tone.photo_model import ESF_HALF_WIDTH_PX, fit_erf_batch
+from edgetruth.render.optics.mtf import system_otf
+
 
 #: the ESF's grid step (px) and length (samples) for the numerical LSF
 STEP_PX = 1.0 / 64.0
@@ -31,8 +34,6 @@ def model_esf(t_px: np.ndarray, sigma_ab_px: float, cutoff_cy_px: float, defocus
     transform of ``system_otf`` (pixel box, diffraction to ``cutoff_cy_px``, Gaussian ``sigma_ab_px``, defocus disk
     of radius ``defocus_px``), from a dark of 1/``linear_contrast`` of the white to the white in linear light, then
     stored as v^(1/``gamma``) (``render.sensor.pipeline``'s ``output_gamma``) and rescaled to 0..1."""
-    from edgetruth.render.optics.mtf import system_otf
-
     nu = np.fft.rfftfreq(N_SAMPLES, d=STEP_PX)
     otf = system_otf(nu, 0.0, cutoff_cy_px=cutoff_cy_px, sigma_px=sigma_ab_px, defocus_px=defocus_px)
     lsf = np.fft.fftshift(np.fft.irfft(otf, n=N_SAMPLES))
@@ -59,8 +60,6 @@ def aberration_sigma_px(sigma_px: float, cutoff_cy_px: float, defocus_px: float 
                         linear_contrast: float = math.inf, gamma: float = 1.0) -> float:
     """The Gaussian aberration σ_ab (px) whose rendered edge reads ERF σ = ``sigma_px`` (``erf_sigma_px``); 0 when
     the pixel, diffraction and defocus alone already read ``sigma_px`` or more."""
-    from scipy.optimize import brentq
-
     def gap(s: float) -> float:
         return erf_sigma_px(s, cutoff_cy_px, defocus_px, linear_contrast, gamma) - sigma_px
 

@@ -57,13 +57,30 @@ twin adds the latter as ``output_noise_dn``.  The twin study's Table 3 compares 
 """
 from __future__ import annotations
 
+import json
 import math
+import re
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.board.tone.photo_model import SHARPENED_PCT, clipped_white
+from edgetruth.evaluate.board.twin.blur_inverse import aberration_sigma_px
+from edgetruth.evaluate.board.twin.photon_transfer import sensor_from_noise
+from edgetruth.evaluate.board.twin.shading import (fit_shading, lens_shading, light_falloff, light_square_centres,
+                                                   project)
+from edgetruth.evaluate.board.twin.sharpening import fit_sharpening, mask_noise_gain, sharpened_axes
+from edgetruth.render.optics.camera import camera_from_dict
+from edgetruth.render.optics.mtf import diffraction_cutoff_cy_px
+from edgetruth.render.optics.prediction import field_height
+from edgetruth.render.scene.bend import BoardBend
+from edgetruth.render.scene.targets import SquareBoard
+from edgetruth.render.sensor.linear_model import SensorModel
+
 
 #: the white level (8-bit) the white noise SD is stated at
 WHITE_REF_DN = 220.0
@@ -135,9 +152,6 @@ def bend_mm(m: dict, ring: list[float], square_m: float) -> list[list[float]]:
     larger extent): a monomial of degree 2 scales as (s_render / s_check)².  Both are centred on the board: the box
     and the corners are symmetric about its centre.  An ``InputError`` when a photo took no part in the check (too
     few corners)."""
-    from edgetruth.render.scene.bend import BoardBend
-    from edgetruth.render.scene.targets import SquareBoard
-
     cols, rows = m["pattern"]
     board = SquareBoard.chessboard(cols, rows, square_m, tuple(ring))
     s_render = BoardBend.of((0.0, 0.0, 0.0), board.black_quads_local(0.0)).scale_m * 1e3
@@ -162,13 +176,6 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     ``source`` the photos in words (for the headers); ``bend``: each board curled as its photo's (``bend_mm``;
     chessboards only); ``model_ref``: how the spec names a board of separate squares' model file (required
     for one)."""
-    from edgetruth.evaluate.board.tone.photo_model import SHARPENED_PCT, clipped_white
-    from edgetruth.evaluate.board.twin.blur_inverse import aberration_sigma_px
-    from edgetruth.evaluate.board.twin.sharpening import fit_sharpening, mask_noise_gain, sharpened_axes
-    from edgetruth.render.optics.camera import camera_from_dict
-    from edgetruth.render.optics.mtf import diffraction_cutoff_cy_px
-    from edgetruth.render.sensor.linear_model import SensorModel
-
     a = assumptions
     K, dist, photos = np.asarray(m["K"]), m["dist"], m["photos"]
     names = [group_name(p["photo"]) for p in photos]
@@ -567,8 +574,6 @@ def curve_noise(photos: list[dict], lin, dlin, read_e: float, level: float, q_mi
     variance, q >= ``q_min`` and o >= 0:
     for each q on a log grid o² is linear (closed form), then the best refined.  -> {shot_lin: the shot SD at
     ``level`` (linear units), q, output_dn: o, levels, rms_rel: the fitted SDs' RMS relative error}."""
-    from scipy.optimize import minimize_scalar
-
     v = np.array([[p["dark"], p["white"]] for p in photos], float).ravel()
     sd = np.array([[p["dark_sd"], p["white_sd"]] for p in photos], float).ravel()
     var = np.maximum(sd ** 2 - 1.0 / 12.0, 1e-6)
@@ -619,10 +624,6 @@ def _shading(m: dict, a: TwinAssumptions, lens, square_m: float, linear) -> tupl
     ``light_levels``, taken to the linear signal by ``linear``), and per photo the median over its light squares of
     what the light and that shading leave of the level at the board's centre (it divides the group's
     irradiance, so that the rendered light squares' median is the photo's)."""
-    from edgetruth.evaluate.board.twin.shading import (fit_shading, lens_shading, light_falloff,
-                                                       light_square_centres, project)
-    from edgetruth.render.optics.prediction import field_height
-
     K, dist = np.asarray(m["K"]), np.asarray(m["dist"])
     centres = light_square_centres(m["pattern"]) if "pattern" in m else np.asarray(m["light_points"], float)
     seen = []
@@ -653,8 +654,6 @@ def _raw_words(m: dict) -> str:
 def _raw_noise(m: dict, a: TwinAssumptions):
     """The 16-bit photos' gain, read noise and black level (``photon_transfer.sensor_from_noise``) from the dark and
     light squares of the unsaturated photos (a flat white is clipped, and only the darks of the clipped ones)."""
-    from edgetruth.evaluate.board.twin.photon_transfer import sensor_from_noise
-
     levels, sds = [], []
     for p in m["photos"]:
         f = p.get("flat_noise") or p
@@ -669,15 +668,11 @@ def _raw_noise(m: dict, a: TwinAssumptions):
 
 def _toml_str(text: str) -> str:
     """A TOML basic string (JSON's escapes are TOML's)."""
-    import json
-
     return json.dumps(str(text), ensure_ascii=False)
 
 
 def _comment(text: str, bullet: bool = False, width: int = 116) -> str:
     """``text`` as TOML comment lines of at most ``width`` characters (a bullet: '# - ', continued '#   ')."""
-    import textwrap
-
     first, rest = ("# - ", "#   ") if bullet else ("# ", "# ")
     return "\n".join(textwrap.wrap(text, width, initial_indent=first, subsequent_indent=rest,
                                    break_on_hyphens=False, break_long_words=False))
@@ -686,8 +681,6 @@ def _comment(text: str, bullet: bool = False, width: int = 116) -> str:
 def safe_name(text: str) -> str:
     """``text`` as a spec or group name (``render.schema.NAME_RE``): anything but letters, digits, '-' and '_' as
     '_', starting with a letter or digit, at most 100 characters."""
-    import re
-
     name = re.sub(r"[^A-Za-z0-9_-]", "_", str(text))
     name = name if name[:1].isalnum() and name[:1].isascii() else "p" + name
     return name[:100]

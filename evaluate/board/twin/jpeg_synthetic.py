@@ -18,8 +18,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.special import ndtr
 
-from edgetruth.evaluate.board.tone.photo_model import ESF_HALF_WIDTH_PX
+from edgetruth.evaluate.board.detect.levels import square_levels
+from edgetruth.evaluate.board.tone.photo_model import ESF_HALF_WIDTH_PX, _outward, blur
+from edgetruth.render.sensor.pipeline import jpeg_round_trip
 
 
 def synthetic_board(shape: tuple[int, int], lines, sigma_x_px: float, sigma_y_px: float, dark: float,
@@ -28,10 +31,6 @@ def synthetic_board(shape: tuple[int, int], lines, sigma_x_px: float, sigma_y_px
     (``photo_model.BoardLines``): ``white`` with each dark square at ``dark``, its coverage at a pixel centre the
     product over its sides of Φ(−d/σ) (d: the distance outside the side, px; σ: ``sigma_x_px`` and ``sigma_y_px``
     combined along the side's normal), exact along the middle of each side where ``photo_model.blur`` reads it."""
-    from scipy.special import ndtr
-
-    from edgetruth.evaluate.board.tone.photo_model import _outward
-
     n, d = _outward(lines)
     h, w = shape
     cover = np.zeros(shape)
@@ -56,9 +55,6 @@ def jpeg_blur_px(shape: tuple[int, int], lines, sigma_x_px: float, sigma_y_px: f
     """{"x", "y"}: how much a JPEG at ``quality`` (``render.sensor.pipeline.jpeg_round_trip``, the twin's encoder)
     raises the ERF σ (px) ``photo_model.blur`` reads on the ``synthetic_board`` of these lines, levels and σ; the
     same pixels stored as 8-bit without it are the reference, so the synthesis' own small bias cancels."""
-    from edgetruth.evaluate.board.tone.photo_model import blur
-    from edgetruth.render.sensor.pipeline import jpeg_round_trip
-
     img = synthetic_board(shape, lines, sigma_x_px, sigma_y_px, dark, white)
     u8 = np.clip(np.round(img), 0, 255).astype(np.uint8)
     plain = blur(u8.astype(np.float64), lines)
@@ -88,9 +84,6 @@ def noise_before_jpeg(shape: tuple[int, int], lines, squares, sigma_x_px: float,
     The white's SD is solved for s with r held (``BEFORE_OVER_AFTER``), the dark's for r with s held
     (``READ_NOISE_DN``), ``NOISE_PASSES`` times.  -> {"shot_dn": s, "read_dn": r}; None when no noise is measured
     after it, or when none of the levels leaves as much."""
-    from edgetruth.evaluate.board.detect.levels import square_levels
-    from edgetruth.render.sensor.pipeline import jpeg_round_trip
-
     if not (white_sd_after > 0 and math.isfinite(white_sd_after) and math.isfinite(dark_sd_after)):
         return None
     clean = synthetic_board(shape, lines, sigma_x_px, sigma_y_px, dark, white)

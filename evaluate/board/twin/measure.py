@@ -20,6 +20,18 @@ import cv2
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.detect.levels import saturated, square_levels
+from edgetruth.evaluate.board.inputs import BoardInputs
+from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD, grid_points
+from edgetruth.evaluate.board.tone.fit import estimate_power
+from edgetruth.evaluate.board.tone.photo_model import blur as edge_blur, board_lines
+from edgetruth.evaluate.board.twin.jpeg_synthetic import jpeg_blur_px, noise_before_jpeg
+from edgetruth.evaluate.board.twin.shading import light_levels, light_square_centres, project
+from edgetruth.evaluate.calibration import calibrate_photos
+from edgetruth.image_io import read_gray_scaled
+
 
 #: 16-bit photos whose edges read a tone power outside this band (``raw_tone``) are not a linear sensor's values
 RAW_POWER_BAND = (0.8, 1.25)
@@ -80,8 +92,6 @@ def read_photo(path, channel: str, scale: float | None) -> tuple[np.ndarray, flo
     ``scale`` (None: the first).  A colour photo is read as its luma (float, ``channel``), its full scale the file's
     (255 for an 8-bit colour JPEG); the OR (its trailing zeros: the stored step) is 0 for float values.  An
     ``InputError`` for a photo that is not 8- or 16-bit, or not of the set's depth (one camera's output)."""
-    from edgetruth.image_io import read_gray_scaled
-
     img, s = read_gray_scaled(path, channel=channel)
     if s not in (255.0, 65535.0):
         raise InputError(f"{path}: {img.dtype} values; give 8-bit or 16-bit photos (a twin renders 8-bit or raw "
@@ -156,15 +166,6 @@ def measure_chessboard(photos: list[Path], pattern: tuple[int, int], channel: st
     JPEG quality, bend) on which the board is found; ``left_out`` names the others and why (fewer than 3 left: an
     ``InputError``).
     ``progress``: wraps an iterable of photos in a progress bar (the calibration's pass, then the measurements')."""
-    from edgetruth.evaluate.board.detect import chessboard as cb
-    from edgetruth.evaluate.board.measure.grid_corners import grid_points
-    from edgetruth.evaluate.board.detect.levels import saturated, square_levels
-    from edgetruth.evaluate.board.tone.photo_model import blur as edge_blur
-    from edgetruth.evaluate.board.tone.photo_model import board_lines
-    from edgetruth.evaluate.board.twin.jpeg_synthetic import jpeg_blur_px, noise_before_jpeg
-    from edgetruth.evaluate.board.twin.shading import light_levels, light_square_centres, project
-    from edgetruth.evaluate.calibration import calibrate_photos
-
     photos = [Path(p) for p in photos]
     model = cb.chessboard_model(pattern, 1.0)
     light_centres = light_square_centres(pattern)
@@ -279,11 +280,6 @@ def measure_tone(photos, images, rows, model, full_scale: float = 255.0) -> dict
     """``tone_fit.estimate_power`` (ERF4P-fixed11) on the unsaturated photos -> {power, ci, photos, output_gamma}:
     ``output_gamma`` 1 (linear) when the 95 % interval holds 1, else the power.  Too few unsaturated photos (or no
     power found): linear, and ``note`` says why.  ``full_scale``: the stored values' (65535 for 16-bit photos)."""
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.board.measure.grid_corners import DEFAULT_METHOD
-    from edgetruth.evaluate.board.inputs import BoardInputs
-    from edgetruth.evaluate.board.tone.fit import estimate_power
-
     keep = [i for i, r in enumerate(rows) if not r["white_saturated"]]
     if len(keep) < 3:
         return {"power": None, "ci": None, "photos": [rows[i]["photo"] for i in keep], "output_gamma": 1.0,

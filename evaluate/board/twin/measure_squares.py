@@ -29,8 +29,15 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from scipy.spatial import cKDTree
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.board.calibrate.zhang import calibrate
+from edgetruth.evaluate.board.tone.photo_model import blur as edge_blur, board_lines, flat_labels, noise
+from edgetruth.evaluate.board.twin.jpeg_synthetic import jpeg_blur_px
+from edgetruth.evaluate.board.twin.measure import edge_shape, jpeg_quality, read_photo
+from edgetruth.evaluate.board.twin.shading import light_levels, project
+
 
 #: a white region with more than this share of its pixels at its largest value is clipped (``photo_model``'s)
 CLIPPED_SHARE = 0.3
@@ -44,8 +51,7 @@ def gap_points(corners: np.ndarray) -> np.ndarray:
     """(G, 2) points of the white ground between separate squares ``corners`` (S, 4, 2, model units): the midpoints
     of each square's centre and its neighbours' (within ``NEIGHBOUR_FACTOR`` of its nearest one), kept where they
     lie ``GAP_CLEARANCE`` of a side clear of every square, each once, in a fixed order."""
-    from matplotlib.path import Path as Polygon
-    from scipy.spatial import cKDTree
+    from matplotlib.path import Path as Polygon  # lazy: matplotlib is heavy
 
     q = np.asarray(corners, float)
     centre = q.mean(axis=1)
@@ -77,13 +83,6 @@ def measure_squares(photos: list[Path], model, tone_power: float = 2.2, channel:
     photo on which the board is found; ``left_out`` names the others and why (fewer than 3 left: an
     ``InputError``).  ``tone_power``: the 8-bit photos' tone (stored = linear^(1/power)), assumed.
     ``progress``: wraps an iterable of photos in a progress bar."""
-    from edgetruth.evaluate.board.calibrate.zhang import calibrate
-    from edgetruth.evaluate.board.tone.photo_model import blur as edge_blur
-    from edgetruth.evaluate.board.tone.photo_model import board_lines, flat_labels, noise
-    from edgetruth.evaluate.board.twin.jpeg_synthetic import jpeg_blur_px
-    from edgetruth.evaluate.board.twin.measure import edge_shape, jpeg_quality, read_photo
-    from edgetruth.evaluate.board.twin.shading import light_levels, project
-
     photos = [Path(p) for p in photos]
     gaps = gap_points(model.corners)
     found, left_out = [], []

@@ -28,8 +28,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from edgetruth.errors import InputError
+
 
 #: distinct levels (more than ``LEVEL_GAP`` apart, relatively) the PRNU term needs: a dark and a light square
 #: at two exposures are not enough to tell K, b and p apart
@@ -94,8 +96,6 @@ def sensor_from_noise(levels_dn, sds_dn, step_dn: float = 1.0, read_noise_e: flo
     ``lowest_level_dn``: the darkest level measured, which the black level must stay below.  An ``InputError``
     when the noise does not grow with the level (values that are not a linear sensor's) or puts the black level at
     or above the darkest level."""
-    from scipy.optimize import least_squares
-
     k0, a0 = photon_transfer(levels_dn, sds_dn, step_dn)
     x, v = noise_points(levels_dn, sds_dn)
     v = v - step_dn ** 2 / 12.0

@@ -36,6 +36,18 @@ import math
 
 import numpy as np
 
+from edgetruth import console
+from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.board.detect.chessboard import settle_parity
+from edgetruth.evaluate.board.detect.squares import board_candidates, board_squares
+from edgetruth.evaluate.board.measure.rows import method_row
+from edgetruth.evaluate.board.sides.lines import square_map
+from edgetruth.evaluate.board.tone.photo_model import blur, board_lines, noise
+from edgetruth.evaluate.board.twin.jpeg_synthetic import synthetic_board
+from edgetruth.evaluate.board.twin.measure import jpeg_quality
+from edgetruth.render.sensor.pipeline import jpeg_round_trip
+
+
 #: degree of the polynomial (in the position along a side) taken off each side's residuals: a lens's bow and a
 #: bent sheet are smooth over one side
 DETREND_DEGREE = 2
@@ -106,9 +118,6 @@ def floor_image(shape: tuple[int, int], lines, sigma_x_px: float, sigma_y_px: fl
     """The rendered floor (module docstring): the photo's squares with perfect straight edges, its blur per axis,
     levels and noise, stored as 8-bit (float array of integers); through a JPEG at ``jpeg_quality`` when given
     (the photo's own, ``twin.measure.jpeg_quality``: its blocks move an edge block by block)."""
-    from edgetruth.evaluate.board.twin.jpeg_synthetic import synthetic_board
-    from edgetruth.render.sensor.pipeline import jpeg_round_trip
-
     clean = synthetic_board(shape, lines, sigma_x_px, sigma_y_px, dark, white)
     sd = noise_sd_map(clean, dark, white, sd_dark, sd_white)
     noisy = np.clip(np.round(clean + sd * np.random.default_rng(seed).standard_normal(clean.shape)), 0, 255)
@@ -121,7 +130,7 @@ def crb_sd(normal: np.ndarray, covered: np.ndarray, sigma_x_px: float, sigma_y_p
            contrast: float) -> float:
     """The Cramér-Rao floor (module docstring), RMS over the covered sides: each side's σ along its normal from the
     per-axis σ, the noise over the contrast."""
-    from edgetruth.evaluate.crb import position_std_bound_many
+    from edgetruth.evaluate.crb import position_std_bound_many  # lazy: crb loads numba
 
     nv = normal[covered]
     if not len(nv) or not contrast > 0:
@@ -138,17 +147,8 @@ def measure_set(images: list[np.ndarray], model, methods: list[str], options: di
     Cramér-Rao floor.  The squares are found once on the photos (``squares.board_squares``) and the floor uses the
     same squares and candidates rule, so both see the same sides.  ``paths``: the photos' files; a JPEG's floor goes
     through a JPEG at its quality."""
-    from edgetruth import console
-    from edgetruth.evaluate import method_order as mo
-    from edgetruth.evaluate.board.measure.rows import method_row
-    from edgetruth.evaluate.board.tone.photo_model import board_lines, blur, noise
-    from edgetruth.evaluate.board.sides.lines import square_map
-    from edgetruth.evaluate.board.detect.squares import board_candidates, board_squares
-    from edgetruth.evaluate.board.twin.measure import jpeg_quality
-
     chess = model.pattern is not None
     if chess:  # which squares are dark, as the board study settles it
-        from edgetruth.evaluate.board.detect.chessboard import settle_parity
 
         model = settle_parity([np.asarray(i, np.float64) for i in images], model)
     names = names or [f"photo{i + 1}" for i in range(len(images))]

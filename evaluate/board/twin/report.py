@@ -1,13 +1,21 @@
 """The twin study's files: report.md (real and twin side by side), twin_vs_real.csv, photo_model.json."""
 from __future__ import annotations
 
-import numpy as np
+import csv
+import io
 
+import numpy as np
+from scipy.stats import rankdata
+
+from edgetruth import __version__
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board.measure.rows import OPENCV_ROW, REFERENCE_ROW
 from edgetruth.evaluate.report_format import num, table
+from edgetruth.evaluate.run_dir import utc_stamp
 from edgetruth.evaluate.stats import spearman
 from edgetruth.fileio import atomic_write_text, write_json
+from edgetruth.resources import source_commit
+
 
 #: the diagnostic row: PAE2013's default (floating-window) variant, next to the study's smoothed one
 PAE_DEFAULT = "pae2013_floating"
@@ -22,8 +30,6 @@ CSV_COLUMNS = ("row", "label", "in_ranking", "straightness_real_px", "straightne
 
 def ranks(values) -> np.ndarray:
     """Ranks (1 = smallest, ties averaged) of the finite values; NaN elsewhere."""
-    from scipy.stats import rankdata
-
     v = np.asarray(values, float)
     out = np.full(v.shape, np.nan)
     ok = np.isfinite(v)
@@ -77,9 +83,6 @@ def rankings(methods, real_s: dict, twin_s: dict, errors: dict) -> list[dict]:
 
 
 def _csv(rows) -> str:
-    import csv
-    import io
-
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(CSV_COLUMNS)
@@ -179,10 +182,6 @@ def settings_table(derived: dict, jobs) -> str:
 
 def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_run, twin_run, errors, floor, pm_real,
                       pm_twin, derived, timings, options, thresholds, corners=None, flatness=None):
-    from edgetruth import __version__
-    from edgetruth.evaluate.run_dir import utc_stamp
-    from edgetruth.resources import source_commit
-
     real_s = {s["row"]: s for s in real_run.summaries}
     twin_s = {s["row"]: s for s in twin_run.summaries}
     rows = method_table(methods, diag, real_s, twin_s, errors)

@@ -19,6 +19,11 @@ import math
 
 import cv2
 import numpy as np
+from scipy.optimize import least_squares
+
+from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.detect.levels import light_centres, patches_at
+
 
 #: half width (px) of the patch whose median is a light square's level (a 7 x 7 patch)
 PATCH_HALF_PX = 3
@@ -29,9 +34,6 @@ MIN_PHOTOS, MIN_LEVELS = 2, 20
 def light_square_centres(pattern: tuple[int, int]) -> np.ndarray:
     """(L, 2) the light squares' centres among the dark ones, in the board study's chessboard model (squares; inner
     corner (0, 0) at the origin), in a fixed order: ``levels.light_centres`` of the model's dark squares."""
-    from edgetruth.evaluate.board.detect import chessboard as cb
-    from edgetruth.evaluate.board.detect.levels import light_centres
-
     return light_centres(cb.chessboard_model(tuple(pattern), 1.0).corners)
 
 
@@ -46,8 +48,6 @@ def project(points_model: np.ndarray, R, t, K, dist) -> np.ndarray:
 def light_levels(image: np.ndarray, uv: np.ndarray, clip: float | None = None) -> list[float | None]:
     """The median of a (2 ``PATCH_HALF_PX`` + 1)² patch at each of ``uv`` (the nearest pixel centre); None where the
     patch leaves the image or reaches ``clip`` (a clip flattens the shading it measures)."""
-    from edgetruth.evaluate.board.detect.levels import patches_at
-
     patches, inside = patches_at(image, uv, PATCH_HALF_PX)
     level = np.median(patches, axis=1)
     ok = np.ones(len(patches), bool) if clip is None else patches.max(axis=1) < clip
@@ -83,8 +83,6 @@ def fit_shading(photos: list[dict]) -> dict:
     ``light``: ``light_falloff`` at them, ``h``: their field heights}; -> {a2, a4, levels, photos, rms_before,
     rms_after} (RMS of the relative residuals with no shading and with the fitted one), or {a2: 0, a4: 0, note}
     when there is too little to fit."""
-    from scipy.optimize import least_squares
-
     use = []
     for p in photos:
         ok = np.isfinite(p["level"]) & np.isfinite(p["light"]) & (p["light"] > 0)

@@ -14,14 +14,16 @@ output gain (``photo_model.normalised_model``: what the renderer does, ``render.
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import least_squares
+
+from edgetruth.evaluate.board.tone.photo_model import SHARPENED_PCT, normalised_model
+from edgetruth.render.sensor.pipeline import sharpen
 
 
 def sharpened_axes(photos: list[dict]) -> str | None:
     """'x', 'y' or 'xy' (the renderer's ``sharpen_axis``) where the photos' median overshoot (``overshoot_pct``,
     the larger of over- and undershoot) exceeds ``photo_model.SHARPENED_PCT``; None where no axis does (or none
     was measured)."""
-    from edgetruth.evaluate.board.tone.photo_model import SHARPENED_PCT
-
     over = [p["overshoot_pct"] for p in photos if p.get("overshoot_pct")]
     axes = "".join(a for a in "xy" if over and np.nanmedian([o[a] for o in over]) > SHARPENED_PCT)
     return axes or None
@@ -33,10 +35,6 @@ def fit_sharpening(esfs: dict, camera, defocus_px: float, black: float, white: f
     unsharp mask's ``amount`` and ``sigma_px`` shared by them, least squares over all their bins; ``black`` and
     ``white`` the linear levels (fractions of the ADC's range), ``gain`` the output gain, ``gamma`` the power curve
     (1: linear).  -> {"sigma_um": {axis: σ}, "amount", "sigma_px", "fit_rms"}."""
-    from scipy.optimize import least_squares
-
-    from edgetruth.evaluate.board.tone.photo_model import normalised_model
-
     axes = sorted(esfs)
     data = {a: (np.asarray(esfs[a][0], float), np.asarray(esfs[a][1], float)) for a in axes}
     base = dict(camera=camera, defocus_px=defocus_px, black=black, white=white, gain=gain, gamma=gamma)
@@ -58,8 +56,6 @@ def fit_sharpening(esfs: dict, camera, defocus_px: float, black: float, white: f
 def mask_noise_gain(amount: float, sigma_px: float, axes: str) -> float:
     """How much the renderer's unsharp mask (``render.sensor.pipeline.sharpen``, ``amount``, ``sigma_px``, along
     ``axes``) multiplies the variance of white noise before it: the sum of its impulse response's squares."""
-    from edgetruth.render.sensor.pipeline import sharpen
-
     r = int(5.0 * sigma_px) + 2
     impulse = np.zeros((2 * r + 1, 2 * r + 1))
     impulse[r, r] = 1.0

@@ -40,11 +40,26 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth import console, locate
-from edgetruth.locate.registry import camera_free
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.board.detect import chessboard as cb
 from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, resolve_inputs
+from edgetruth.evaluate.board.measure.rows import Row, calibrate_row
+from edgetruth.evaluate.board.measure.summary import row_summary
+from edgetruth.evaluate.board.sides.lines import fit_lines
+from edgetruth.evaluate.board.study import _jsonable, compute_board_study, write_board_run
+from edgetruth.evaluate.board.tone.photo_model import PALETTE_LEVELS, derive_twin, measure_photo
+from edgetruth.evaluate.board.twin.derive import group_name
+from edgetruth.evaluate.board.twin.flatness import board_flatness
 from edgetruth.evaluate.board.twin.report import PAE_DEFAULT, ranks, spearman, write_twin_report  # noqa: F401
+from edgetruth.evaluate.run_dir import check_same_settings, prepare_run_dir
+from edgetruth.image_io import read_gray
+from edgetruth.locate.registry import camera_free
+from edgetruth.render.dataset.driver import check_variant_name, render_spec
+from edgetruth.render.dataset.reader import open_dataset
+from edgetruth.render.dataset.spec import _check_sample_counts, load_spec
+from edgetruth.render.edge_truth import closed_polyline_signed_distance
+
 
 KIND = "study twin"
 #: shipped photo sets with a twin scene: set name -> shipped spec name
@@ -80,8 +95,6 @@ def check_images(images, n_total: int) -> list[int]:
 
 def twin_spec(spec_name: str, spp: int | None):
     """The shipped twin spec, at ``spp`` samples per pixel when given (checked like a spec's)."""
-    from edgetruth.render.dataset.spec import _check_sample_counts, load_spec
-
     spec = load_spec(spec_name)
     if spp is None or spp == spec.render.spp:
         return spec
@@ -135,9 +148,6 @@ def outline_points(truth: dict, step_px: float = OUTLINE_STEP_PX,
 
 def exact_outline_row(truths: list[dict], model):
     """The study's line fit and intersection applied to points on the exact outline: the floor of its procedure."""
-    from edgetruth.evaluate.board.measure.rows import Row
-    from edgetruth.evaluate.board.sides.lines import fit_lines
-
     corners, fits = [], []
     for t in truths:
         x, y, lab = outline_points(t, n_squares=len(model))
@@ -150,8 +160,6 @@ def exact_outline_row(truths: list[dict], model):
 def point_errors(row, truths: list[dict]) -> dict:
     """Signed distance of a method row's assigned points to their square's exact distorted outline (> 0 on the
     bright board), all photos: RMS, median |e|, mean, SD (the scatter about the mean), n."""
-    from edgetruth.render.edge_truth import closed_polyline_signed_distance
-
     errs = []
     for pts, t in zip(row.points or [], truths):
         lab = pts["label"]
@@ -181,8 +189,7 @@ def per_photo_corners(real_run, twin_run, truths: list[dict], method: str) -> li
     junction's corner on the photo and on the twin (``summary.outward_offsets``: > 0 out of the dark square), the
     twin's mean signed error of the points against the exact outline, and whether the photo's white is saturated
     (``levels``).  None for a board of separate squares (no junctions) or when ``method`` did not run."""
-    from edgetruth.evaluate.board.detect import chessboard as cb
-    from edgetruth.evaluate.board.measure.summary import outward_offsets
+    from edgetruth.evaluate.board.measure.summary import outward_offsets  # lazy: the tests patch it on its module
 
     model = twin_run.inp.model
     if model.pattern is None or not (len(real_run.names) == len(twin_run.names) == len(truths)):
@@ -206,8 +213,6 @@ def per_photo_corners(real_run, twin_run, truths: list[dict], method: str) -> li
 
 # --- the study ------------------------------------------------------------------------------------
 def settings_of(set_name: str, methods, options, images, spp, spec_sha: str, channel: str) -> dict:
-    from edgetruth.evaluate.board.study import _jsonable
-
     return {"set": set_name, "methods": methods, "options": _jsonable(options), "images": [i + 1 for i in images],
             "spp": spp, "spec_identity": spec_sha, "channel": channel}
 
@@ -226,8 +231,6 @@ def photos_by_group(real: BoardInputs, spec, spec_name) -> BoardInputs:
     """The photos a twin with fewer images renders (``edgetruth twin`` leaves out a photo without the board): those
     whose names its one-image groups carry (``derive.group_name``), in the twin's order, one line naming the others.
     An ``InputError`` where the groups do not name the photos each once."""
-    from edgetruth.evaluate.board.twin.derive import group_name
-
     groups = [g.name for g in spec.groups]
     where: dict[str, list[int]] = {}
     for i, photo in enumerate(real.photos):
@@ -285,13 +288,6 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
     ``opencv_left_twin_bent``, whose boards curl as the photos' do.  ``set_name`` may also be a list of your own
     photos (files, folders, globs; ``resolve_inputs`` with ``model_path`` or ``pattern`` and ``square``): then
     ``twin`` is required, e.g. the ``twin.toml`` of ``edgetruth twin``."""
-    from edgetruth.evaluate.board.tone.photo_model import derive_twin, measure_photo
-    from edgetruth.evaluate.board.study import compute_board_study, write_board_run
-    from edgetruth.evaluate.run_dir import prepare_run_dir
-    from edgetruth.image_io import read_gray
-    from edgetruth.render.dataset.driver import check_variant_name, render_spec
-    from edgetruth.render.dataset.reader import open_dataset
-
     t0 = time.perf_counter()
     if isinstance(set_name, str):
         spec_name = check_set(set_name)
@@ -359,8 +355,6 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
     study_s = time.perf_counter() - t_s
 
     # 3. the twin against its truth
-    from edgetruth.evaluate.board.measure.rows import calibrate_row
-    from edgetruth.evaluate.board.measure.summary import row_summary
 
     errors = {r.label: point_errors(r, truths) for r in twin_run.rows if r.is_method}
     corners = per_photo_corners(real_run, twin_run, truths, PER_PHOTO_METHOD)
@@ -409,8 +403,6 @@ def closed_loop_noise(pm_real: list[dict], pm_twin: list[dict], sensors) -> list
     """Per photo not reduced to a coarse palette: the output noise that would make the twin's black SD equal the
     photo's, from the twin's measured black SD s_t with its output noise n: the twin's other noise (Monte-Carlo,
     sensor, through the sharpening) is s_t² − n² − 1/12, and n' = sqrt(s_real² − other − 1/12)."""
-    from edgetruth.evaluate.board.tone.photo_model import PALETTE_LEVELS
-
     out = []
     for r, t, sen in zip(pm_real, pm_twin, sensors):
         if r.get("levels", 0) < PALETTE_LEVELS or not t.get("found"):
@@ -434,8 +426,6 @@ MODEL_UNIT_M = {"zhang1998": 0.0254, "opencv_left": 0.025}
 def flatness_rows(unit_m: float, real_run, twin_run, floor_row, method: str) -> dict:
     """Table 5: the bent-board check (``flatness.board_flatness``) on ``method``'s corners of the photos and of the
     twin, and on the twin's exact outline; {label: result}, empty results left out."""
-    from edgetruth.evaluate.board.twin.flatness import board_flatness
-
     out = {}
     for label, run, row in (("photos", real_run, None), ("twin", twin_run, None),
                             ("twin, exact outline", twin_run, floor_row)):
@@ -450,6 +440,4 @@ def flatness_rows(unit_m: float, real_run, twin_run, floor_row, method: str) -> 
 
 
 def _check_twin_output(out: Path, settings: dict) -> Path:
-    from edgetruth.evaluate.run_dir import check_same_settings
-
     return check_same_settings(out, KIND, settings, "a twin study")
