@@ -158,7 +158,9 @@ def default_mode_lines(distances_m=(0.5, 1.5, 2.5), window_px: int = 96) -> list
     from edgetruth.render.dataset.spec import load_spec
     from edgetruth.render.mc_noise import edge_mc_noise
     from edgetruth.render.sensor.linear_model import SensorModel
+    from edgetruth.render.variants import choose_variant
 
+    choose_variant(announce=lambda s: None)  # the noise renders run in this process
     res, lines = {}, []
     with tempfile.TemporaryDirectory(prefix="bench-default-mode-", dir=_scratch_dir()) as tmp:
         for label, mode in (("default", ""), ("path", 'edge_mode = "path"')):

@@ -18,7 +18,8 @@ from edgetruth.resources import default_runs_dir
 #: options that belong to one kind of study only (dest -> the kind), refused with the other
 _SYNTHETIC_ONLY = {"preset": "--preset", "images_per_scenario": "--images-per-scenario", "workers": "-j/--workers",
                    "address": "--address"}
-_BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model", "pattern": "--pattern", "square": "--square", "tone": "--tone"}
+_BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model", "pattern": "--pattern", "square": "--square", "tone": "--tone",
+               "marker": "--marker"}
 _TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant", "twin": "--twin"}
 
 
@@ -51,11 +52,14 @@ def register(sub) -> None:
     p.add_argument("--model", default=None, metavar="FILE",
                    help="board: the board model, one square per line, x y of its four corners in board units "
                         "(Zhang's Model.txt layout)")
-    add_pattern_option(p, "board, and twin of your own photos: the photos show this chessboard, and its dark squares "
+    add_pattern_option(p, "board, and twin of your own photos (a chessboard): the photos show this board, and its dark squares "
                           "between the inner corners are studied (in place of --model)")
     p.add_argument("--square", default=None, metavar="SIZE",
                    help="board, with --pattern: the side of one square, in the unit side lengths are reported in "
                         "(default 1: lengths in squares)")
+    p.add_argument("--marker", default=None, metavar="SIZE",
+                   help="board, with --pattern charuco:COLSxROWS:DICT: the printed side of one marker (its black "
+                        "border included), in the unit of --square (in squares without it, e.g. 0.75)")
     p.add_argument("--tone", default=None, metavar="stored|srgb|power:G|auto[:METHOD]",
                    help="board: how the photos' stored values are decoded before locating: 'stored' (default) as "
                         "stored; 'srgb' the sRGB curve; 'power:G' full*(v/full)**G (e.g. power:2.2); 'auto' (a "
@@ -122,7 +126,7 @@ def run(args) -> int:
         if args.backend != "local":
             raise InputError("--backend: not an option of `study board` (it runs in-process); drop it")
         report = run_board_study(args.inputs, out, model=args.model, pattern=args.pattern, square=args.square,
-                                 tone=args.tone,
+                                 tone=args.tone, marker=args.marker,
                                  methods=method_list(args.methods),
                                  channel=args.channel, thresholds=args.thresholds, progress=not args.no_progress)
         console.say(f"report: {report}")

@@ -4,10 +4,10 @@ A ChArUco board of ``cols`` x ``rows`` squares (``--pattern charuco:COLSxROWS:DI
 squares hold ArUco markers; its (cols - 1) x (rows - 1) inner corners are numbered k = r (cols - 1) + c by
 ``cv2.aruco``, row-major in the board's own frame (the markers fix its orientation: no turn or mirror to settle).
 
-- **OpenCV's corners** (``charuco_corners``): ``cv2.aruco.CharucoDetector(board).detectBoard`` on the photo as it
-  is (8-bit; a 16-bit photo stretched to 8 bits, ``calibration.to_uint8``): the markers found, the corners
-  interpolated from them and refined by OpenCV's cornerSubPix.  A photo's corners are those it finds (a partial
-  view counts); as ``calibrate`` lays them out, (K, 2) in id order with NaN where none was found.
+- **OpenCV's corners** (``detect.charuco.charuco_corners``): ``cv2.aruco.CharucoDetector(board).detectBoard``:
+  the markers found, the corners interpolated from them and refined by OpenCV's cornerSubPix.  A photo's corners
+  are those it finds (a partial view counts); as ``calibrate`` lays them out, (K, 2) in id order with NaN where
+  none was found.
 - **edgetruth's corners** (``charuco_grid_points``): as the chessboard path does (``grid_corners``): each inner
   corner where the two grid lines through it meet, each fitted to an edge method's points on both its halves.
   OpenCV's corners are the chessboard grid the line fit starts from (``chessboard.ChessboardView``), so a
@@ -26,78 +26,18 @@ import numpy as np
 from edgetruth import locate
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
-from edgetruth.evaluate.board.detect import chessboard as cb
-from edgetruth.evaluate.board.detect.correspond import Correspondence, project, rotation_deg
-from edgetruth.evaluate.board.detect.quads import BORDER_PX
+from edgetruth.evaluate.board.detect.charuco import (board_of, charuco_corners, charuco_view,  # noqa: F401
+                                                     detector_input, parity)
 from edgetruth.evaluate.board.detect.squares import board_candidates
 from edgetruth.evaluate.board.measure.grid_corners import (DEFAULT_METHOD as GRID_METHOD, GridPoints, open_halves,
                                                            to_opencv_order)
-from edgetruth.evaluate.calibration import to_uint8
 from edgetruth.locate.registry import camera_free
 from edgetruth.render.scene.charuco import CharucoBoard
-
 
 #: The edge method of ``--corners lines`` on a ChArUco board: the chessboard path's (``grid_corners``).  The markers'
 #: sides lie (square - marker) / 2 beside the squares' sides, inside its 11-point window; on renders it measured
 #: closer to the truth than the 5-point windows all the same (docs/board.md, ChArUco boards).
 DEFAULT_METHOD = GRID_METHOD
-
-
-def board_of(pattern, square_m: float, marker_m: float) -> CharucoBoard:
-    """The ``CharucoBoard`` of a ``--pattern charuco:COLSxROWS:DICT`` (``evaluate.pattern.BoardPattern``), its square
-    and marker side in metres; one ``InputError`` line when they do not make a board."""
-    if not (np.isfinite(marker_m) and 0 < marker_m < square_m):
-        raise InputError(f"--marker-m {marker_m:g}: the printed marker side (black border included) must be "
-                         f"positive and smaller than --square-m {square_m:g}")
-    if pattern.cols < 3 or pattern.rows < 3:
-        raise InputError(f"--pattern {pattern.text}: a ChArUco board of at least 3x3 squares")
-    return CharucoBoard(cols=pattern.cols, rows=pattern.rows, square_m=float(square_m), marker_m=float(marker_m),
-                        dictionary=pattern.dictionary, margin_m=0.0)
-
-
-def detector_input(image: np.ndarray) -> np.ndarray:
-    """The 8-bit image OpenCV's detector reads: an 8-bit photo as it is, any other stretched to 8 bits."""
-    img = np.asarray(image)
-    return img if img.dtype == np.uint8 else to_uint8(img)
-
-
-def charuco_corners(image: np.ndarray, board: CharucoBoard, detector=None) -> tuple[np.ndarray, int]:
-    """OpenCV's ChArUco corners in ``image``: ((K, 2) in id order, NaN where not found; markers found)."""
-    det = detector or cv2.aruco.CharucoDetector(board.cv_board())
-    cc, ids, _, mids = det.detectBoard(detector_input(image))
-    out = np.full(((board.cols - 1) * (board.rows - 1), 2), np.nan)
-    if ids is not None and len(ids):
-        out[np.ravel(ids)] = np.asarray(cc, np.float64).reshape(-1, 2)
-    return out, 0 if mids is None else len(mids)
-
-
-def parity(board: CharucoBoard) -> int:
-    """The chessboard model's parity (``chessboard.chessboard_model``): square (r, c) between the inner corners is
-    the board's square (r + 1, c + 1), dark where (r + c) % 2 == parity."""
-    dark = {tuple(rc) for rc in board._layout["dark_squares"].tolist()}
-    return 0 if (1, 1) in dark else 1
-
-
-def charuco_view(image: np.ndarray, board: CharucoBoard, corners: np.ndarray) -> tuple[object, cb.ChessboardView] | None:
-    """(model, view): OpenCV's corners of every inner corner as the chessboard grid ``grid_corners`` fits on;
-    None unless every corner was found."""
-    if not np.all(np.isfinite(corners)):
-        return None
-    pattern = (board.cols - 1, board.rows - 1)
-    model = cb.chessboard_model(pattern, 1.0, parity=parity(board), source=board.describe())
-    grid = np.asarray(corners, np.float64).reshape(pattern[1], pattern[0], 2)
-    quads = cb.square_corners(grid, model.parity)
-    h, w = np.asarray(image).shape[:2]
-    found = np.all((quads[..., 0] >= BORDER_PX) & (quads[..., 1] >= BORDER_PX) & (quads[..., 0] <= w - 1 - BORDER_PX)
-                   & (quads[..., 1] <= h - 1 - BORDER_PX), axis=1)
-    quads[~found] = np.nan
-    r, c = np.mgrid[0:pattern[1], 0:pattern[0]]
-    src = np.c_[c.ravel(), r.ravel()].astype(np.float64)
-    hom, _ = cv2.findHomography(src, grid.reshape(-1, 2), 0)
-    residual = float(np.sqrt(np.mean(np.sum((project(hom, src) - grid.reshape(-1, 2)) ** 2, axis=1))))
-    view = cb.ChessboardView(Correspondence(quads, found, hom, residual, False, rotation_deg(hom, model)),
-                             quads.copy(), model.parity, grid.reshape(-1, 2))
-    return model, view
 
 
 def charuco_grid_points(image: np.ndarray, board: CharucoBoard, method: str = DEFAULT_METHOD, detector=None,
@@ -136,7 +76,6 @@ def corner_finder(board: CharucoBoard, corners: str, line_frame: str | None = No
         raise InputError(f"--corners {corners!r}: give 'subpix' or 'lines' (or lines:METHOD, e.g. lines:canny_devernay)")
     spec = spec or DEFAULT_METHOD
     method, options = mo.resolve(spec, mo.study_options())
-
     locate.get_method(method)
     if not camera_free([method]):
         raise InputError(f"--corners {corners!r}: {method} needs a camera model, which a calibration does not have "

@@ -14,10 +14,12 @@ from pathlib import Path
 import numpy as np
 
 from edgetruth.errors import InputError
+from edgetruth.evaluate.board.detect.charuco import board_of, charuco_model
 from edgetruth.evaluate.board.detect.chessboard import chessboard_model
 from edgetruth.evaluate.board.model import BoardModel, read_model
 from edgetruth.evaluate.board.reference import read_corners, read_zhang_calibration, shipped_set
 from edgetruth.evaluate.calibration import parse_pattern
+from edgetruth.evaluate.pattern import parse_board_pattern
 from edgetruth.fileio import check_input_file
 from edgetruth.image_io import SUFFIXES, read_gray_scaled
 from edgetruth.resources import shipped_real_set_names
@@ -49,9 +51,13 @@ def _shipped_names() -> list[str]:
     return shipped_real_set_names()
 
 
-def board_model(model_path: str | None, pattern: str | None, square: str | float | None) -> BoardModel:
+def board_model(model_path: str | None, pattern: str | None, square: str | float | None,
+                marker: str | float | None = None) -> BoardModel:
     """The model the user gave: a model file, or a chessboard (``--pattern``, ``--square``; side lengths in squares
-    when no square size is given).  One InputError line when there is none, or both."""
+    when no square size is given), or a ChArUco board (``--pattern charuco:COLSxROWS:DICT``, ``--marker`` in the
+    unit of ``--square``).  One InputError line when there is none, or both."""
+    if marker is not None and not str(pattern or "").lower().startswith("charuco:"):
+        raise InputError("--marker: only a ChArUco board (--pattern charuco:COLSxROWS:DICT) has markers; drop it")
     if model_path is not None and pattern is not None:
         raise InputError("board study: --model and --pattern both given; give --model FILE for a board of separate "
                          "squares or --pattern COLSxROWS for a chessboard")
@@ -68,15 +74,32 @@ def board_model(model_path: str | None, pattern: str | None, square: str | float
             if not (size > 0 and np.isfinite(size)):
                 raise InputError(f"--square {square!r}: give the side of one square, a positive number (in the unit "
                                  "side lengths should be reported in)")
-        return chessboard_model(parse_pattern(pattern), size, "squares" if square is None else "board units")
+        units = "squares" if square is None else "board units"
+        if str(pattern).lower().startswith("charuco:"):
+            return _charuco_model(pattern, size, units, marker)
+        return chessboard_model(parse_pattern(pattern), size, units)
     if model_path is None:
         raise InputError("board study: no board model; give --model FILE (one square per line: x y of its "
                          "four corners) or, for a chessboard, --pattern COLSxROWS (inner corners)")
     return read_model(model_path)
 
 
+def _charuco_model(pattern: str, size: float, units: str, marker) -> BoardModel:
+    """A ChArUco board's model (``detect.charuco.charuco_model``): squares of ``size``, markers of ``marker`` (the
+    same unit)."""
+    bp = parse_board_pattern(pattern, kinds=("chessboard", "charuco"))
+    if marker is None:
+        raise InputError(f"--pattern {pattern}: give --marker, the printed side of one marker (its black border "
+                         "included) in the unit of --square (in squares without --square, e.g. 0.75)")
+    try:
+        m = float(marker)
+    except ValueError:
+        m = float("nan")
+    return charuco_model(board_of(bp, size, m), size, units)
+
+
 def resolve_inputs(items: list[str], model_path: str | None = None, pattern: str | None = None,
-                   square: str | float | None = None) -> BoardInputs:
+                   square: str | float | None = None, marker: str | float | None = None) -> BoardInputs:
     """Photos, folders or one shipped set name -> ``BoardInputs`` (one InputError line on bad input).  The model:
     ``model_path`` (separate squares) or ``pattern``/``square`` (a chessboard), or the shipped set's own."""
     if not items:
@@ -130,7 +153,7 @@ def resolve_inputs(items: list[str], model_path: str | None = None, pattern: str
     if len(photos) < MIN_PHOTOS:
         raise InputError(f"board study: {len(photos)} photo(s); calibration with leave-one-image-out needs at "
                          f"least {MIN_PHOTOS} photos of the board")
-    return BoardInputs(photos, board_model(model_path, pattern, square))
+    return BoardInputs(photos, board_model(model_path, pattern, square, marker))
 
 
 def load_photos(photos: list[Path], channel: str = "luma") -> list[np.ndarray]:

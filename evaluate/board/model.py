@@ -31,6 +31,9 @@ class BoardModel:
     pattern: tuple[int, int] | None = None
     #: a chessboard's dark colour class: square (r, c) is dark where (r + c) % 2 == parity
     parity: int = 0
+    #: a ChArUco board's ``detect.charuco.CharucoGrid``: its grid comes from OpenCV's CharucoDetector, not
+    #: findChessboardCorners; None for any other board
+    charuco: object = None
 
     def __len__(self) -> int:
         return int(self.corners.shape[0])

@@ -212,11 +212,11 @@ def write_board_run(run: BoardRun, out: Path, channel: str, methods: list[str], 
 
 def run_board_study(items: list[str], out, model: str | None = None, methods=None, channel: str = "luma",
                     thresholds=None, progress: bool = True, pattern: str | None = None, square=None,
-                    tone: str | None = None) -> Path:
+                    tone: str | None = None, marker=None) -> Path:
     """Run the board study (module docstring) into ``out``; returns the path of its report.md.  The board: ``model``
     (a model file of separate squares), ``pattern``/``square`` (a chessboard), or the shipped set's own.  ``tone``:
     how the stored values are decoded before locating (``tone.parse_tone``; default as stored)."""
-    inp = resolve_inputs(list(items), model, pattern, square)
+    inp = resolve_inputs(list(items), model, pattern, square, marker)
     # all methods but those that need a camera model (patch_esf_fit's PSF tables): there is none here
     methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:

@@ -460,9 +460,10 @@ def photo_section(per_image: list[dict]) -> list[str]:
     return ["", "## Photos", "",
             f"{len(per_image)} photos: {n_dark} dark targets, {n_light} light targets"
             + (f", {n_none} without a target found" if n_none else "")
-            + ".  Polarity: what the CSV asked → what target finding used (auto keeps the polarity whose region "
-            "stands out more from the band around it: the contrast column, (o − i)/(o + i) of the median levels "
-            "outside and inside, sign flipped for a light target).  l is the side of a square, the "
+            + ".  Polarity: what the CSV asked → what target finding used (auto: the regions of both polarities "
+            "compete, and the best-scoring one is kept: the choice column).  Contrast: (o − i)/(o + i) of the "
+            "median levels outside and inside the region kept, sign flipped for a light target.  l is the side of "
+            "a square, the "
             "diameter of a circle and the *width* (left/right side lines) of a rectangle, with size_m its "
             "horizontal side.  No per-point tables: a photo has no exact outline to score points against.", "",
             table(["image", "group", "shape", "size (m)", "distance (cm)", "polarity", "contrast", "choice",

@@ -118,6 +118,8 @@ def _detect(image: np.ndarray, pattern: tuple[int, int]) -> np.ndarray | None:
 
 def find_squares(image: np.ndarray, model: BoardModel) -> ChessboardView | None:
     """The model's dark squares in ``image`` (module docstring), or None when OpenCV does not find the board."""
+    if model.charuco is not None:  # a ChArUco board: OpenCV's CharucoDetector gives the grid (detect.charuco)
+        return model.charuco.find_squares(image, model)
     cols, rows = model.pattern
     inner = _detect(image, model.pattern)
     if inner is None:
@@ -146,7 +148,9 @@ def find_squares(image: np.ndarray, model: BoardModel) -> ChessboardView | None:
 def settle_parity(images, model: BoardModel) -> BoardModel:
     """The model with the photos' dark class when COLS and ROWS are both even (no symmetry of the board swaps its
     colours, so which class is dark is a fact of the print): the class most photos show.  Any other board's model
-    is returned as it is."""
+    is returned as it is (a ChArUco board's too: its layout fixes the parity)."""
+    if model.charuco is not None:
+        return model
     cols, rows = model.pattern
     if _turned(np.zeros((rows, cols, 2))) is not None:
         return model

@@ -99,9 +99,13 @@ def header_lines(inp, used_names: list[str], size: tuple[int, int], channel: str
     tau = mo.thresholds_in_use(thresholds)
     w, h = size
     chess = inp.model.pattern is not None
+    if chess and inp.model.charuco is not None:
+        squares = ("OpenCV's ChArUco corners (CharucoDetector: markers, interpolation, cornerSubPix; every corner "
+                   "found) → the dark squares between them (the board's own layout)")
     if chess:
-        squares = ("OpenCV's chessboard corners (findChessboardCorners, cornerSubPix) → the dark squares between "
-                   "them (a 180° turn or a mirror puts the dark squares on the model's)")
+        squares = squares if inp.model.charuco is not None else (
+            "OpenCV's chessboard corners (findChessboardCorners, cornerSubPix) → the dark squares between "
+            "them (a 180° turn or a mirror puts the dark squares on the model's)")
         model_line = (f"- Model: {inp.model.source}: the {len(inp.model)} dark squares between the "
                       f"{inp.model.pattern[0]}×{inp.model.pattern[1]} inner corners, side "
                       f"{inp.model.square:.4g} {inp.model.units}.")

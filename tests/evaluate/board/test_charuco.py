@@ -125,3 +125,28 @@ def test_calibrate_command(photos, tmp_path, capsys):
 def test_board_of_refuses_a_marker_larger_than_its_square():
     with pytest.raises(InputError, match="marker"):
         ch.board_of(parse_board_pattern("charuco:5x7:DICT_4X4_50"), 0.04, 0.04)
+
+
+def test_board_study_on_charuco_photos(photos, tmp_path, capsys):
+    """``study board --pattern charuco:... --marker``: the chessboard study on the ChArUco board's dark squares, its
+    grid from OpenCV's CharucoDetector; every photo's 8 squares found, OpenCV's corners as the reference row, fx
+    near the truth (600 px) for both rows; --marker is required with a ChArUco pattern and refused without one."""
+    import csv
+
+    from edgetruth.cli import main
+
+    folder = str(photos[0][1].parent)
+    out = tmp_path / "study"
+    assert main(["study", "board", folder, "--pattern", "charuco:5x7:DICT_4X4_50", "--square", "40", "--marker", "30",
+                 "--methods", "canny_devernay", "-o", str(out), "--no-progress"]) == 0
+    report = (out / "report.md").read_text()
+    assert "ChArUco 5x7 squares, markers 0.75 of a square" in report and "CharucoDetector" in report
+    assert "| 8 | 8 |" in report  # every photo: all 8 dark squares between the inner corners
+    rows = {r["row"]: r for r in csv.DictReader((out / "summary.csv").open())}
+    assert set(rows) == {"canny_devernay", "opencv_corners"}
+    for r in rows.values():
+        assert abs(float(r["fx"]) / K[0, 0] - 1) < 0.005 and abs(float(r["fy"]) / K[1, 1] - 1) < 0.005
+    assert main(["study", "board", folder, "--pattern", "charuco:5x7:DICT_4X4_50", "-o", str(tmp_path / "x")]) == 2
+    assert "--marker" in capsys.readouterr().err
+    assert main(["study", "board", folder, "--pattern", "4x6", "--marker", "0.75", "-o", str(tmp_path / "y")]) == 2
+    assert "only a ChArUco board" in capsys.readouterr().err

@@ -100,3 +100,21 @@ def test_every_shipped_spec_names_the_modes_its_images_use(capsys):
             assert re.search(r'(?m)^board_mode = "', text), name
     assert _warnings(capsys) == []
 
+
+
+def test_the_benchmarks_own_spec_is_the_issues(tmp_path, capsys):
+    """``edgetruth bench --only modes`` renders a new user's spec: 9 full-resolution T1 images at 0.5 / 1.5 / 2.5 m,
+    spp 64, edge_spp 4096, no edge_mode key (so "frame", silently), and the same naming "path"."""
+    from edgetruth.render.bench import DEFAULT_MODE_SPEC
+
+    specs = {}
+    for label, mode in (("default", ""), ("path", 'edge_mode = "path"')):
+        p = tmp_path / f"{label}.toml"
+        p.write_text(DEFAULT_MODE_SPEC.format(mode=mode).replace('name = "own_t1"', f'name = "own_{label}"'))
+        specs[label] = load_spec(p)
+    d, p = specs["default"], specs["path"]
+    assert "edge_mode" not in DEFAULT_MODE_SPEC.format(mode="")
+    assert (d.render.edge_mode, p.render.edge_mode) == ("frame", "path") and _warnings(capsys) == []
+    assert (d.render.spp, d.render.edge_spp, d.camera.width_px, d.camera.height_px) == (64, 4096, 1280, 1024)
+    assert sorted(j.distance_cm for j in d.jobs) == [50.0] * 3 + [150.0] * 3 + [250.0] * 3
+    assert {j.target for j in d.jobs} == {"T1"} and d.n_images == p.n_images == 9
