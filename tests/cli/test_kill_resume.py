@@ -112,6 +112,7 @@ def reference(tmp_path_factory):
     return spec, ref
 
 
+@pytest.mark.slow
 def test_sigkill_at_random_moments_then_resume_is_byte_identical(tmp_path, reference):
     spec, ref = reference
     t0 = time.perf_counter()

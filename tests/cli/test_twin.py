@@ -11,6 +11,7 @@ from edgetruth.cli import main
 from tests.evaluate.board.chessboard_images import write_views
 
 
+@pytest.mark.slow
 def test_twin_of_four_views(tmp_path, capsys):
     """4 PNG views -> DIR/twin.toml (one group per view, PNG out, the camera by relative path), DIR/camera.toml
     (fx 600 to 0.1 %) and DIR/measurements.json; the spec loads from any directory; the printed lines say how to
@@ -128,6 +129,7 @@ def _zhang_folder(tmp_path):
     return photos, s["model"]
 
 
+@pytest.mark.slow
 def test_twin_of_a_board_of_separate_squares(tmp_path, capsys):
     """Zhang's 5 photos with `--model Model.txt --model-unit-m 0.0254`: DIR holds the model (its bytes), the spec
     renders from it (5 groups, poses in inches), the tone is the assumed power (2.2, or --tone-power's) and says so,

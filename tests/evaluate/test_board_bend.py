@@ -154,6 +154,7 @@ def test_opencv_photos_bend(tmp_path, capsys):
     assert b["cubic"]["bend_share"] > q["bend_share"] and "the board bends" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_a_rendered_curl_reads_back(fast_variant, tmp_path, capsys):
     """The closed loop: OpenCV's twin rendered with each photo's own curl (``scenes/opencv_left_twin_bent.toml``,
     16 spp) and calibrated from its PNGs as the photos are (line corners, 5-term model): the check finds the bend

@@ -38,6 +38,7 @@ def test_undistort_px_and_distort_px_invert_each_other():
     assert np.isnan(distort_px(out, K, dist)[5]).all()
 
 
+@pytest.mark.slow
 def test_calibration_spec_recovers_fx_and_principal_point(tmp_path, fast_variant):
     """The `calibration` spec as shipped (20 boards, 1280x1024, default camera, every pixel composited: no
     Monte-Carlo noise, so its spp only sets the shading's). Measured (2026-12-04): fx -0.011 %, fy -0.013 %,

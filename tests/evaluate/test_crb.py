@@ -128,6 +128,7 @@ def _ml_footprint_fit(img, edge, px, py, mask, s):
     return least_squares(lambda p: model(p) - y, p0, method="lm", xtol=1e-12).x[0]
 
 
+@pytest.mark.slow
 def test_monte_carlo_an_efficient_estimator_reaches_the_footprint_bound():
     """Straight noisy edges at random angles (blur 1, sigma_n/B = 0.02), the 11-sample profile's footprint
     (11 pixels on axis, 23-27 oblique): the ML fit over exactly those pixels has RMSE / bound = 1.022

@@ -53,6 +53,7 @@ def _inner(cand, margin=7):
     return cand.subset(np.nonzero(keep)[0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("blur_known", [False, True])
 def test_noise_free_line_is_exact(spread, blur_known):
     img = _exact_image(LINE, spread)

@@ -20,7 +20,6 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-pytestmark = pytest.mark.slow
 
 
 #: what this (checkout) process set or inherited must not help the installed wheel
@@ -271,6 +270,7 @@ def test_numba_cache_from_a_read_only_site_packages(installed):
         _run(["chmod", "-R", "u+w", site], work)
 
 
+@pytest.mark.slow
 def test_wheel_runs_the_board_study_on_the_shipped_real_photos(installed):
     """Zhang's photos, model and corners are package data: the board study runs from the wheel, from
     any folder, and its reference row (Zhang's own corners) gives his calibration."""

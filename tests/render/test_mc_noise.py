@@ -49,6 +49,7 @@ def _slack(n: int) -> float:
 
 @pytest.mark.parametrize("distance_m", [1.5, pytest.param(0.5, marks=pytest.mark.slow),
                                         pytest.param(2.5, marks=pytest.mark.slow)])
+@pytest.mark.slow
 def test_mc_noise_of_the_path_reference_band(distance_m):
     from edgetruth.render.mc_noise import edge_mc_noise
     from edgetruth.render.sensor.linear_model import SensorModel

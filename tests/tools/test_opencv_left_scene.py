@@ -17,6 +17,7 @@ def tool():
     return load_tool("tools/twins/opencv_left_scene.py", "opencv_left_scene")
 
 
+@pytest.mark.slow
 def test_shipped_twins_are_the_packaged_derivation(tool):
     """Derived now from the shipped photos, the three files are the shipped ones byte for byte; the bent twin differs
     from the flat one only in its header, name, description, one board_bend_mm a group and its noise (the loop

@@ -81,6 +81,7 @@ def _fd_fisher_bound(optics, geo, A, B, mask, var_fn):
     return crb.bound_from_fisher(F)
 
 
+@pytest.mark.slow
 def test_circle_bound_equals_a_direct_fisher_computation():
     edge = CircleEdge(31.6, 32.2, 17.0, False)
     cand = _points(edge, 7)

@@ -61,6 +61,7 @@ def render_clean(target: str, distance_m: float, spp: int = 64, roll_deg: float 
     return img.astype(np.float64), (x0, y0), gt, cam
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("target", ["T1", "T2"])
 def test_dynamic_erf_4p_ranges_clean_renders_within_0p1_percent(target):
     from edgetruth.evaluate.calibration import Calibration

@@ -7,6 +7,8 @@ import csv
 import json
 from pathlib import Path
 
+import pytest
+
 from edgetruth.evaluate import design as dc
 from edgetruth.render.testing import TINY_CAMERA
 
@@ -73,6 +75,7 @@ def test_factor_tables_cover_every_factor_and_the_groups_outside():
     assert g.levels == ["near"] and not g.paired and len(g.rows) == 4
 
 
+@pytest.mark.slow
 def test_custom_factor_and_group_are_reported(tmp_path, fast_variant):
     from edgetruth.cli import main
     from edgetruth.render.dataset.driver import render_spec

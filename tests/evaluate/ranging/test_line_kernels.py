@@ -71,6 +71,7 @@ def test_pairwise_sum_is_numpys_sum():
         assert lk.pairwise_sum(a, 0, n) == a.sum() or (n == 0 and lk.pairwise_sum(a, 0, 0) == 0.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", range(300))
 def test_fit_equals_the_numpy_implementation(case):
     """Edge-like point sets: a line at any angle, 6-400 points, sub-pixel noise, gross outliers, a few

@@ -87,6 +87,7 @@ k1 = -0.05
 """
 
 
+@pytest.mark.slow
 def test_evaluate_scores_an_own_scene_per_point_and_says_it_is_not_ranged(tmp_path, capsys, fast_variant):
     """`edgetruth evaluate` on a two-shape scene stopped with "circle pose: 4 edge points (need 8)" (a rectangle's
     truth read as a circle's): now its rows say why it is not ranged, the report's header counts them, and Table

@@ -74,6 +74,7 @@ def test_cells_share_the_pose_slots(tmp_path):
     assert len([g for g in full.groups if g.paired]) == 4
 
 
+@pytest.mark.slow
 def test_reused_radiance_equals_a_direct_render_bit_for_bit(tmp_path, fast_variant):
     from edgetruth.render import open_dataset
     from edgetruth.render.dataset.image import get_rig, job_pose

@@ -95,6 +95,7 @@ def _crop_at(cam, pose, point_local, size: int = 48) -> tuple[int, int, int, int
     "squares corner, 0.6 m defocused, tilted",
     pytest.param("chessboard inner corner, 1.5 m in focus", marks=pytest.mark.slow),
     pytest.param("plate corner, 1.0 m, tilted", marks=pytest.mark.slow)])
+@pytest.mark.slow
 def test_composite_agrees_with_the_path_tracer(fast_variant, case):
     """Mean of two 16,384-spp path renders against the composite (256 spp at 16-px nodes): the difference is
     the two renders' Monte-Carlo error and no more, its mean below 1e-4 of the white."""
@@ -149,6 +150,7 @@ def test_darks_carry_only_the_whites_relative_noise(fast_variant):
     assert path_dark > 3.0 * frame_dark
 
 
+@pytest.mark.slow
 def test_board_mode_in_a_spec(tmp_path, fast_variant):
     """``board_mode = "frame"``: the checkerboard image agrees with the path-traced one to the latter's noise, its
     JSON says how it was made, the target images are untouched; a curled board is refused (exit 2 in the CLI)."""

@@ -439,6 +439,7 @@ def assert_agrees_with_reference(r: dict) -> None:
     assert abs(r["position_diff_px"]) <= 0.002
 
 
+@pytest.mark.slow
 def test_analytic_mode_through_render_job(tmp_path, fast_variant):
     """``edge_mode = "analytic"`` in a spec: render_job composites the band, records the mode, and the
     image agrees with the path-traced band (tiny camera: box only, defocused circles at 0.6-0.9 m)."""

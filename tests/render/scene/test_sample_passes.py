@@ -86,6 +86,7 @@ def test_pass_seeds_depend_on_seed_and_pass_alone():
     assert sp.pass_seed(7, 3) == sp.pass_seed(7, 3)
 
 
+@pytest.mark.slow
 def test_a_render_split_as_on_a_gpu_matches_the_exact_coverage(fast_variant, monkeypatch):
     """An emissive square through a perfect lens: each pixel's value is the share of it the square covers
     (``edge_coverage.pixel_coverage``, exact).  At 256 spp split into 4 x 64 as on a GPU, the error against that

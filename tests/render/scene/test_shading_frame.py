@@ -84,6 +84,7 @@ def test_inside_mask_is_the_coverage_beyond_the_kernels_reach():
         assert 0.2 < mask.mean() < 0.9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("where,target", [("corner", "T1"), ("centre", "T4")])
 def test_interpolated_shading_is_the_rendered_shading(fast_variant, where, target):
     """S_out at the image corner (falloff, distortion) and S_in of the glossy target (its highlight) at

@@ -117,6 +117,7 @@ def test_undistorted_points_keep_their_normals_across_the_mapped_edge():
     assert (unx * nx + uny * ny).min() > 0.5
 
 
+@pytest.mark.slow
 def test_calibrate_with_undistorted_lines(tmp_path, capsys):
     """`edgetruth calibrate --corners lines` on 6 views through a barrel lens (``BARREL``, fx 600, k1 k2 model): fitted
     in the photo (``--line-frame photo``) the lines give fx 0.43 px (0.07 %) long; refitted with the calibration's own
@@ -182,6 +183,7 @@ def test_open_halves_run_to_the_neighbours_and_mirror_past_the_grid():
     assert np.allclose(col, [[[20, 7], [20, 0]], [[20, 7], [20, 14]]])
 
 
+@pytest.mark.slow
 def test_opencv_twin_calibrates_to_its_own_camera(fast_variant, tmp_path):
     """OpenCV's twin (scenes/opencv_left_twin.toml, 13 renders at 16 spp through the photos' lens, k1 -0.28) calibrated
     as its photos are (`calibrate --corners lines`): the default fit reads the fx it was rendered with to 0.05 %; the

@@ -20,6 +20,7 @@ def test_group_names():
     assert td.group_name("_x.png") == "p_x" and td.safe_name("my twin") == "my_twin"
 
 
+@pytest.mark.slow
 def test_derived_twin_of_jpeg_views(tmp_path):
     """4 JPEG views (quality 75) of a known camera: the measured camera is it (fx 600 to 0.1 %), the output is the
     photos' JPEG quality, the tone linear (noise-free linear renders: power 1 within its interval), one group per
@@ -43,6 +44,7 @@ def test_derived_twin_of_jpeg_views(tmp_path):
     assert max(len(ln) for ln in scene.splitlines() if ln.startswith("#")) <= 116
 
 
+@pytest.mark.slow
 def test_rendered_twin_puts_the_board_where_the_photos_have_it(fast_variant, tmp_path):
     """The twin of 4 PNG views (8-bit PNG out), rendered at 4 spp: every inner corner of its truth lies within
     0.05 px of the view's true corner (measured: mean 0.006, max 0.010 px): the calibration, the poses and the
@@ -84,6 +86,7 @@ def test_rendered_twin_puts_the_board_where_the_photos_have_it(fast_variant, tmp
     assert max(np.abs(gap)) < 0.03
 
 
+@pytest.mark.slow
 def test_a_tone_curve_is_measured_and_rendered(fast_variant, tmp_path):
     """Views stored through a power curve (s = 255 (v/255)^(1/1.6), dark 40 and white 210 linear: 80 and 226
     stored): the derivation measures the power (output_gamma within 0.1 of 1.6) and takes levels, contrast and noise
@@ -221,6 +224,7 @@ def test_raw_and_8_bit_options_are_refused_on_the_other(tmp_path):
                       td.TwinAssumptions(white_noise_dn=3.0))
 
 
+@pytest.mark.slow
 def test_sharpened_views_give_a_sharpened_twin(fast_variant, tmp_path):
     """4 PNG views sharpened as the renderer sharpens (unsharp mask along both axes, amount 1.5, σ 1 px, on the stored
     values): their sides overshoot by 9 % of the step, so the twin renders a mask along both axes (its amount

@@ -91,6 +91,7 @@ def test_a_model_twin_needs_its_model_file_and_no_bend(zhang):
         td.twin_texts(m, "z", "x", "camera.toml", 0.0254, "x", bend=True, model_ref="model.txt")
 
 
+@pytest.mark.slow
 def test_rendered_twin_of_zhangs_photos(zhang, fast_variant, tmp_path):
     """The twin ``edgetruth twin --model`` writes of Zhang's photos, rendered at 64 spp (~10 s): each image's exact
     square corners are the model carried by its photo's measured pose and camera (to 1e-3 px, the squares at the

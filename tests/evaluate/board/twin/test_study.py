@@ -161,6 +161,7 @@ def test_opencv_left_twin_reproduces_the_clipped_photos_shrink(tmp_path, fast_va
     assert flat["twin, exact outline"]["quadratic"]["depth_mm_median"] < 0.05
 
 
+@pytest.mark.slow
 def test_bent_opencv_twin_reads_its_bend_back(tmp_path, fast_variant):
     """``--twin opencv_left_twin_bent`` (each board curled as its photo's; left01, 03, 05 at 4 spp): Table 5 finds
     the bend on the twin too (measured 70 % of its residual energy here, 93 % over all 13 at 256 spp; the flat
@@ -188,6 +189,7 @@ def test_bent_opencv_twin_reads_its_bend_back(tmp_path, fast_variant):
     assert np.abs(np.array(exact["coefficients_mm"]) - given).max() < 0.05
 
 
+@pytest.mark.slow
 def test_twin_study_of_your_own_photos(tmp_path, fast_variant, capsys):
     """Your own photos (4 analytic PNG views of a 9x6 board) -> `edgetruth twin` -> `study twin PHOTOS --pattern 9x6
     --twin DIR/twin.toml` (4 spp): the report names the twin, Table 5 is there, and against its exact outline the
