@@ -31,7 +31,7 @@ test: $(STAMP)
 test-all: $(STAMP)
 	$(PY) -m pytest -q $(XDIST)
 
-# the old name of `make test`
+# kept for old scripts: it ran what `make test` runs now
 test-fast: test
 
 bench: $(STAMP)
