@@ -556,7 +556,7 @@ MIN_CORNERS_PER_PHOTO = 6
 def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, int], square_m: float,
                      model: str = DEFAULT_DIST_MODEL, window_px: int | None = None, channel: str = "luma",
                      progress=None, corner_finder=None, corner_label: str | None = None,
-                     undistort_lines: bool = False) -> tuple[Calibration, list[PhotoResult]]:
+                     undistort_lines: bool = False, points: list | None = None) -> tuple[Calibration, list[PhotoResult]]:
     """Zhang's calibration from real photos of a chessboard: ``photos`` = [(name, path)] (``find_photos``).
 
     Each photo is read with ``edgetruth.image_io.read_gray(path, channel)``; its corners with
@@ -565,7 +565,8 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     ``edgetruth.evaluate.board.measure.grid_corners.line_corners``); ``corner_label`` then names it in the calibration's
     method line.  ``undistort_lines``: ``corner_finder`` returns a photo's grid (``.corners(lens)``, e.g.
     ``grid_corners.grid_points``) and the corners are refitted with the calibration's own lens, where the grid
-    lines are straight, and the camera recalibrated, until no corner moves by ``STRAIGHTEN_TOL_PX``.  Each photo
+    lines are straight, and the camera recalibrated, until no corner moves by ``STRAIGHTEN_TOL_PX``.  ``points``
+    (a list, optional) receives per used photo (name, its (m, 2) image points as calibrated, px).  Each photo
     uses its measured corners (at least ``MIN_CORNERS_PER_PHOTO``).  A photo where the board is not found is
     kept in the results (``found = False``) and left out of the fit; fewer than 3 boards, or photos
     of different sizes, raise ``InputError``.  ``square_m`` (metres) scales the board, hence the
@@ -625,6 +626,8 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
                         f"refits; the corners moved by up to {moved:.3f} px)")
     for r, v in zip([r for r in results if r.found], per_view):
         r.rms_px = v
+    if points is not None:
+        points.extend((name, np.asarray(i, float).reshape(-1, 2)) for name, i in zip(used, img_list))
     narrowed = sum(r.subpix_narrowed or 0 for r in results if r.found)
     window = (f"0.4 of the smallest imaged square side; {narrowed} corner(s) moved more than {NARROW_SHIFT_PX} px "
               f"with {NARROW_WINDOW_FRACTION} of it and took that" if window_px is None else

@@ -12,6 +12,7 @@ from edgetruth.cli import (add_backend_options, add_image_options, add_pattern_o
 from edgetruth.errors import InputError
 from edgetruth.evaluate.board.study import run_board_study
 from edgetruth.evaluate.board.twin.study import run_twin_study
+from edgetruth.evaluate.board.which_pattern.study import DEFAULT_SPEC as PATTERN_SPEC, run_pattern_study
 from edgetruth.resources import default_runs_dir
 
 
@@ -21,6 +22,7 @@ _SYNTHETIC_ONLY = {"preset": "--preset", "images_per_scenario": "--images-per-sc
 _BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model", "pattern": "--pattern", "square": "--square", "tone": "--tone",
                "marker": "--marker"}
 _TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant", "twin": "--twin"}
+_PATTERN_ONLY = {"spec": "--spec"}
 
 
 def register(sub) -> None:
@@ -42,8 +44,13 @@ def register(sub) -> None:
                                    "both with the photo model, and writes DIR/report.md with real and twin side "
                                    "by side and the Spearman rank correlations (docs/board.md, 'Digital twin'); "
                                    "~3-5 min on 2 cores; of your own photos: `edgetruth study twin PHOTOS... "
-                                   "--pattern 9x6 --twin DIR/twin.toml -o RUN` (`edgetruth twin` writes the twin).")
-    p.add_argument("kind", choices=["synthetic", "board", "twin"], help="which study")
+                                   "--pattern 9x6 --twin DIR/twin.toml -o RUN` (`edgetruth twin` writes the twin). "
+                                   "pattern: \"which pattern?\": a chessboard, a circle grid and a ChArUco board "
+                                   "rendered on the same poses (scenes/which_pattern.toml, resumable), each calibrated "
+                                   "with OpenCV's detector and edgetruth's against the exact truth, with paired "
+                                   "tests and the circle-centre bias against tilt (docs/patterns.md); ~8 min on 2 "
+                                   "cores.")
+    p.add_argument("kind", choices=["synthetic", "board", "twin", "pattern"], help="which study")
     p.add_argument("inputs", nargs="*", metavar="PHOTOS",
                    help="board: photo files, folders of photos, or a shipped set's name (zhang1998: its photos, "
                         "model, corners and published calibration; opencv_left: OpenCV's chessboard photos); twin: "
@@ -76,6 +83,9 @@ def register(sub) -> None:
                         "(default: the set's, SET_twin); opencv_left_twin_bent curls each board as its photo's "
                         "(docs/board.md, 'A bent twin'); with your own photos, required: e.g. the DIR/twin.toml "
                         "`edgetruth twin` writes")
+    p.add_argument("--spec", default=None, metavar="SPEC",
+                   help=f"pattern: the boards to compare, a shipped spec or a TOML path (default {PATTERN_SPEC}: "
+                        "copy it to change the camera, boards, poses, focus or light)")
     p.add_argument("--preset", choices=["quick", "full"], default=None,
                    help="synthetic: quick (default): 24 images per scenario (~1 min); full: 200 per scenario "
                         "(the seed's scale)")
@@ -108,7 +118,7 @@ def run(args) -> int:
         # one name that is not a path: a shipped set; else your own photos, with their twin scene (--twin)
         shipped = len(args.inputs) == 1 and not Path(args.inputs[0]).exists()
         board_only = {k: v for k, v in _BOARD_ONLY.items() if k != "inputs" and (shipped or k == "tone")}
-        _refuse(args, _SYNTHETIC_ONLY | board_only, "twin" + (" SET" if shipped else " PHOTOS..."))
+        _refuse(args, _SYNTHETIC_ONLY | board_only | _PATTERN_ONLY, "twin" + (" SET" if shipped else " PHOTOS..."))
         if args.backend != "local":
             raise InputError("--backend: not an option of `study twin` (it renders in-process); drop it")
         if not args.inputs:
@@ -121,8 +131,20 @@ def run(args) -> int:
                                 pattern=args.pattern, square=args.square)
         console.say(f"report: {report}")
         return 0
+    if args.kind == "pattern":
+        _refuse(args, {k: v for k, v in _SYNTHETIC_ONLY.items() if k != "workers"} | _BOARD_ONLY | _TWIN_ONLY,
+                "pattern")
+        if args.backend != "local" or args.methods:
+            raise InputError("--backend/--methods: not options of `study pattern` (it renders with local workers "
+                             "and measures with erf4p_fixed11); drop them")
+        report = run_pattern_study(out, args.spec or PATTERN_SPEC, progress=not args.no_progress,
+                                   workers=args.workers,
+                                   command="edgetruth study pattern" + (f" --spec {args.spec}" if args.spec else "")
+                                           + f" -o {out}")
+        console.say(f"report: {report}")
+        return 0
     if args.kind == "board":
-        _refuse(args, _SYNTHETIC_ONLY | _TWIN_ONLY, "board")
+        _refuse(args, _SYNTHETIC_ONLY | _TWIN_ONLY | _PATTERN_ONLY, "board")
         if args.backend != "local":
             raise InputError("--backend: not an option of `study board` (it runs in-process); drop it")
         report = run_board_study(args.inputs, out, model=args.model, pattern=args.pattern, square=args.square,
@@ -133,7 +155,7 @@ def run(args) -> int:
         return 0
     from edgetruth.evaluate.synthetic.study import run_synthetic_study  # lazy: study loads numba
 
-    _refuse(args, _BOARD_ONLY | _TWIN_ONLY, "synthetic")
+    _refuse(args, _BOARD_ONLY | _TWIN_ONLY | _PATTERN_ONLY, "synthetic")
     report = run_synthetic_study(out, args.preset or "quick", method_list(args.methods), progress=not args.no_progress,
                                  images_per_scenario=args.images_per_scenario, backend=args.backend,
                                  workers=args.workers or 1, address=args.address, thresholds=args.thresholds)

@@ -103,6 +103,9 @@ def view_points(spec: Spec, job: Job) -> np.ndarray:
     if job.kind == "target":
         size_m = spec.target_size_m
         return paired_view_outline(spec, size_m) if job.slot is not None else view_outline_local(job.target, size_m)
+    if job.slot is not None:  # a design's board cells (one kind or several) share each slot's pose
+        kinds = sorted({g.kind for g in spec.groups if g.paired})
+        return np.concatenate([board_of(spec, k).plate_corners_local() for k in kinds])
     return board_of(spec, job.kind).plate_corners_local()
 
 
@@ -205,28 +208,28 @@ def render_job(spec: Spec, job: Job, crop=None, timings: dict | None = None):
                                   "meaning": "analytic MTF50 (pixel x PSF x defocus disk) at the target centre"}
     elif job.kind == "squares":
         board = spec.squares
-        pose = job_pose(job, camera, board.plate_corners_local())
+        pose = job_pose(job, camera, view_points(spec, job))
         rig, le, bend, sag = _board_state(job, "squares", camera, settings, board, crop, pose, e_render)
         gt = squares_ground_truth(camera, pose, board, bend, sag)
     elif job.kind == "circles_grid":
         from edgetruth.render.scene.circles_truth import circles_ground_truth
 
         board = spec.circles_grid
-        pose = job_pose(job, camera, board.plate_corners_local())
+        pose = job_pose(job, camera, view_points(spec, job))
         rig, le, bend, sag = _board_state(job, "circles_grid", camera, settings, board, crop, pose, e_render)
         gt = circles_ground_truth(camera, pose, board)
     elif job.kind == "charuco":  # rendered as its dark squares and marker cells (render.scene.charuco)
         from edgetruth.render.scene.charuco_truth import charuco_ground_truth
 
         board = spec.charuco.squares
-        pose = job_pose(job, camera, board.plate_corners_local())
+        pose = job_pose(job, camera, view_points(spec, job))
         rig, le, bend, sag = _board_state(job, "squares", camera, settings, board, crop, pose, e_render)
         gt = charuco_ground_truth(camera, pose, spec.charuco, bend, sag)
     else:
         board = spec.checkerboard
         if settings.checkerboard_spp:  # the board's own spp; the JSON's render.spp says what was used
             settings = replace(settings, spp=settings.checkerboard_spp, checkerboard_spp=0)
-        pose = job_pose(job, camera, board.plate_corners_local())
+        pose = job_pose(job, camera, view_points(spec, job))
         rig, le, bend, sag = _board_state(job, "checkerboard", camera, settings, board, crop, pose, e_render)
         gt = checker_ground_truth(camera, pose, board, bend, sag)
     key = (spec.identity_sha256, job.radiance_unit, job.slot, crop)

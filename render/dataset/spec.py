@@ -173,8 +173,13 @@ FACTOR_KEYS = [
     Key("levels", "tables", REQUIRED, "", "[{name = ..., <group keys>}, ...]: each level sets any [[group]] key "
         "except the pose keys (target, irradiance_w_m2, sensor, camera, ...)"),
 ]
-#: keys a level may set: the group's own keys except its name, kind and the pose keys (shared by every cell)
-LEVEL_KEYS = [Key("name", "name", REQUIRED, "", "level name (part of the cell name)")] + [
+#: the boards a level's ``kind`` may name: cells of different boards share pose slots (a "which pattern?" design)
+BOARD_KINDS = ("checkerboard", "squares", "charuco", "circles_grid")
+#: keys a level may set: the group's own keys except its name and the pose keys (shared by every cell), and a
+#: board kind (every cell a board, drawn on the same slots: the board centre's pose is the same in each)
+LEVEL_KEYS = [Key("name", "name", REQUIRED, "", "level name (part of the cell name)"),
+              Key("kind", "str", None, "", "a board kind (the design's cells then compare boards on the same pose "
+                  "slots; every cell must be a board)", choices=BOARD_KINDS)] + [
     k for k in GROUP_KEYS if k.name not in POSE_KEYS and k.name not in ("name", "kind") + GROUP_ONLY_KEYS]
 
 
@@ -496,6 +501,10 @@ def _design_cells(design, where: str) -> list[tuple[dict, dict]]:
                     table[k] = v
         table["name"] = "_".join(levels.values())
         cells.append((table, {"levels": levels, "base": base}))
+    kinds = {t["kind"] for t, _ in cells}
+    if len(kinds) > 1 and "target" in kinds:
+        raise InputError(f"{where}: a level's kind names a board, so every cell must be a board; set the design's "
+                         f"kind to a board ({', '.join(BOARD_KINDS)}) or drop the level's kind")
     return cells
 
 

@@ -246,7 +246,7 @@ def spec_markdown() -> str:
              "`NNNN_<level>_<level>...`.  Cells that differ only in light power (`irradiance_w_m2`) and "
              "sensor settings form one *radiance unit*: each slot is rendered once, at the unit's first "
              "irradiance, and scaled for the others (light transport is linear in emitted power; bit-exact "
-             "for power-of-two steps).  Sensor noise stays independent per image.", "",
+             "for power-of-two steps).  Sensor noise stays independent per image.  A level may also set a board `kind` (checkerboard, squares, charuco, circles_grid): the cells then show different boards on the same slots, each slot's pose drawn so that every cell's board fits, so the board centre's pose is the same in each (scenes/which_pattern.toml: `edgetruth study pattern`).", "",
              "```toml", "[design]", "distance_intervals_cm = [[50, 100], [100, 150]]", "count_per_interval = 10",
              "tilt_max_deg = 3", "", "[[design.factor]]", 'name = "snr"',
              'levels = [ { name = "G1", irradiance_w_m2 = 1.75 },',
