@@ -123,7 +123,7 @@ def _calibrate(cell: Cell, detector: str, method: str):
         pattern = (board.cols - 1, board.rows - 1)
     elif detector == "lines":
         m, options = mo.resolve(method, mo.study_options())
-        finder, undistort = (lambda image, size: grid_points(image, size, m, **options)), True
+        finder, undistort = (lambda photo, size: grid_points(photo, size, m, **options)), True
         label = f"corners where the grid lines of {method}'s points meet"
     pts: list = []
     cal, _ = calibrate_photos(photos, pattern, square_m, corner_finder=finder, corner_label=label,
