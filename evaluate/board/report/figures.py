@@ -15,7 +15,8 @@ from edgetruth.fileio import tmp_path  # noqa: E402
 FIGURES = ("straightness.png", "calibration_rms.png", "side_length_error.png")
 
 
-def _save(fig, path: Path) -> str:
+def save_figure(fig, path: Path) -> str:
+    """Write ``fig`` to ``path`` atomically (a temporary sibling, then a rename) and close it; -> the file name."""
     tmp = tmp_path(path)
     fig.savefig(tmp, dpi=110, bbox_inches="tight")
     plt.close(fig)
@@ -49,7 +50,7 @@ def straightness(summaries: list[dict], out: Path) -> str:
     ax.set_title("Straightness: pooled RMS, 95 % bootstrap CI over sides (band: over photos; | median side)",
                  fontsize=9)
     ax.grid(axis="x", alpha=0.3)
-    return _save(fig, out / "straightness.png")
+    return save_figure(fig, out / "straightness.png")
 
 
 def calibration_rms(summaries: list[dict], out: Path) -> str:
@@ -66,7 +67,7 @@ def calibration_rms(summaries: list[dict], out: Path) -> str:
     ax.set_title("Zhang calibration (k1, k2) of each row's corners", fontsize=9)
     ax.grid(axis="x", alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
-    return _save(fig, out / "calibration_rms.png")
+    return save_figure(fig, out / "calibration_rms.png")
 
 
 def side_length_error(summaries: list[dict], errors_px: dict, out: Path) -> str:
@@ -80,4 +81,4 @@ def side_length_error(summaries: list[dict], errors_px: dict, out: Path) -> str:
     ax.set_ylabel("measured − model (px at the side's scale)")
     ax.set_title("Side lengths in the board plane; whiskers 1.5 IQR", fontsize=9)
     ax.grid(axis="y", alpha=0.3)
-    return _save(fig, out / "side_length_error.png")
+    return save_figure(fig, out / "side_length_error.png")

@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from edgetruth.evaluate.board.report.figures import save_figure  # noqa: E402
 from edgetruth.evaluate.report_format import num, signed, table  # noqa: E402
 from edgetruth.evaluate.stats import holm, rank_biserial, wilcoxon_paired  # noqa: E402
 from edgetruth.fileio import tmp_path  # noqa: E402
@@ -28,14 +29,6 @@ def label(row: dict) -> str:
     return f"{row['pattern']} · {row['detector']}" + (f" ({row['method']})" if row["method"] else "")
 
 
-def _save(fig, path: Path) -> str:
-    tmp = tmp_path(path)
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path.name
-
-
 def focal_figure(rows: list[dict], out: Path) -> str:
     """fx and fy errors (%) of every (pattern, detector), one panel per condition."""
     conds = sorted({condition(r) for r in rows})
@@ -51,23 +44,18 @@ def focal_figure(rows: list[dict], out: Path) -> str:
         ax.set_title(c, fontsize=9)
         ax.set_xlabel("error vs truth (%)")
     axes[0][0].legend(fontsize=7)
-    return _save(fig, out / "focal_errors.png")
+    return save_figure(fig, out / "focal_errors.png")
 
 
 def bias_figure(rows: list[dict], out: Path) -> str:
     """Each circle's measured centre offset (px) against the board's tilt, per detector, beside the closed form."""
     fig, ax = plt.subplots(figsize=(6.0, 3.8))
     circ = [r for r in rows if r["kind"] == "circles_grid"]
-    seen = set()
     for k, det in enumerate(dict.fromkeys(r["detector"] for r in circ)):
         pts = [(c["tilt_deg"], c["offset_px"]) for r in circ if r["detector"] == det for c in r["circles"]]
         if pts:
             t, o = np.array(pts).T
             ax.scatter(t, o, s=4, alpha=0.35, color=f"C{k}", label=det)
-        for r in circ:
-            if r["cell"] in seen:
-                continue
-            seen.add(r["cell"])
     cf = [(c["tilt_deg"], c["closed_form_bias_px"]) for r in circ if r["detector"] == "conic" for c in r["circles"]]
     if cf:
         t, b = np.array(cf).T
@@ -76,7 +64,7 @@ def bias_figure(rows: list[dict], out: Path) -> str:
     ax.set_ylabel("centre offset from the true centre image (px)")
     ax.set_yscale("log")
     ax.legend(fontsize=7)
-    return _save(fig, out / "circle_bias.png")
+    return save_figure(fig, out / "circle_bias.png")
 
 
 def paired_tests(rows: list[dict]) -> list[dict]:
