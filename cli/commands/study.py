@@ -11,6 +11,7 @@ from edgetruth.cli import (add_backend_options, add_image_options, add_pattern_o
                            add_progress_option, method_list, methods_help, positive_int)
 from edgetruth.errors import InputError
 from edgetruth.evaluate.board.study import run_board_study
+from edgetruth.evaluate.board.twin.budget import TERMS
 from edgetruth.evaluate.board.twin.study import run_twin_study
 from edgetruth.evaluate.board.which_pattern.study import DEFAULT_SPEC as PATTERN_SPEC, run_pattern_study
 from edgetruth.resources import default_runs_dir
@@ -21,7 +22,7 @@ _SYNTHETIC_ONLY = {"preset": "--preset", "images_per_scenario": "--images-per-sc
                    "address": "--address"}
 _BOARD_ONLY = {"inputs": "PHOTOS", "model": "--model", "pattern": "--pattern", "square": "--square", "tone": "--tone",
                "marker": "--marker"}
-_TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant", "twin": "--twin"}
+_TWIN_ONLY = {"images": "--images", "spp": "--spp", "variant": "--variant", "twin": "--twin", "budget": "--budget"}
 _PATTERN_ONLY = {"spec": "--spec"}
 
 
@@ -83,6 +84,11 @@ def register(sub) -> None:
                         "(default: the set's, SET_twin); opencv_left_twin_bent curls each board as its photo's "
                         "(docs/board.md, 'A bent twin'); with your own photos, required: e.g. the DIR/twin.toml "
                         "`edgetruth twin` writes")
+    p.add_argument("--budget", nargs="?", const="all", default=None, metavar="TERMS",
+                   help="twin: the error budget -- the twin rendered again with each term it renders switched off in "
+                        "turn (noise, fpn, jpeg, sharpening, clip, bend, lens_shading; or a comma-separated list), "
+                        "the same board study on each, and a budget table of straightness and calibration RMS "
+                        "against the photos' (docs/board.md, 'Error budget'); ~30 s a term for opencv_left")
     p.add_argument("--spec", default=None, metavar="SPEC",
                    help=f"pattern: the boards to compare, a shipped spec or a TOML path (default {PATTERN_SPEC}: "
                         "copy it to change the camera, boards, poses, focus or light)")
@@ -102,6 +108,20 @@ def register(sub) -> None:
     add_plugin_option(p)
     add_progress_option(p)
     p.set_defaults(handler=run)
+
+
+def _budget_terms(text: str | None) -> list[str] | None:
+    """--budget's terms: None (no budget), [] (every term the twin renders) or the names given."""
+    if text is None:
+        return None
+    if text == "all":
+        return []
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    bad = [t for t in names if t not in TERMS]
+    if bad or not names:
+        raise InputError(f"--budget {text}: unknown term(s) {', '.join(bad) or '(none)'}; use all or a comma-separated "
+                         f"list of {', '.join(TERMS)}")
+    return names
 
 
 def _refuse(args, only: dict, kind: str) -> None:
@@ -128,7 +148,7 @@ def run(args) -> int:
                                 methods=method_list(args.methods), images=_images(args.images), spp=args.spp,
                                 thresholds=args.thresholds, channel=args.channel, variant=args.variant,
                                 progress=not args.no_progress, twin=args.twin, model_path=args.model,
-                                pattern=args.pattern, square=args.square)
+                                pattern=args.pattern, square=args.square, budget=_budget_terms(args.budget))
         console.say(f"report: {report}")
         return 0
     if args.kind == "pattern":

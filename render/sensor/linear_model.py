@@ -120,6 +120,9 @@ class SensorModel:
     output_noise_dn: float = 0.0
     output_gamma: float = _CURVE_DEFAULTS["output_gamma"]
     output_clip_dn: float = _CURVE_DEFAULTS["output_clip_dn"]
+    #: False: each pixel gets its mean photo-electrons (no Poisson draw): with dark_noise_e = 0 and
+    #: output_noise_dn = 0 a noise-free exposure (the twin's error budget switches the noise off so)
+    shot_noise: bool = True
 
     def __post_init__(self) -> None:
         require(0 < self.qe <= 1, f"sensor: qe must be in (0, 1], got {self.qe}")
@@ -263,7 +266,7 @@ class SensorModel:
             require(pattern.shape == mean_e.shape, f"sensor: fixed pattern {pattern.shape} does not match the "
                     f"image {mean_e.shape}")
         lam = mean_e if pattern is None else pattern.electron_mean(mean_e, self.hot_pixel_current_e_s * self.exposure_s)
-        e = rng.poisson(lam).astype(np.float64)
+        e = rng.poisson(lam).astype(np.float64) if self.shot_noise else np.array(lam, np.float64)
         saturated = e >= self.full_well_e
         e = np.minimum(e, self.full_well_e)
         if pattern is not None and pattern.offset_e is not None:
@@ -311,6 +314,8 @@ class SensorModel:
             for k in VIDEO_KEYS:
                 d.pop(k)
         _drop_default_curve(d)
+        if self.shot_noise:  # on (the default): the JSON of every sensor with shot noise is unchanged
+            d.pop("shot_noise")
         d["model"] = "EMVA 1288 linear: Var(y) = K^2 (sigma_d^2 + mu_e) + 1/12"
         return d
 
@@ -386,6 +391,9 @@ SENSOR_KEYS = [
     Key("output_clip_dn", "float", _D.output_clip_dn, "DN (8-bit)", "the 8-bit outputs' largest value: the encoded "
         "values are clipped to [0, output_clip_dn / 255] after the video processing and its noise, so what "
         "reaches it is flat (a camera whose white saturates below 255); 255 = off", 1.0, 255.0),
+    Key("shot_noise", "bool", _D.shot_noise, "", "Poisson shot noise on the photo-electrons; false: each pixel "
+        "gets its mean electrons, so that with dark_noise_e = 0 and output_noise_dn = 0 the exposure has no "
+        "temporal noise (the twin's error budget, `study twin --budget`)"),
 ]
 assert [k.name for k in SENSOR_KEYS] == [f.name for f in fields(SensorModel)]
 

@@ -181,7 +181,7 @@ def settings_table(derived: dict, jobs) -> str:
 
 
 def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_run, twin_run, errors, floor, pm_real,
-                      pm_twin, derived, timings, options, thresholds, corners=None, flatness=None):
+                      pm_twin, derived, timings, options, thresholds, corners=None, flatness=None, budget=None):
     real_s = {s["row"]: s for s in real_run.summaries}
     twin_s = {s["row"]: s for s in twin_run.summaries}
     rows = method_table(methods, diag, real_s, twin_s, errors)
@@ -233,7 +233,9 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
     lines = [f"# Digital twin — {set_name}: real photos and their twin, side by side", "",
              f"edgetruth {__version__}, commit {source_commit()[:12]}; {utc_stamp()} (UTC).  Time: render "
              f"{timings['render_s']:.0f} s, both board studies {timings['studies_s']:.0f} s, photo model "
-             f"{timings['photo_model_s']:.0f} s; {timings['total_s']:.0f} s in all.", "",
+             f"{timings['photo_model_s']:.0f} s"
+             + (f", error budget {timings['budget_s']:.0f} s" if "budget_s" in timings else "")
+             + f"; {timings['total_s']:.0f} s in all.", "",
              f"- Twin: spec `{spec.name}` (identity {spec.identity_sha256[:12]}), {spec.render.spp} spp, images "
              f"{', '.join(j.name for j in jobs)} for photos {', '.join(real_run.names)} (the photos' order).",
              f"- The same board study (`edgetruth study board`, docs/board.md) on both, the twin's PNGs read like "
@@ -280,6 +282,7 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
              settings_table(derived, jobs), "",
              *closed_loop_lines(derived), "",
              *flatness_lines(flatness, bent=any(g.board_bend_mm is not None for g in spec.groups)),
+             *(budget or []),
              "## Reading", "", *reading(rows, rk, methods, diag, floor, real_s, twin_s), *flatness_reading(flatness),
              "- How each setting was measured and what each fix changed (the ρ before and after each): "
              "docs/board.md, \"Digital twin\".", "",
@@ -288,7 +291,9 @@ def write_twin_report(out, *, set_name, spec, jobs, keep, methods, diag, real_ru
              + ("`corners_per_photo.json` (Table 2b), " if corners else "")
              + ("`board_flatness.json` (Table 5), " if flatness else "") + "`real/` and `twin/` (each "
              "a board study's own files: report.md, summary.csv, per_side.csv, calibration/, figures/), "
-             "`renders/` (the twin's dataset: PNG, EXR and truth JSON per image).", ""]
+             "`renders/` (the twin's dataset: PNG, EXR and truth JSON per image)"
+             + ("; `budget.json`, `budget.csv` and `budget/<term>/` (each term's scene and renders)" if budget else "")
+             + ".", ""]
     report = out / "report.md"
     atomic_write_text(report, "\n".join(lines))
     return report

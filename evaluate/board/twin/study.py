@@ -49,6 +49,7 @@ from edgetruth.evaluate.board.measure.summary import row_summary
 from edgetruth.evaluate.board.sides.lines import fit_lines
 from edgetruth.evaluate.board.study import _jsonable, compute_board_study, write_board_run
 from edgetruth.evaluate.board.tone.photo_model import PALETTE_LEVELS, derive_twin, measure_photo
+from edgetruth.evaluate.board.twin.budget import budget_rows, per_method_rows, term_scenes, write_budget
 from edgetruth.evaluate.board.twin.derive import group_name
 from edgetruth.evaluate.board.twin.flatness import board_flatness
 from edgetruth.evaluate.board.twin.report import PAE_DEFAULT, ranks, spearman, write_twin_report  # noqa: F401
@@ -282,12 +283,14 @@ def model_unit_m(set_name: str, model, spec) -> float:
 
 def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = None, thresholds=None,
                    channel: str = "luma", variant: str | None = None, progress: bool = True,
-                   twin: str | None = None, model_path=None, pattern=None, square=None) -> Path:
+                   twin: str | None = None, model_path=None, pattern=None, square=None,
+                   budget: list[str] | None = None) -> Path:
     """Render the twin of ``set_name`` and compare it with the photos (module docstring); returns report.md.
     ``twin``: the twin scene (a shipped spec name or a TOML path; default the set's own, ``TWINS``), e.g.
     ``opencv_left_twin_bent``, whose boards curl as the photos' do.  ``set_name`` may also be a list of your own
     photos (files, folders, globs; ``resolve_inputs`` with ``model_path`` or ``pattern`` and ``square``): then
-    ``twin`` is required, e.g. the ``twin.toml`` of ``edgetruth twin``."""
+    ``twin`` is required, e.g. the ``twin.toml`` of ``edgetruth twin``.  ``budget``: the error budget (``budget``:
+    [] every term the twin renders, or the terms named), rendered into ``DIR/budget``."""
     t0 = time.perf_counter()
     if isinstance(set_name, str):
         spec_name = check_set(set_name)
@@ -311,6 +314,8 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
     rows_methods = methods + diag
     check_variant_name(variant)
     settings = settings_of(set_name, methods, options, keep, spec.render.spp, spec.identity_sha256, channel)
+    if budget is not None:  # only then: an earlier run without a budget keeps its settings
+        settings["budget"] = sorted(budget) or "all"
     out = _check_twin_output(Path(out), settings)
 
     # 1. render (resumable), into the run directory
@@ -391,12 +396,46 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
                             ("twin", twin_run, f"Board study — {set_name} twin (renders)")):
         (out / sub).mkdir(exist_ok=True)
         write_board_run(run, out / sub, channel, rows_methods, options, thresholds, title=title)
-    timings = {"render_s": render_s, "studies_s": study_s, "photo_model_s": photo_s,
-               "total_s": time.perf_counter() - t0}
+    timings = {"render_s": render_s, "studies_s": study_s, "photo_model_s": photo_s}
+    budget_lines = None
+    if budget is not None:
+        t_b = time.perf_counter()
+        budget_lines = run_budget(out, spec_name, budget, spp, keep, real, twin_run, real_run, methods, rows_methods,
+                                  options, channel, variant, progress)
+        timings["budget_s"] = time.perf_counter() - t_b
+    timings["total_s"] = time.perf_counter() - t0
     return write_twin_report(out, set_name=set_name, spec=spec, jobs=jobs, keep=keep, methods=methods, diag=diag,
                              real_run=real_run, twin_run=twin_run, errors=errors, floor=floor, pm_real=pm_real,
                              pm_twin=pm_twin, derived=derived, timings=timings, options=options,
-                             thresholds=thresholds, corners=corners, flatness=flatness)
+                             thresholds=thresholds, corners=corners, flatness=flatness, budget=budget_lines)
+
+
+def run_budget(out: Path, spec_name, terms: list[str], spp, keep: list[int], real: BoardInputs, twin_run, real_run,
+               methods: list[str], rows_methods: list[str], options: dict, channel: str, variant, progress: bool):
+    """The error budget (``budget``): each term's scene rendered into ``out/budget/<term>/renders`` (resumable),
+    the board study on its images (the photos ``keep``), the budget's files; returns the report's lines."""
+    scenes = term_scenes(spec_name, out / "budget", names=terms or None, spp=spp)
+    if terms and set(terms) - set(scenes):
+        console.say("budget: the twin does not render " + ", ".join(sorted(set(terms) - set(scenes))) + ": left out")
+    off, photos = {}, {"": len(real_run.names), "all": len(twin_run.names)}
+    for name, path in scenes.items():
+        render_dir = path.parent / "renders"
+        render_spec(load_spec(path), render_dir, variant=variant, progress=progress, only=keep,
+                    announce=lambda s: None)
+        by_index = {s.index: s for s in open_dataset(render_dir).square_boards()}
+        inp = truth_inputs([by_index[i] for i in keep], real.model, real)
+        images = [read_gray(p, channel=channel) for p in inp.photos]
+        try:
+            run = compute_board_study(inp, rows_methods, options, channel, progress, images=images)
+        except InputError as exc:  # too few boards found with the term off: say so, keep the others
+            console.say(f"budget: {name}: {exc}")
+            continue
+        off[name] = {s["row"]: s for s in run.summaries}
+        photos[name] = len(run.names)
+    real_s = {s["row"]: s for s in real_run.summaries}
+    twin_s = {s["row"]: s for s in twin_run.summaries}
+    rows = budget_rows(real_s, twin_s, off, methods)
+    return write_budget(out, rows, per_method_rows(real_s, twin_s, off, methods), len(methods), photos)
 
 
 def closed_loop_noise(pm_real: list[dict], pm_twin: list[dict], sensors) -> list[dict]:

@@ -119,3 +119,21 @@ def test_cfa_channel_means_follow_their_qe():
     y = 0.299 * expected["R"] + 0.587 * expected["G"] + 0.114 * expected["B"]
     assert abs(gray.mean() - y) < 1.0  # rounding of the 16-bit demosaic and gray steps
     assert gray.dtype == np.float64 and develop(raw.astype(np.uint16), s).dtype == np.uint16
+
+
+def test_shot_noise_off_gives_the_mean_electrons_exactly_and_on_leaves_the_json_unchanged():
+    """``shot_noise = false`` with no read noise: every DN is round(K μe + black) (the noise-free exposure the twin's
+    error budget renders), the full well still clips; with it on (the default) the sensor's JSON has no new key, so
+    every earlier render's truth is byte-identical."""
+    from edgetruth.render.sensor.linear_model import sensor_from_dict
+
+    s = SensorModel(shot_noise=False, dark_noise_e=0.0)
+    mu = np.array([[0.0, 0.4, 100.3, 2000.7, 5000.5, 2.0e4]])
+    dn, sat = s.expose_clipped(mu, np.random.default_rng(0))
+    want = np.clip(np.rint(s.gain_dn_per_e * np.minimum(mu, s.full_well_e) + s.dark_offset_dn), 0, s.max_dn)
+    assert np.array_equal(dn, want.astype(np.uint16))
+    assert sat.tolist() == [[False, False, False, False, False, True]]
+    assert "shot_noise" not in SensorModel().to_dict() and s.to_dict()["shot_noise"] is False
+    assert sensor_from_dict({"shot_noise": False}).shot_noise is False
+    on = SensorModel(dark_noise_e=0.0).expose_clipped(np.full((200, 200), 1000.0), np.random.default_rng(1))[0]
+    assert np.std(on.astype(float)) == pytest.approx(s.gain_dn_per_e * np.sqrt(1000.0), rel=0.03)  # Poisson: √μ
