@@ -88,7 +88,6 @@ def test_a_term_whose_removal_raises_the_figure_has_a_negative_share_and_the_med
     assert per[0]["share_calib_rms_px"] == pytest.approx(-math.sqrt(0.08))
 
 
-@pytest.mark.slow
 def test_study_twin_budget_runs_and_writes_its_table(tmp_path):
     """``study twin opencv_left --images 1,2,3 --budget jpeg`` on two methods: the budget's table is in the report,
     its files beside it, and the twin without JPEG is a different image set with the same poses (its points move)."""
