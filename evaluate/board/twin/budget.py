@@ -40,6 +40,10 @@ from edgetruth.render.optics.camera import resolve_camera_path
 
 #: the scene with every term off at once (the twin's floor), beside one scene per term
 ALL_OFF = "all_off"
+#: the twin under other seeds: ``seed2``, ``seed3``, ... (the interval of its figures)
+SEED_PREFIX = "seed"
+#: the twin's renders the budget has in all (its own and seed copies)
+BUDGET_SEEDS = 3
 #: the board-study figures the budget splits
 FIGURES = {"straightness_px": "straightness", "calib_rms_px": "calibration RMS"}
 
@@ -135,10 +139,13 @@ def _absolute_refs(spec: dict, folder: Path) -> None:
             sq["model"] = str((folder / ref).resolve())
 
 
-def term_scenes(spec_ref: str | Path, out_dir: Path, names=None, spp: int | None = None) -> dict[str, Path]:
+def term_scenes(spec_ref: str | Path, out_dir: Path, names=None, spp: int | None = None,
+                seeds: int = 1) -> dict[str, Path]:
     """Write, for each term the scene ``spec_ref`` renders (or each of ``names``), its copy with that term off:
     ``out_dir/<term>/twin.toml`` and its ``camera.toml``; returns {term: spec path}.  The copies keep the spec's
-    name (its seeds) and every other key; ``spp``: the twin's samples per pixel when the study overrides them."""
+    name (its seeds) and every other key; ``spp``: the twin's samples per pixel when the study overrides them.
+    ``seeds`` > 1: also the twin itself under ``seeds - 1`` other names (``seed2``, ...: other seeds for the
+    Monte-Carlo samples and the sensor's noise, the same poses), for the interval of its figures."""
     import tomli_w  # lazy: only the budget writes TOML
 
     path = resolve_spec_path(spec_ref)
@@ -148,19 +155,22 @@ def term_scenes(spec_ref: str | Path, out_dir: Path, names=None, spp: int | None
     _absolute_refs(spec, path.parent)
     terms = [t for name, t in TERMS.items() if (names is None or name in names) and t.present(spec, cam)]
     cases = [(t.name, [t]) for t in terms] + ([(ALL_OFF, terms)] if len(terms) > 1 else [])
+    cases += [(f"{SEED_PREFIX}{k}", []) for k in range(2, seeds + 1)]
     out = {}
     for name, off in cases:
         s, c = copy.deepcopy(spec), copy.deepcopy(cam)
         for term in off:
             term.switch_off(s, c)
+        if not off:  # a seed copy: the name seeds every image (its poses are the scene's own)
+            s["spec"]["name"] = f"{s['spec'].get('name') or path.stem}_{name}"
         if spp is not None:
             s["spec"]["spp"] = int(spp)
         folder = out_dir / name
         folder.mkdir(parents=True, exist_ok=True)
         atomic_write_text(folder / "camera.toml", tomli_w.dumps(c))
         s["spec"]["camera"] = str((folder / "camera.toml").resolve())
-        what = "; ".join(t.what for t in off)
-        atomic_write_text(folder / "twin.toml", f"# {spec_ref} with {what} off (edgetruth study twin --budget)\n"
+        what = f"with {'; '.join(t.what for t in off)} off" if off else f"under other seeds ({name})"
+        atomic_write_text(folder / "twin.toml", f"# {spec_ref} {what} (edgetruth study twin --budget)\n"
                           + tomli_w.dumps(s))
         out[name] = folder / "twin.toml"
     return out
@@ -189,9 +199,15 @@ def budget_rows(real: dict, twin: dict, off: dict[str, dict], methods: list[str]
     rm, tm = medians(real, methods), medians(twin, methods)
     rows = [{"row": "real photos", "term": "", **{f"{k}": rm[k] for k in FIGURES}},
             {"row": "twin, every term on", "term": "all", **{k: tm[k] for k in FIGURES}}]
+    seeds = [medians(s, methods) for name, s in off.items() if name.startswith(SEED_PREFIX)]
+    if seeds:  # the twin's figure under its own seeds and the copies': its spread from noise and samples alone
+        vals = {k: [tm[k]] + [m[k] for m in seeds] for k in FIGURES}
+        rows.append({"row": f"twin, every term on: range over {len(seeds) + 1} seeds", "term": "seeds",
+                     **{f"range_{k}": [float(np.min(v)), float(np.max(v))] for k, v in vals.items()},
+                     **{f"real_inside_{k}": bool(np.min(v) <= rm[k] <= np.max(v)) for k, v in vals.items()}})
     shares = {k: [] for k in FIGURES}
     for name, s in off.items():
-        if name == ALL_OFF:
+        if name == ALL_OFF or name.startswith(SEED_PREFIX):
             continue
         om = medians(s, methods)
         rows.append({"row": f"twin without {TERMS[name].what}", "term": name, **{k: om[k] for k in FIGURES},
@@ -216,7 +232,8 @@ def budget_rows(real: dict, twin: dict, off: dict[str, dict], methods: list[str]
 
 
 def per_method_rows(real: dict, twin: dict, off: dict[str, dict], methods: list[str]) -> list[dict]:
-    """One row per (method, term): the figures with the term off and its share (``budget.csv``)."""
+    """One row per (method, term): the figures with the term off and its share (``budget.csv``; a seed copy's
+    "share" is its difference in quadrature from the twin's own seed)."""
     out = []
     for m in methods:
         base = {"method": m, **{f"real_{k}": real.get(m, {}).get(k, np.nan) for k in FIGURES},
@@ -237,7 +254,10 @@ def budget_section(rows: list[dict], n_methods: int, photos: dict[str, int]) -> 
     for r in rows:
         cells = [r["row"]]
         for k in FIGURES:
-            cells += [num(r.get(k), 3), num(r.get(f"ratio_{k}"), 2), num(r.get(f"share_{k}"), 3)]
+            lo_hi = r.get(f"range_{k}")
+            first = f"{lo_hi[0]:.3f}–{lo_hi[1]:.3f}" if lo_hi else num(r.get(k), 3)
+            inside = {True: "real inside", False: "real outside"}.get(r.get(f"real_inside_{k}"))
+            cells += [first, inside or num(r.get(f"ratio_{k}"), 2), num(r.get(f"share_{k}"), 3)]
         cells.append(str(photos.get(r["term"], "")))
         body.append(cells)
     head = ["", "straightness (px)", "÷ real", "share (px)", "calib RMS (px)", "÷ real", "share (px)", "photos"]

@@ -49,7 +49,8 @@ from edgetruth.evaluate.board.measure.summary import row_summary
 from edgetruth.evaluate.board.sides.lines import fit_lines
 from edgetruth.evaluate.board.study import _jsonable, compute_board_study, write_board_run
 from edgetruth.evaluate.board.tone.photo_model import PALETTE_LEVELS, derive_twin, measure_photo
-from edgetruth.evaluate.board.twin.budget import budget_rows, per_method_rows, term_scenes, write_budget
+from edgetruth.evaluate.board.twin.budget import (BUDGET_SEEDS, SEED_PREFIX, budget_rows, per_method_rows, term_scenes,
+                                                  write_budget)
 from edgetruth.evaluate.board.twin.derive import group_name
 from edgetruth.evaluate.board.twin.flatness import board_flatness
 from edgetruth.evaluate.board.twin.report import PAE_DEFAULT, ranks, spearman, write_twin_report  # noqa: F401
@@ -414,8 +415,8 @@ def run_budget(out: Path, spec_name, terms: list[str], spp, keep: list[int], rea
                methods: list[str], rows_methods: list[str], options: dict, channel: str, variant, progress: bool):
     """The error budget (``budget``): each term's scene rendered into ``out/budget/<term>/renders`` (resumable),
     the board study on its images (the photos ``keep``), the budget's files; returns the report's lines."""
-    scenes = term_scenes(spec_name, out / "budget", names=terms or None, spp=spp)
-    if terms and set(terms) - set(scenes):
+    scenes = term_scenes(spec_name, out / "budget", names=terms or None, spp=spp, seeds=BUDGET_SEEDS)
+    if terms and set(terms) - {n for n in scenes if not n.startswith(SEED_PREFIX)}:
         console.say("budget: the twin does not render " + ", ".join(sorted(set(terms) - set(scenes))) + ": left out")
     off, photos = {}, {"": len(real_run.names), "all": len(twin_run.names)}
     for name, path in scenes.items():

@@ -56,6 +56,26 @@ def test_a_term_absent_from_the_scene_gets_none():
         assert B.term_scenes("zhang1998_twin", Path(d), names=["jpeg", "bend"]) == {}
 
 
+def test_seed_copies_are_the_twin_under_other_names_so_other_seeds_and_the_same_poses(tmp_path):
+    paths = B.term_scenes("opencv_left_twin", tmp_path, names=[], seeds=3)
+    assert list(paths) == ["seed2", "seed3"]
+    base = load_spec("opencv_left_twin")
+    for k, path in enumerate(paths.values(), start=2):
+        spec = load_spec(path)
+        assert spec.name == f"opencv_left_twin_seed{k}"
+        for a, b in zip(spec.jobs, base.jobs):
+            assert a.pose == b.pose and a.sensor == b.sensor and a.render_seed != b.render_seed
+
+
+def test_the_seed_row_gives_the_range_and_whether_the_photos_lie_inside_it():
+    real = _summ(a=(0.06, 0.2))
+    twin = _summ(a=(0.05, 0.1))
+    off = {"seed2": _summ(a=(0.07, 0.11)), "seed3": _summ(a=(0.055, 0.12))}
+    row = next(r for r in B.budget_rows(real, twin, off, ["a"]) if r["term"] == "seeds")
+    assert row["range_straightness_px"] == [0.05, 0.07] and row["real_inside_straightness_px"] is True
+    assert row["range_calib_rms_px"] == [0.1, 0.12] and row["real_inside_calib_rms_px"] is False
+
+
 def _summ(**per_method):
     return {m: {"straightness_px": s, "calib_rms_px": c} for m, (s, c) in per_method.items()}
 
@@ -99,7 +119,9 @@ def test_study_twin_budget_runs_and_writes_its_table(tmp_path):
     assert "## Error budget" in text and "twin without JPEG coding" in text
     data = __import__("json").loads((tmp_path / "budget.json").read_text())
     terms = [r["term"] for r in data["rows"]]
-    assert terms == ["", "all", "jpeg", "unexplained"]
-    jpeg = data["rows"][2]
+    assert terms == ["", "all", "seeds", "jpeg", "unexplained"]
+    seeds, jpeg = data["rows"][2], data["rows"][3]
+    lo, hi = seeds["range_straightness_px"]
+    assert lo <= data["rows"][1]["straightness_px"] <= hi and lo < hi  # other seeds, other noise
     assert np.isfinite(jpeg["straightness_px"]) and jpeg["straightness_px"] != data["rows"][1]["straightness_px"]
     assert (tmp_path / "budget" / "jpeg" / "twin.toml").is_file() and (tmp_path / "budget.csv").is_file()
