@@ -92,6 +92,8 @@ class CircleEdges:
     x: np.ndarray
     y: np.ndarray
     label: np.ndarray
+    #: the candidates within ``BAND_PX`` of an outline, refined or not
+    n_candidates: int = 0
 
     def _fits(self, K, dist):
         """Per circle (its points undistorted with (K, dist), the ellipse or None, the mask of the points it was
@@ -156,7 +158,7 @@ def circle_edges(image: np.ndarray, blobs: np.ndarray, outlines: np.ndarray, met
     pts = locate.refine(img, cand.subset(sel), method, **options)
     x, y = np.asarray(pts.x, np.float64), np.asarray(pts.y, np.float64)
     ok = np.asarray(pts.converged, bool) & np.isfinite(x) & np.isfinite(y)
-    return CircleEdges(blobs, x[ok], y[ok], label[sel][ok])
+    return CircleEdges(blobs, x[ok], y[ok], label[sel][ok], len(sel))
 
 
 def image_points(edges: CircleEdges, kind: str, K, dist, rvec=None) -> np.ndarray:
