@@ -39,13 +39,14 @@ def views():
 
 
 def write_views(folder) -> tuple:
-    """``views`` written as 16-bit PNGs ``v0.png`` ... into ``folder`` -> (camera, [paths])."""
+    """``views`` written as 16-bit PNGs ``v0.png`` ... into ``folder`` -> (camera, [paths], [circles truth per
+    view])."""
     import cv2
 
-    cam, _, vs, _ = views()
+    cam, _, vs, truths = views()
     paths = []
     for name, img in vs:
         p = folder / f"{name}.png"
         cv2.imwrite(str(p), np.clip(np.rint(img), 0, 65535).astype(np.uint16))
         paths.append(p)
-    return cam, paths
+    return cam, paths, truths
