@@ -129,8 +129,21 @@ def _per_photo_table(sums, names) -> str:
     return table(["row", *names], body)
 
 
-def reading(sums) -> list[str]:
-    """Rankings as measured, and the methods against OpenCV's centroids; nothing tuned."""
+def _tests_line(c: dict, labels: dict) -> str:
+    """One family's paired tests in a sentence: how many rows differ significantly from the baseline, each way,
+    over the circles and by photo."""
+    lower = [t for t in c["tests"] if t["significant"] and t["median_difference"] < 0]
+    higher = [t for t in c["tests"] if t["significant"] and t["median_difference"] > 0]
+    n_ph = c["tests"][0]["n_photos"]
+    return (f"- {c['label']}: against {labels.get(c['baseline'], c['baseline'])}, {len(lower)} of {len(c['tests'])} "
+            f"rows significantly lower ({', '.join(labels.get(t['row'], t['row']) for t in lower) or 'none'}), "
+            f"{len(higher)} higher ({', '.join(labels.get(t['row'], t['row']) for t in higher) or 'none'}); by photo "
+            f"(n = {n_ph}) {sum(t['significant_photos'] for t in c['tests'])} significant.")
+
+
+def reading(sums, comparisons=()) -> list[str]:
+    """Rankings as measured, the paired tests in a line per family, and the methods against OpenCV's centroids;
+    nothing tuned."""
     methods = [s for s in sums if s["row"] != REFERENCE_ROW]
     ref = next((s for s in sums if s["row"] == REFERENCE_ROW), None)
     lines = ["Rankings as measured (lowest first):", "",
@@ -141,8 +154,14 @@ def reading(sums) -> list[str]:
         below = [s["label"] for s in methods if s.get("loo_rms_px", np.inf) < ref["loo_rms_px"]]
         lines += ["", f"{ref['label']} calibrate to {ref['calib_rms_px']:.3f} px (LOO {ref['loo_rms_px']:.3f} px, "
                       f"fx {ref['fx']:.2f} px); "
-                      + (f"{len(below)} method(s) come below its LOO RMS: {', '.join(below)}." if below else
+                      + (f"{len(below)} of {len(methods)} method(s) come below its LOO RMS as measured (whether "
+                         "significantly: the paired tests)." if below else
                          "no method's centres come below its LOO RMS.")]
+    labels = {s["row"]: s["label"] for s in sums}
+    tested = [c for c in comparisons if c["tests"]]
+    if tested:
+        lines += ["", "Paired tests (Wilcoxon over the circles every row has, Holm; by photo: over the photos' means):",
+                  "", *(_tests_line(c, labels) for c in tested)]
     failed = [s["label"] for s in sums if s.get("failure")]
     if failed:
         lines += ["", f"Rows that did not calibrate: {', '.join(failed)} (Table 2)."]
@@ -189,7 +208,7 @@ def write_circle_outputs(out: Path, run, title: str, header: list[str]) -> Path:
              "Every row against the baseline on the circles all rows have; Holm-adjusted within each family; "
              "rank-biserial > 0: the row's values tend to be larger (worse) than the baseline's.", "",
              *paired_tables(run.comparisons, labels),
-             "## Reading", "", *reading(sums), "",
+             "## Reading", "", *reading(sums, run.comparisons), "",
              "## Figures", "", f"![calibration and leave-one-out RMS](figures/{fig})", "",
              "## Files", "",
              "`summary.csv` (one line per row, every figure above), `per_circle.csv` (one line per photo, circle and "
