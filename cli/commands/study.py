@@ -35,7 +35,9 @@ def register(sub) -> None:
                                    "docs/board.md), e.g. `edgetruth study board zhang1998 -o DIR` or "
                                    "`edgetruth study board PHOTOS... --model Model.txt -o DIR`, or for a chessboard "
                                    "`edgetruth study board opencv_left -o DIR` or "
-                                   "`edgetruth study board PHOTOS... --pattern 9x6 --square 25 -o DIR`. "
+                                   "`edgetruth study board PHOTOS... --pattern 9x6 --square 25 -o DIR`, or for a "
+                                   "circle grid `edgetruth study board sony_hx5v_circles -o DIR` or "
+                                   "`edgetruth study board PHOTOS... --pattern circles:10x8 --square 25 -o DIR`. "
                                    "twin: the digital twin of a shipped photo set, `edgetruth study twin zhang1998 "
                                    "-o DIR` (or opencv_left): renders the set's twin scene (scenes/SET_twin.toml: "
                                    "the camera, "
@@ -54,17 +56,22 @@ def register(sub) -> None:
     p.add_argument("kind", choices=["synthetic", "board", "twin", "pattern"], help="which study")
     p.add_argument("inputs", nargs="*", metavar="PHOTOS",
                    help="board: photo files, folders of photos, or a shipped set's name (zhang1998: its photos, "
-                        "model, corners and published calibration; opencv_left: OpenCV's chessboard photos); twin: "
+                        "model, corners and published calibration; opencv_left: OpenCV's chessboard photos; "
+                        "sony_hx5v_circles: BoofCV's photos of a 10x8 circle grid); twin: "
                         "the shipped set's name (zhang1998 or opencv_left), or your photos (as for board) with "
                         "--twin")
     p.add_argument("--model", default=None, metavar="FILE",
                    help="board: the board model, one square per line, x y of its four corners in board units "
                         "(Zhang's Model.txt layout)")
     add_pattern_option(p, "board, and twin of your own photos (a chessboard): the photos show this board, and its dark squares "
-                          "between the inner corners are studied (in place of --model)")
+                          "between the inner corners are studied (in place of --model); board: a circle grid's "
+                          "circles are studied as docs/board.md, 'Circle grids', says",
+                       kinds=("chessboard", "circles", "charuco"))
     p.add_argument("--square", default=None, metavar="SIZE",
                    help="board, with --pattern: the side of one square, in the unit side lengths are reported in "
-                        "(default 1: lengths in squares)")
+                        "(default 1: lengths in squares); a circle grid (required there): OpenCV's squareSize, the "
+                        "distance between neighbouring centres, for an asymmetric grid the row spacing (half the "
+                        "distance between neighbours in a row)")
     p.add_argument("--marker", default=None, metavar="SIZE",
                    help="board, with --pattern charuco:COLSxROWS:DICT: the printed side of one marker (its black "
                         "border included), in the unit of --square (in squares without it, e.g. 0.75)")

@@ -92,21 +92,43 @@ class CircleEdges:
     x: np.ndarray
     y: np.ndarray
     label: np.ndarray
+    #: the candidates within ``BAND_PX`` of an outline, refined or not
+    n_candidates: int = 0
 
-    def conics(self, K, dist) -> list:
-        """Per circle the ellipse (3, 3; undistorted px) of its points undistorted with (K, dist), or None: fitted,
-        the points beyond ``OUTLIER_PX`` of it dropped, refitted."""
-
+    def _fits(self, K, dist):
+        """Per circle (its points undistorted with (K, dist), the ellipse or None, the mask of the points it was
+        refitted to): fitted, the points beyond ``OUTLIER_PX`` of it dropped, refitted."""
         p = undistort_px(np.column_stack([self.x, self.y]), K, dist)
         out = []
         for k in range(len(self.blobs)):
             sel = p[self.label == k]
             q = fit_ellipse(sel[:, 0], sel[:, 1])
+            keep = np.zeros(len(sel), bool)
             if q is not None:
                 keep = np.abs(algebraic_residual_px(q, sel[:, 0], sel[:, 1])) <= OUTLIER_PX
                 q = fit_ellipse(sel[keep, 0], sel[keep, 1])
-            out.append(q)
+            out.append((sel, q, keep))
         return out
+
+    def conics(self, K, dist) -> list:
+        """Per circle the ellipse (3, 3; undistorted px) of its points undistorted with (K, dist), or None: fitted,
+        the points beyond ``OUTLIER_PX`` of it dropped, refitted."""
+        return [q for _, q, _ in self._fits(K, dist)]
+
+    def ellipse_residuals(self, K, dist) -> dict:
+        """Per circle, how far its points (undistorted with (K, dist)) lie from their own ellipse (``conics``):
+        {'rms_px': (n,) RMS first-order geometric distance over the points the ellipse was refitted to, NaN
+        without an ellipse; 'n_fit': (n,) those points; 'n_points': (n,) the circle's points}."""
+        rms, n_fit, n_all = [], [], []
+        for sel, q, keep in self._fits(K, dist):
+            n_all.append(len(sel))
+            n_fit.append(int(keep.sum()) if q is not None else 0)
+            if q is None or not keep.any():
+                rms.append(np.nan)
+                continue
+            d = algebraic_residual_px(q, sel[keep, 0], sel[keep, 1])
+            rms.append(float(np.sqrt(np.mean(d * d))))
+        return {"rms_px": np.array(rms), "n_fit": np.array(n_fit), "n_points": np.array(n_all)}
 
 
 def predicted_outlines(obj: np.ndarray, radius_m: float, rvec, tvec, K, dist) -> np.ndarray:
@@ -120,10 +142,11 @@ def predicted_outlines(obj: np.ndarray, radius_m: float, rvec, tvec, K, dist) ->
 
 
 def circle_edges(image: np.ndarray, blobs: np.ndarray, outlines: np.ndarray, method: str = DEFAULT_METHOD,
-                 **options) -> CircleEdges:
-    """The method's points on the Canny candidates within ``BAND_PX`` of each predicted outline (n, m, 2)."""
+                 cand=None, **options) -> CircleEdges:
+    """The method's points on the Canny candidates within ``BAND_PX`` of each predicted outline (n, m, 2);
+    ``cand``: the photo's ``locate.candidates``, when already found (else found here)."""
     img = np.asarray(image, np.float64)
-    cand = locate.candidates(img)
+    cand = locate.candidates(img) if cand is None else cand
     label = np.full(len(cand), -1)
     for k, poly in enumerate(outlines):
         lo, hi = poly.min(axis=0) - BAND_PX - 1, poly.max(axis=0) + BAND_PX + 1
@@ -135,7 +158,7 @@ def circle_edges(image: np.ndarray, blobs: np.ndarray, outlines: np.ndarray, met
     pts = locate.refine(img, cand.subset(sel), method, **options)
     x, y = np.asarray(pts.x, np.float64), np.asarray(pts.y, np.float64)
     ok = np.asarray(pts.converged, bool) & np.isfinite(x) & np.isfinite(y)
-    return CircleEdges(blobs, x[ok], y[ok], label[sel][ok])
+    return CircleEdges(blobs, x[ok], y[ok], label[sel][ok], len(sel))
 
 
 def image_points(edges: CircleEdges, kind: str, K, dist, rvec=None) -> np.ndarray:
@@ -168,6 +191,86 @@ def parse_centres(text: str) -> tuple[str, str]:
     return kind, method or DEFAULT_METHOD
 
 
+@dataclass
+class Grids:
+    """``find_grids``' answer: per view its ``PhotoResult`` (found or not); for the views where the grid is found,
+    in order, their names, images and ``find_blobs`` answers; the views' size (w, h)."""
+
+    results: list
+    names: list
+    images: list
+    found: list
+    size: tuple
+
+
+def find_grids(views, pattern, full_scales=None, progress=None) -> Grids:
+    """``find_blobs`` on every view of ``views`` = [(name, image)] (``full_scales``: per view its file's full
+    scale, ``as_8bit``), all of one size (else one InputError line); ``pattern`` a circles ``BoardPattern``."""
+    results, names, images, found, size, first = [], [], [], [], None, None
+    scales = list(full_scales) if full_scales is not None else [None] * len(views)
+    for (name, image), scale in zip(views if progress is None else progress(views), scales):
+        h, w = np.shape(image)[:2]
+        if size is None:
+            size, first = (w, h), name
+        elif (w, h) != size:
+            raise InputError(f"{name}: {w} x {h} px, but {first} is {size[0]} x {size[1]} px; calibrate photos of "
+                             "one camera at one resolution and orientation")
+        b = find_blobs(image, pattern.size, pattern.asymmetric, scale)
+        results.append(PhotoResult(name, b is not None, 0 if b is None else len(b[0])))
+        if b is not None:
+            names.append(name)
+            images.append(image)
+            found.append(b)
+    return Grids(results, names, images, found, size)
+
+
+def blob_radius_m(found: list, poses: list, obj: np.ndarray, K) -> float:
+    """The circles' radius on the board (object units) from the blobs' diameters (``find_blobs``) at the depths of
+    the blob calibration's ``poses``: their median."""
+    r_m = []
+    for (c, dia), (rv, tv) in zip(found, poses):
+        R = cv2.Rodrigues(rv)[0]
+        z = (obj.astype(np.float64) @ R.T + tv)[:, 2]
+        r_m.append(0.5 * dia * z / K[0, 0])
+    return float(np.nanmedian(np.concatenate(r_m)))
+
+
+@dataclass
+class CentreFit:
+    """``fit_centres``' answer: per view (n, 2) image points (NaN where a circle has no ellipse) and the mask of
+    the finite ones, the last calibration (rms_px, K, dist (5,), per-view RMS, poses) and the rounds it took."""
+
+    points: list
+    ok: list
+    rms_px: float
+    K: np.ndarray
+    dist: np.ndarray
+    per_view: list
+    poses: list
+    rounds: int
+    moved_px: float
+
+
+def fit_centres(edges: list, kind: str, obj: np.ndarray, size, flags: int, K, dist, poses, start: list) -> CentreFit:
+    """The circles' image points of ``kind`` ('conic' or 'corrected', ``image_points``) from each view's ``edges``,
+    refitted with each round's lens and poses and recalibrated (``solve_points`` under ``flags``) until no point
+    moves by ``TOL_PX`` (at most ``MAX_ROUNDS``), starting from the lens ``K``, ``dist``, ``poses`` and points
+    ``start`` (per view (n, 2)) of an earlier calibration."""
+    pts, moved, rms, per_view, ok, rnd = start, np.inf, float("nan"), [], [], 0
+    for rnd in range(1, MAX_ROUNDS + 1):
+        new = [image_points(e, kind, K, dist, rv) for e, (rv, _) in zip(edges, poses)]
+        moved = max(float(np.nanmax(np.linalg.norm(a - b, axis=1))) for a, b in zip(new, pts))
+        pts = new
+        ok = [np.all(np.isfinite(p), axis=1) for p in pts]
+        poses = []
+        rms, K, dist, per_view = solve_points([obj[m] for m in ok], [p[m].astype(np.float32).reshape(-1, 1, 2)
+                                                                     for p, m in zip(pts, ok)], size, flags, None,
+                                              poses)
+        if moved < TOL_PX:
+            break
+    return CentreFit(pts, ok, rms, K, dist, per_view, poses, rnd, moved)
+
+
 def calibrate_circles(views, pattern, spacing_m: float, centres: str = "blobs", model: str | None = None,
                       progress=None, full_scales=None):
     """Zhang's calibration from circle-grid ``views`` = [(name, image)] (``full_scales``: per view its file's full
@@ -182,21 +285,8 @@ def calibrate_circles(views, pattern, spacing_m: float, centres: str = "blobs", 
         raise InputError(f"model {model!r}: unknown distortion model; choose one of {', '.join(DIST_MODELS)}")
     flags, words = DIST_MODELS[model]
     obj = object_points(pattern.size, spacing_m, pattern.asymmetric)
-    results, images, found, size, first = [], [], [], None, None
-    scales = list(full_scales) if full_scales is not None else [None] * len(views)
-    for (name, image), scale in zip(views if progress is None else progress(views), scales):
-        h, w = np.shape(image)[:2]
-        if size is None:
-            size, first = (w, h), name
-        elif (w, h) != size:
-            raise InputError(f"{name}: {w} x {h} px, but {first} is {size[0]} x {size[1]} px; calibrate photos of "
-                             "one camera at one resolution and orientation")
-        b = find_blobs(image, pattern.size, pattern.asymmetric, scale)
-        results.append(PhotoResult(name, b is not None, 0 if b is None else len(b[0])))
-        if b is not None:
-            images.append(image)
-            found.append(b)
-    used = [r.photo for r in results if r.found]
+    grids = find_grids(views, pattern, full_scales, progress)
+    results, images, found, size, used = grids.results, grids.images, grids.found, grids.size, grids.names
     if len(used) < 3:
         raise InputError(f"the {pattern.text} grid was found in only {len(used)} of {len(results)} photos (need >= 3); "
                          "check --pattern (COLS circles per row, ROWS rows; asymmetric or not)")
@@ -208,30 +298,14 @@ def calibrate_circles(views, pattern, spacing_m: float, centres: str = "blobs", 
     info = {"centres": kind, "method": None if kind == "blobs" else method, "rounds": 0, "moved_px": None,
             "blob_rms_px": rms}
     if kind != "blobs":
-        # the circles' radius on the board from the blobs' sizes at the blob calibration's depths
-        r_m = []
-        for (c, dia), (rv, tv) in zip(found, poses):
-            R = cv2.Rodrigues(rv)[0]
-            z = (obj.astype(np.float64) @ R.T + tv)[:, 2]
-            r_m.append(0.5 * dia * z / K[0, 0])
-        radius_m = float(np.nanmedian(np.concatenate(r_m)))
+        radius_m = blob_radius_m(found, poses, obj, K)
         info["radius_m"] = radius_m
         edges = [circle_edges(img, c, predicted_outlines(obj, radius_m, rv, tv, K, dist), method)
                  for img, (c, _), (rv, tv) in zip(images, found, poses)]
-        moved = np.inf
-        for rnd in range(MAX_ROUNDS):
-            new = [image_points(e, kind, K, dist, rv) for e, (rv, _) in zip(edges, poses)]
-            moved = max(float(np.nanmax(np.linalg.norm(a - b, axis=1))) for a, b in zip(new, pts))
-            pts = new
-            ok = [np.all(np.isfinite(p), axis=1) for p in pts]
-            obj_list = [obj[m] for m in ok]
-            poses = []
-            rms, K, dist, per_view = solve_points(obj_list, [p[m].astype(np.float32).reshape(-1, 1, 2)
-                                                             for p, m in zip(pts, ok)], size, flags, None, poses)
-            info["rounds"] = rnd + 1
-            if moved < TOL_PX:
-                break
-        info["moved_px"] = moved
+        fit = fit_centres(edges, kind, obj, size, flags, K, dist, poses, pts)
+        pts, ok, rms, K, dist, per_view = fit.points, fit.ok, fit.rms_px, fit.K, fit.dist, fit.per_view
+        obj_list = [obj[m] for m in ok]
+        info["rounds"], info["moved_px"] = fit.rounds, fit.moved_px
         for r, m in zip([r for r in results if r.found], ok):
             r.corners = int(m.sum())
     residuals: list = []

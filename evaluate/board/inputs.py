@@ -1,7 +1,8 @@
 """What the board study reads: photos (files, folders or a shipped set's name), the model, the reference.
 
-The model is a file of separate squares (``--model``) or a chessboard (``--pattern COLSxROWS``,
-``--square SIZE``; ``chessboard``).  ``resolve_inputs`` checks everything it can before any work
+The model is a file of separate squares (``--model``), a chessboard (``--pattern COLSxROWS``,
+``--square SIZE``; ``chessboard``), or a circle grid (``--pattern circles:COLSxROWS[:asymmetric]``, ``--square
+SIZE`` required: OpenCV's squareSize, ``CircleBoard``).  ``resolve_inputs`` checks everything it can before any work
 starts (paths exist and are files, a shipped set is known, at least ``MIN_PHOTOS`` photos, no
 photo twice, one model given) and returns a ``BoardInputs``; ``load_photos`` then reads every
 photo (decodable, gray, one size).
@@ -19,7 +20,7 @@ from edgetruth.evaluate.board.detect.chessboard import chessboard_model
 from edgetruth.evaluate.board.model import BoardModel, read_model
 from edgetruth.evaluate.board.reference import read_corners, read_zhang_calibration, shipped_set
 from edgetruth.evaluate.calibration import parse_pattern
-from edgetruth.evaluate.pattern import parse_board_pattern
+from edgetruth.evaluate.pattern import BoardPattern, parse_board_pattern
 from edgetruth.fileio import check_input_file
 from edgetruth.image_io import SUFFIXES, read_gray_scaled
 from edgetruth.resources import shipped_real_set_names
@@ -31,16 +32,46 @@ MIN_PHOTOS = 3
 PHOTO_SUFFIXES = SUFFIXES
 
 
+@dataclass(frozen=True)
+class CircleBoard:
+    """A circle grid as the board study reads it (``--pattern circles:COLSxROWS[:asymmetric] --square SIZE``).
+
+    Attributes
+    ----------
+    pattern : BoardPattern
+        The circles pattern (OpenCV's patternSize, asymmetric or not).
+    spacing : float
+        OpenCV's squareSize, in ``units``: circle (row i, column j) at (j s, i s), or for an asymmetric grid at
+        ((2 j + i % 2) s, i s), so s is the row spacing and half the distance between neighbours in a row
+        (``evaluate.board.circles.object_points``).
+    units : str
+        The unit of ``spacing``.
+    source : str
+        Where the board came from (for reports).
+    diameter : float or None
+        The printed circles' diameter in ``units`` where known (a shipped set's), else None.
+    """
+
+    pattern: BoardPattern
+    spacing: float
+    units: str
+    source: str
+    diameter: float | None = None
+
+
 @dataclass
 class BoardInputs:
     photos: list[Path]
-    model: BoardModel
+    #: the board of squares; None for a circle grid (``circles``)
+    model: BoardModel | None
     #: per photo (S, 4, 2) reference corners (a shipped set's own), else None
     reference_corners: list[np.ndarray] | None = None
     #: the set's published intrinsics {'fx', ..., 'k2'} and where they come from, else None
     reference_calibration: dict | None = None
     set_name: str | None = None
     notes: list[str] = field(default_factory=list)
+    #: a circle grid's board (``CircleBoard``), None for a board of squares
+    circles: CircleBoard | None = None
 
     @property
     def names(self) -> list[str]:
@@ -84,6 +115,35 @@ def board_model(model_path: str | None, pattern: str | None, square: str | float
     return read_model(model_path)
 
 
+def is_circles(pattern) -> bool:
+    """Whether ``--pattern`` names a circle grid (``circles:...``)."""
+    return str(pattern or "").strip().lower().startswith("circles:")
+
+
+def circle_board(pattern: str, square, marker=None, model_path: str | None = None, units: str = "board units",
+                 source: str | None = None, diameter: float | None = None) -> CircleBoard:
+    """The circle grid the user gave (``--pattern circles:COLSxROWS[:asymmetric] --square SIZE``); one InputError
+    line when ``--square`` is missing or not a positive number, or ``--model`` or ``--marker`` is given too."""
+    bp = parse_board_pattern(pattern, kinds=("chessboard", "circles", "charuco"))
+    if model_path is not None:
+        raise InputError(f"board study: --model and --pattern {bp.text} both given; a circle grid needs only "
+                         "--pattern and --square; drop --model")
+    if marker is not None:
+        raise InputError("--marker: only a ChArUco board (--pattern charuco:COLSxROWS:DICT) has markers; drop it")
+    if square is None:
+        raise InputError(f"--pattern {bp.text}: give --square SIZE, OpenCV's squareSize: the distance between "
+                         "neighbouring circle centres" + (", for an asymmetric grid the row spacing (half the distance "
+                                                          "between neighbours in a row)" if bp.asymmetric else "")
+                         + ", e.g. --square 25")
+    try:
+        size = float(square)
+    except ValueError:
+        size = float("nan")
+    if not (size > 0 and np.isfinite(size)):
+        raise InputError(f"--square {square!r}: give the circle spacing (OpenCV's squareSize), a positive number")
+    return CircleBoard(bp, size, units, source or f"--pattern {bp.text} --square {square}", diameter)
+
+
 def _charuco_model(pattern: str, size: float, units: str, marker) -> BoardModel:
     """A ChArUco board's model (``detect.charuco.charuco_model``): squares of ``size``, markers of ``marker`` (the
     same unit)."""
@@ -114,6 +174,11 @@ def resolve_inputs(items: list[str], model_path: str | None = None, pattern: str
         if given:
             raise InputError(f"{name}: the shipped set supplies its own model; drop {' and '.join(given)}")
         s = shipped_set(name)
+        if s is not None and "circles" in s:
+            b = s["circles"]
+            board = circle_board(str(b["pattern"]), b["square"], units=str(b["units"]), source=s["source"],
+                                 diameter=float(b["diameter"]) if "diameter" in b else None)
+            return BoardInputs(list(s["photos"]), None, set_name=name, circles=board)
         if s is not None and "chessboard" in s:
             b = s["chessboard"]
             model = chessboard_model(parse_pattern(str(b["pattern"])), float(b["square"]), str(b["units"]),
@@ -153,6 +218,8 @@ def resolve_inputs(items: list[str], model_path: str | None = None, pattern: str
     if len(photos) < MIN_PHOTOS:
         raise InputError(f"board study: {len(photos)} photo(s); calibration with leave-one-image-out needs at "
                          f"least {MIN_PHOTOS} photos of the board")
+    if is_circles(pattern):
+        return BoardInputs(photos, None, circles=circle_board(pattern, square, marker, model_path))
     return BoardInputs(photos, board_model(model_path, pattern, square, marker))
 
 

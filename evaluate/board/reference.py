@@ -47,21 +47,25 @@ def read_zhang_calibration(path) -> dict:
             "k2": float(k2), "skew": float(gamma), "poses": poses}
 
 
-#: A shipped chessboard set's board: ``pattern = "COLSxROWS"``, ``square``, ``units`` (TOML).
+#: A shipped chessboard or circle-grid set's board (TOML): ``pattern = "COLSxROWS"`` (a chessboard's inner corners)
+#: or ``"circles:COLSxROWS[:asymmetric]"`` (a circle grid), ``square`` (a chessboard's square; a circle grid's
+#: spacing, OpenCV's squareSize), ``units``, and for a circle grid optionally ``diameter``.
 CHESSBOARD_FILE = "board.toml"
 
 
 def shipped_set(name: str) -> dict | None:
     """{'photos': [...], 'model': Path, 'corners': [Path per photo], 'calibration': Path} of a shipped set that
     has a board model (``Model.txt``); {'photos': [...], 'chessboard': {'pattern', 'square', 'units'}, 'source'}
-    of one that has a chessboard (``board.toml``); else None."""
+    of one that has a chessboard (``board.toml``), or 'circles' in place of 'chessboard' for a circle grid's
+    (``pattern = "circles:..."``); else None."""
     root = Path(real_set(name))
     model = root / "Model.txt"
     if (root / CHESSBOARD_FILE).is_file():
         board = read_toml(root / CHESSBOARD_FILE)
 
         photos = sorted(p for p in root.iterdir() if p.suffix.lower() in SUFFIXES and p.is_file())
-        return {"name": name, "photos": photos, "chessboard": board, "source": f"{name}/{CHESSBOARD_FILE}"}
+        key = "circles" if str(board.get("pattern", "")).strip().lower().startswith("circles:") else "chessboard"
+        return {"name": name, "photos": photos, key: board, "source": f"{name}/{CHESSBOARD_FILE}"}
     if not model.is_file():
         return None
     photos = sorted(root.glob("CalibIm*.png"), key=lambda q: int("".join(ch for ch in q.stem if ch.isdigit()) or 0))

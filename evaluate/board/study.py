@@ -31,6 +31,7 @@ import numpy as np
 from edgetruth import console, locate
 from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
+from edgetruth.evaluate.board.circle_grid.study import compute_circle_study, write_circle_run
 from edgetruth.evaluate.board.detect import chessboard as cb
 from edgetruth.evaluate.board.detect.squares import locate_squares
 from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, load_photos_scaled, resolve_inputs
@@ -49,7 +50,9 @@ KIND = "study board"
 
 
 def settings_of(inp: BoardInputs, methods: list[str], options: dict, channel: str) -> dict:
-    return {"photos": [str(p.resolve()) for p in inp.photos], "set": inp.set_name, "model": inp.model.source,
+    """What a run directory records of a study, to refuse a rerun of other settings into it."""
+    model = inp.circles.source if inp.circles is not None else inp.model.source
+    return {"photos": [str(p.resolve()) for p in inp.photos], "set": inp.set_name, "model": model,
             "methods": methods, "options": _jsonable(options), "channel": channel}
 
 
@@ -214,14 +217,20 @@ def run_board_study(items: list[str], out, model: str | None = None, methods=Non
                     thresholds=None, progress: bool = True, pattern: str | None = None, square=None,
                     tone: str | None = None, marker=None) -> Path:
     """Run the board study (module docstring) into ``out``; returns the path of its report.md.  The board: ``model``
-    (a model file of separate squares), ``pattern``/``square`` (a chessboard), or the shipped set's own.  ``tone``:
+    (a model file of separate squares), ``pattern``/``square`` (a chessboard, a ChArUco board, or a circle grid:
+    ``evaluate.board.circle_grid``), or the shipped set's own.  ``tone``:
     how the stored values are decoded before locating (``tone.parse_tone``; default as stored)."""
     inp = resolve_inputs(list(items), model, pattern, square, marker)
+    if inp.circles is not None and tone not in (None, "stored"):
+        raise InputError(f"--tone {tone}: a circle grid's photos are studied as stored (OpenCV's blob centroids, the "
+                         "reference row, read them so); drop --tone")
     # all methods but those that need a camera model (patch_esf_fit's PSF tables): there is none here
     methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:
         locate.get_method(mo.resolve(m)[0])
     options = mo.study_options(thresholds)
+    if inp.circles is not None:
+        return _run_circles(inp, out, methods, options, channel, thresholds, progress)
     tone_t = check_tone(tone, inp)
     settings = settings_of(inp, methods, options, channel)
     if tone_t.kind != "stored":  # absent when stored, so earlier runs' directories still match
@@ -231,3 +240,12 @@ def run_board_study(items: list[str], out, model: str | None = None, methods=Non
     run = compute_board_study(inp, methods, options, channel, progress, images=images, tone=summary)
     out = prepare_run_dir(out, KIND, settings)
     return write_board_run(run, out, channel, methods, options, thresholds)
+
+
+def _run_circles(inp: BoardInputs, out, methods: list[str], options: dict, channel: str, thresholds,
+                 progress: bool) -> Path:
+    """``run_board_study`` on a circle grid (``evaluate.board.circle_grid``)."""
+    out = check_output(Path(out), settings_of(inp, methods, options, channel))
+    run = compute_circle_study(inp, methods, options, channel, progress)
+    out = prepare_run_dir(out, KIND, settings_of(inp, methods, options, channel))
+    return write_circle_run(run, out, channel, methods, options, thresholds)

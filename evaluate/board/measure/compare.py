@@ -32,6 +32,7 @@ from edgetruth.evaluate.board.measure.summary import N_BOOT, SEED, bootstrap_ind
 
 FAMILIES = ("straightness", "reprojection", "loo", "side_length")
 FAMILY_LABELS = {"straightness": "straightness per side (px)",
+                 "ellipse_residual": "ellipse residual per circle (px)",
                  "reprojection": "|reprojection residual| per corner (px)",
                  "loo": "|leave-one-image-out residual| per corner (px)",
                  "side_length": "|side length error| per side (board units)"}
@@ -52,15 +53,16 @@ def _per_photo(row: Row, family: str) -> list[np.ndarray] | None:
     raise ValueError(family)
 
 
-def family_values(row: Row, family: str) -> np.ndarray | None:
-    """The row's value on every unit of ``family`` (flat, NaN where missing), None when it has none."""
-    per = _per_photo(row, family)
+def family_values(row: Row, family: str, per_photo=None) -> np.ndarray | None:
+    """The row's value on every unit of ``family`` (flat, NaN where missing), None when it has none.  ``per_photo``:
+    (row, family) -> the row's values per photo, or None (default: a board of squares' rows, ``_per_photo``)."""
+    per = (per_photo or _per_photo)(row, family)
     return None if per is None else np.concatenate([np.asarray(v, float).ravel() for v in per])
 
 
-def family_photos(row: Row, family: str) -> np.ndarray | None:
+def family_photos(row: Row, family: str, per_photo=None) -> np.ndarray | None:
     """Which photo (from 0) each of ``family_values``'s units comes from."""
-    per = _per_photo(row, family)
+    per = (per_photo or _per_photo)(row, family)
     return None if per is None else np.concatenate([np.full(np.size(v), k) for k, v in enumerate(per)])
 
 
@@ -101,9 +103,10 @@ def baseline_of(labels: list[str]) -> str:
     return "dynamic_erf_4p" if "dynamic_erf_4p" in labels else labels[0]
 
 
-def compare_family(rows: list[Row], family: str, baseline: str, alpha: float = 0.05) -> dict:
-    """{'family', 'rows', 'n_units', 'friedman', 'tests': [...]} for the rows that have the family's values."""
-    vals = {r.label: v for r in rows if (v := family_values(r, family)) is not None}
+def compare_family(rows: list[Row], family: str, baseline: str, alpha: float = 0.05, per_photo=None) -> dict:
+    """{'family', 'rows', 'n_units', 'friedman', 'tests': [...]} for the rows that have the family's values
+    (``per_photo`` as ``family_values``)."""
+    vals = {r.label: v for r in rows if (v := family_values(r, family, per_photo)) is not None}
     labels = list(vals)
     out = {"family": family, "label": FAMILY_LABELS[family], "rows": labels, "baseline": baseline, "tests": []}
     if not labels or baseline not in vals:
@@ -112,7 +115,7 @@ def compare_family(rows: list[Row], family: str, baseline: str, alpha: float = 0
     m = np.stack([vals[k] for k in labels], axis=1)
     common = np.all(np.isfinite(m), axis=1)
     m = m[common]
-    photo = family_photos(next(r for r in rows if r.label == baseline), family)[common]
+    photo = family_photos(next(r for r in rows if r.label == baseline), family, per_photo)[common]
     out["n_units"] = int(m.shape[0])
     out["friedman"] = stats.friedman(m)
     b = m[:, labels.index(baseline)]
@@ -141,9 +144,11 @@ def compare_family(rows: list[Row], family: str, baseline: str, alpha: float = 0
     return out
 
 
-def compare_all(rows: list[Row], alpha: float = 0.05) -> list[dict]:
+def compare_all(rows: list, alpha: float = 0.05, families=FAMILIES, per_photo=None) -> list[dict]:
+    """Every family of ``families`` compared across ``rows`` (``compare_family``; ``per_photo`` as
+    ``family_values``: a circle grid's rows give their own), against ``baseline_of`` the method rows."""
     methods = [r.label for r in rows if r.is_method]
     if not methods:
         return []
     base = baseline_of(methods)
-    return [compare_family(rows, f, base, alpha) for f in FAMILIES]
+    return [compare_family(rows, f, base, alpha, per_photo) for f in families]

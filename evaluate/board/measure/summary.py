@@ -72,7 +72,7 @@ def rms_ci_by_photo(sq_sums, counts, alpha: float = 0.05) -> tuple[float, float]
     return float(lo), float(hi)
 
 
-def _photo_squares(arrs) -> tuple[np.ndarray, np.ndarray]:
+def photo_squares(arrs) -> tuple[np.ndarray, np.ndarray]:
     """Each photo's sum of squared finite values and their count."""
     a = [np.asarray(x, float).ravel() for x in arrs]
     return (np.array([np.sum(v[np.isfinite(v)] ** 2) for v in a]),
@@ -159,9 +159,9 @@ def row_summary(row: Row, model: BoardModel, reference: dict | None, reference_c
     _, calib_ci = rms_ci(_flat(row.cal.residual_px))
     loo, loo_ci = rms_ci(_flat(row.loo["residual_px"]))
     out.update(calib_rms_px=row.cal.rms_px, calib_rms_ci=calib_ci,
-               calib_rms_ci_photos=rms_ci_by_photo(*_photo_squares(row.cal.residual_px)),
+               calib_rms_ci_photos=rms_ci_by_photo(*photo_squares(row.cal.residual_px)),
                loo_rms_px=loo, loo_rms_ci=loo_ci,
-               loo_rms_ci_photos=rms_ci_by_photo(*_photo_squares(row.loo["residual_px"])),
+               loo_rms_ci_photos=rms_ci_by_photo(*photo_squares(row.loo["residual_px"])),
                loo_per_photo_px=list(row.loo["per_view_rms_px"]),
                calib_per_photo_px=[float(np.sqrt(np.nanmean(r ** 2))) for r in row.cal.residual_px])
     out.update(row.cal.intrinsics())

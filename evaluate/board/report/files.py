@@ -38,7 +38,8 @@ SUMMARY_COLUMNS = (
 OWN_CORNER_NOTICE_PX = 0.01
 
 
-def _csv_text(header, rows) -> str:
+def csv_text(header, rows) -> str:
+    """CSV text: ``header``, then one line per dict of ``rows`` (floats as repr, NaN and None empty)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)
@@ -53,21 +54,27 @@ def _v(v):
     return v
 
 
-def _flat_summary(s: dict) -> dict:
+#: a summary's CIs (lo, hi), split into two columns each by ``flat_summary``
+CI_KEYS = ("straightness_ci", "calib_rms_ci", "loo_rms_ci", "straightness_ci_photos", "calib_rms_ci_photos",
+           "loo_rms_ci_photos")
+
+
+def flat_summary(s: dict, keys=CI_KEYS) -> dict:
+    """A row's summary with each CI of ``keys`` as two columns, ``KEY_lo`` and ``KEY_hi``."""
     out = dict(s)
-    for k in ("straightness_ci", "calib_rms_ci", "loo_rms_ci", "straightness_ci_photos", "calib_rms_ci_photos",
-              "loo_rms_ci_photos"):
+    for k in keys:
         out[f"{k}_lo"], out[f"{k}_hi"] = s.get(k, (float("nan"), float("nan")))
     return out
 
 
-def _json_safe(obj):
+def json_safe(obj):
+    """``obj`` with numpy values as plain Python ones and non-finite floats as None, for JSON."""
     if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
+        return {k: json_safe(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
+        return [json_safe(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _json_safe(obj.tolist())
+        return json_safe(obj.tolist())
     if isinstance(obj, (float, np.floating)):
         return float(obj) if np.isfinite(obj) else None
     if isinstance(obj, (np.integer,)):
@@ -86,7 +93,7 @@ def calibration_json(row, summary: dict, photo_names: list[str]) -> dict:
         if "d_fx" in summary:
             out["difference_from_reference"] = {k: summary[f"d_{k}"] for k in INTRINSICS}
     out["corners_px"] = {n: c for n, c in zip(photo_names, row.corners)}
-    return _json_safe(out)
+    return json_safe(out)
 
 
 # ------------------------------------------------------------------------------------------- markdown
@@ -249,7 +256,8 @@ def _per_photo_table(sums, photo_names: list[str]) -> str:
     return table(["row", *photo_names], body)
 
 
-def _paired_tables(comparisons, labels: dict) -> list[str]:
+def paired_tables(comparisons, labels: dict) -> list[str]:
+    """The report's lines of the paired tests (``measure.compare``), one table per family; ``labels``: row -> label."""
     out = []
     for c in comparisons:
         if not c["tests"]:
@@ -272,7 +280,8 @@ def _paired_tables(comparisons, labels: dict) -> list[str]:
     return out
 
 
-def _ranking(sums, key: str, nd: int = 3) -> str:
+def ranking(sums, key: str, nd: int = 3) -> str:
+    """'label value, ...' of the rows with a finite ``key``, lowest first."""
     rows = sorted((s for s in sums if np.isfinite(s.get(key, float("nan")))), key=lambda s: s[key])
     return ", ".join(f"{s['label']} {s[key]:.{nd}f}" for s in rows)
 
@@ -283,10 +292,10 @@ def reading(sums, comparisons, reference, tone: dict | None = None, photos: list
     methods = [s for s in sums if s["row"] not in REFERENCE_ROWS]
     ref = next((s for s in sums if s["row"] in REFERENCE_ROWS), None)
     lines = ["Rankings as measured (lowest first):", "",
-             f"- Straightness (px): {_ranking(methods, 'straightness_px')}.",
-             f"- Calibration RMS (px): {_ranking(sums, 'calib_rms_px')}.",
-             f"- Leave-one-image-out RMS (px): {_ranking(sums, 'loo_rms_px')}.",
-             f"- Side-length RMSE (px): {_ranking(sums, 'length_rmse_px')}."]
+             f"- Straightness (px): {ranking(methods, 'straightness_px')}.",
+             f"- Calibration RMS (px): {ranking(sums, 'calib_rms_px')}.",
+             f"- Leave-one-image-out RMS (px): {ranking(sums, 'loo_rms_px')}.",
+             f"- Side-length RMSE (px): {ranking(sums, 'length_rmse_px')}."]
     both = [s for s in methods if np.isfinite(s["straightness_px"]) and np.isfinite(s.get("calib_rms_px", np.nan))]
     if len(both) >= 3:
         sp = spearman([s["straightness_px"] for s in both], [s["calib_rms_px"] for s in both])
@@ -357,6 +366,24 @@ def reading(sums, comparisons, reference, tone: dict | None = None, photos: list
     return lines
 
 
+#: paired_tests.csv's columns (``paired_test_rows``)
+PAIRED_COLUMNS = ("family", "baseline", "row", "n_units", "n_pairs", "mean_row", "mean_baseline", "median_difference",
+                  "mean_difference_ci_lo", "mean_difference_ci_hi", "rank_biserial", "p_value", "p_holm",
+                  "significant", "n_photos", "photos_same_sign", "mean_difference_ci_photos_lo",
+                  "mean_difference_ci_photos_hi", "p_value_photos", "p_holm_photos", "significant_photos",
+                  "friedman_p", "kendall_w")
+
+
+def paired_test_rows(comparisons) -> list[dict]:
+    """paired_tests.csv: one dict per test of every family (``measure.compare``), its CIs split into lo and hi."""
+    return [{"family": c["family"], "baseline": c["baseline"], "n_units": c["n_units"],
+             "friedman_p": c["friedman"]["p_value"], "kendall_w": c["friedman"]["kendall_w"], **t,
+             "mean_difference_ci_lo": t["mean_difference_ci"][0], "mean_difference_ci_hi": t["mean_difference_ci"][1],
+             "mean_difference_ci_photos_lo": t["mean_difference_ci_photos"][0],
+             "mean_difference_ci_photos_hi": t["mean_difference_ci_photos"][1]}
+            for c in comparisons for t in c["tests"]]
+
+
 def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_table: list[dict], rows, summaries,
                   comparisons, reference, model, photo_names, per_side, locator=None, tone=None,
                   overlays=None) -> Path:
@@ -369,32 +396,22 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
     for (fname, data), photo in zip(overlays or [], photo_names):
         atomic_write_bytes(out / "figures" / fname, data)
         pictures[photo] = f"[overlay](figures/{fname})"
-    atomic_write_text(out / "summary.csv", _csv_text(SUMMARY_COLUMNS, [_flat_summary(s) for s in summaries]))
-    atomic_write_text(out / "per_side.csv", _csv_text(
+    atomic_write_text(out / "summary.csv", csv_text(SUMMARY_COLUMNS, [flat_summary(s) for s in summaries]))
+    atomic_write_text(out / "per_side.csv", csv_text(
         ("image", "square", "side", "method", "n_points", "rms_px", "length_model", "length_measured", "length_err",
          "length_err_px"), per_side))
-    atomic_write_text(out / "per_photo.csv", _csv_text(tuple(photos_table[0]), photos_table))
+    atomic_write_text(out / "per_photo.csv", csv_text(tuple(photos_table[0]), photos_table))
     photo_headers = {"photo": "photo", "squares_found": "squares found", "squares_total": "of",
                      "missing": "missing (model order, from 0)",
                      "quad_residual_px": "quad corners about homography (px)",
                      "candidates_near_sides": "candidates near sides", "used": "used",
                      "dark_level": "dark", "white_level": "white", "dark_sd": "dark SD", "white_sd": "white SD",
                      "white_saturated": "white saturated"}
-    tests = [{"family": c["family"], "baseline": c["baseline"], "n_units": c["n_units"],
-              "friedman_p": c["friedman"]["p_value"], "kendall_w": c["friedman"]["kendall_w"], **t,
-              "mean_difference_ci_lo": t["mean_difference_ci"][0], "mean_difference_ci_hi": t["mean_difference_ci"][1],
-              "mean_difference_ci_photos_lo": t["mean_difference_ci_photos"][0],
-              "mean_difference_ci_photos_hi": t["mean_difference_ci_photos"][1]}
-             for c in comparisons for t in c["tests"]]
-    cols = ("family", "baseline", "row", "n_units", "n_pairs", "mean_row", "mean_baseline", "median_difference",
-            "mean_difference_ci_lo", "mean_difference_ci_hi", "rank_biserial", "p_value", "p_holm", "significant",
-            "n_photos", "photos_same_sign", "mean_difference_ci_photos_lo", "mean_difference_ci_photos_hi",
-            "p_value_photos", "p_holm_photos", "significant_photos", "friedman_p", "kendall_w")
-    atomic_write_text(out / "paired_tests.csv", _csv_text(cols, tests))
+    atomic_write_text(out / "paired_tests.csv", csv_text(PAIRED_COLUMNS, paired_test_rows(comparisons)))
     if locator:
-        write_json(out / "locator.json", _json_safe(locator))
+        write_json(out / "locator.json", json_safe(locator))
     if tone:
-        write_json(out / "tone.json", _json_safe(tone))
+        write_json(out / "tone.json", json_safe(tone))
     tone_table = _tone_table(tone["fit"]) if tone and tone.get("fit") else []
     for row, s in zip(rows, summaries):
         write_json(out / "calibration" / f"{row.label}.json", calibration_json(row, s, photo_names))
@@ -448,7 +465,7 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
               "## Paired tests", "",
               "Every row against the baseline on the units all rows have; Holm-adjusted within each family; "
               "rank-biserial > 0: the row's values tend to be larger (worse) than the baseline's.", "",
-              *_paired_tables(comparisons, labels),
+              *paired_tables(comparisons, labels),
               *tone_table, "## Reading", "", *reading(summaries, comparisons, reference, tone, photos_table), "",
               *([*LF.reading_lines(locator), ""] if locator else []),
               "## Figures", ""]

@@ -226,6 +226,9 @@ def own_inputs(photos: list[str], twin: str | None, model_path=None, pattern=Non
                          "photos with their twin scene, --twin FILE (`edgetruth twin PHOTOS --pattern ... -o DIR` "
                          "writes DIR/twin.toml)")
     real = resolve_inputs(list(photos), model_path, pattern, square)
+    if real.circles is not None:
+        raise InputError(f"--pattern {real.circles.pattern.text}: the twin renders boards of squares (a model file, a "
+                         "chessboard); study a circle grid's photos with `edgetruth study board`")
     return real.set_name, real, twin
 
 

@@ -10,6 +10,7 @@ import pytest
 from edgetruth.errors import InputError
 from edgetruth.evaluate.board import circles
 from edgetruth.evaluate.pattern import parse_board_pattern
+from tests.evaluate.board.circle_images import views
 
 
 def test_object_points_follow_opencvs_sample():
@@ -32,36 +33,9 @@ def test_centres_option():
             circles.parse_centres(bad)
 
 
-def _views():
-    from edgetruth.render.optics.camera import camera_from_dict
-    from edgetruth.render.scene import board_frame as bf
-    from edgetruth.render.scene.circles_grid import CirclesGrid
-    from edgetruth.render.scene.circles_truth import circles_ground_truth
-    from edgetruth.render.scene.edge_band import band_width_px
-    from edgetruth.render.scene.pose import Pose
-
-    cam = camera_from_dict({"width_px": 320, "height_px": 240, "pitch_um": 12.0, "focal_length_mm": 8.0,
-                            "f_number": 8.0, "focus_distance_m": 0.4, "distortion": {"k1": -0.12, "k2": 0.05}})
-    grid = CirclesGrid(cols=4, rows=5, spacing_m=0.012, diameter_m=0.009, asymmetric=True, margin_m=0.01)
-    reach = band_width_px(cam, 1.0)
-    dark = 1.0 - grid.circle_reflectance / grid.board_reflectance
-    views, truths = [], []
-    poses = [Pose(0.42, 0.0, 0.0, 0.0, 0.0, 0.0), Pose(0.4, 0.03, 0.02, 30.0, 5.0, 8.0),
-             Pose(0.45, -0.03, -0.02, -25.0, 20.0, -6.0), Pose(0.38, 0.02, 0.01, 10.0, -30.0, 12.0),
-             Pose(0.44, -0.02, 0.03, -15.0, -25.0, 3.0), Pose(0.4, 0.0, 0.0, 35.0, 30.0, -10.0)]
-    for k, pose in enumerate(poses):
-        c = np.ones(cam.shape)
-        for curve, ext in bf._dark_outlines(cam, pose, grid):
-            x0, y0, x1, y1 = bf._box(ext, reach + 2.0, (0, 0, cam.width_px, cam.height_px))
-            c[y0:y1, x0:x1] -= dark * bf.polygon_coverage(cam, curve, x0, y0, x1 - x0, y1 - y0, reach)
-        views.append((f"v{k}", 3000.0 * c))
-        truths.append(circles_ground_truth(cam, pose, grid)["circles"])
-    return cam, grid, views, truths
-
-
 @pytest.fixture(scope="module")
 def synthetic():
-    return _views()
+    return views()
 
 
 @pytest.mark.slow

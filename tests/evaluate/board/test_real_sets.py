@@ -57,3 +57,38 @@ def test_sony_hx5v_circles_is_boofcvs_10x8_circle_grid_and_plain_opencv_calibrat
     assert rms == pytest.approx(0.450, abs=5e-4)
     np.testing.assert_allclose([k_mat[0, 0], k_mat[1, 1], k_mat[0, 2], k_mat[1, 2]],
                                [454.10, 451.93, 322.47, 242.45], atol=0.01)
+
+
+def test_study_board_on_sony_hx5v_circles_has_plain_opencv_as_its_reference_row(tmp_path):
+    """`edgetruth study board sony_hx5v_circles`: OpenCV's blob centroids calibrate as plain OpenCV does (the test
+    above): RMS 0.450 px (to 5e-4), fx 454.10, fy 451.93, cx 322.47, cy 242.45 (to 0.01 px); image00000 and
+    image00004 are skipped with why."""
+    import csv
+    import json
+
+    import numpy as np
+
+    from edgetruth.cli import main
+
+    out = tmp_path / "run"
+    assert main(["study", "board", "sony_hx5v_circles", "-o", str(out), "--methods", "erf4p_fixed11",
+                 "--no-progress"]) == 0
+    with open(out / "summary.csv", newline="") as fh:
+        ref = {r["row"]: r for r in csv.DictReader(fh)}["opencv_blobs"]
+    assert float(ref["calib_rms_px"]) == pytest.approx(0.450, abs=5e-4)
+    np.testing.assert_allclose([float(ref[k]) for k in ("fx", "fy", "cx", "cy")], [454.10, 451.93, 322.47, 242.45],
+                               atol=0.01)
+    with open(out / "per_photo.csv", newline="") as fh:
+        photos = list(csv.DictReader(fh))
+    assert [p["photo"] for p in photos if p["used"] == "no"] == ["image00000.jpg", "image00004.jpg"]
+    assert all("findCirclesGrid did not find" in p["why_skipped"] for p in photos if p["used"] == "no")
+    cal = json.loads((out / "calibration" / "opencv_blobs.json").read_text())
+    assert cal["photos"] == ["image00001.jpg", "image00002.jpg", "image00003.jpg", "image00005.jpg"]
+
+
+def test_sony_hx5v_circles_resolves_to_its_circle_grid():
+    """The shipped set's board.toml: OpenCV's 10x8 symmetric grid, centres 25 mm apart, circles 15 mm."""
+    inp = resolve_inputs(["sony_hx5v_circles"])
+    assert inp.model is None and inp.circles.pattern.text == "circles:10x8"
+    assert (inp.circles.spacing, inp.circles.units, inp.circles.diameter) == (25.0, "mm", 15.0)
+    assert len(inp.photos) == 6
