@@ -1,8 +1,9 @@
 """``edgetruth twin PHOTOS... --pattern 9x6 --square-m 0.025 -o DIR``: a digital twin of your own chessboard photos;
-``edgetruth twin PHOTOS... --model Model.txt --model-unit-m 0.0254 -o DIR``: of photos of a board of separate squares.
+``edgetruth twin PHOTOS... --model Model.txt --model-unit-m 0.0254 -o DIR``: of photos of a board of separate squares;
+``edgetruth twin PHOTOS... --pattern circles:10x8 --square-m 0.025 -o DIR``: of a circle grid's.
 
 Measures on the photos what a twin needs (``edgetruth.evaluate.board.twin.measure`` for a chessboard,
-``measure_squares`` for a model's squares: camera, poses, board, levels, clip, blur, tone, JPEG quality) and writes
+``measure_squares`` for a model's squares, ``measure_circles`` for a circle grid: camera, poses, board, levels, clip, blur, tone, JPEG quality) and writes
 ``DIR/twin.toml`` (one group per photo), ``DIR/camera.toml``, ``DIR/measurements.json`` and, for a model, its file
 (``DIR/model.txt``, so the directory renders on its own); ``edgetruth render DIR/twin.toml -o RENDERS`` renders it
 with exact truth.
@@ -21,8 +22,10 @@ from edgetruth.errors import InputError
 from edgetruth.evaluate.board.model import read_model
 from edgetruth.evaluate.board.twin.derive import TwinAssumptions, safe_name, twin_texts
 from edgetruth.evaluate.board.twin.measure import measure_chessboard
+from edgetruth.evaluate.board.twin.measure_circles import measure_circles
 from edgetruth.evaluate.board.twin.measure_squares import measure_squares
 from edgetruth.evaluate.calibration import find_photos, parse_pattern
+from edgetruth.evaluate.pattern import parse_board_pattern
 from edgetruth.fileio import atomic_write_bytes, atomic_write_text, check_output_dir, make_output_dir, write_json
 from edgetruth.render.dataset.spec import load_spec
 from edgetruth.render.schema import NAME_RE
@@ -47,8 +50,10 @@ def register(sub) -> None:
                    help="image files, folders, glob patterns (quoted), or a shipped photo set's name (opencv_left, "
                         "zhang1998); 8- or 16-bit, gray or colour (read as luma, or --channel), every photo showing "
                         "the whole board")
-    add_pattern_option(p, "the chessboard the photos show (or --model)")
-    add_square_m_option(p, "with --pattern: it sets the twin's board size and its distances", required=False)
+    add_pattern_option(p, "the chessboard or circle grid the photos show (or --model)", kinds=("chessboard", "circles"))
+    add_square_m_option(p, "with --pattern: it sets the twin's board size and its distances; a circle grid: OpenCV's "
+                           "squareSize, the distance between neighbouring centres (an asymmetric grid's row spacing)",
+                        required=False)
     p.add_argument("--model", default=None, metavar="FILE",
                    help="the board of separate squares the photos show (or --pattern): one square per line, x y of "
                         "its four corners in model units (Zhang's Model.txt layout); copied to DIR/model.txt")
@@ -56,9 +61,9 @@ def register(sub) -> None:
                    help="with --model: the length of its unit in metres (0.0254 for inches); it sets the twin's "
                         "board size and its distances")
     p.add_argument("--tone-power", type=float, default=None, metavar="G",
-                   help=f"with --model, 8-bit photos: their tone, stored = full * linear^(1/G) (default "
-                        f"{DEFAULT_TONE_POWER:g}, close to sRGB; 1: linear); separate squares have no junctions to "
-                        "measure it at (a chessboard's is measured)")
+                   help=f"with --model or a circle grid, 8-bit photos: their tone, stored = full * linear^(1/G) (default "
+                        f"{DEFAULT_TONE_POWER:g}, close to sRGB; 1: linear); separate squares and circles have no "
+                        "junctions to measure it at (a chessboard's is measured)")
     p.add_argument("-o", "--output", required=True, metavar="DIR",
                    help="directory for twin.toml, camera.toml, measurements.json (and with --model its "
                         "model.txt); refused if it holds a twin.toml already")
@@ -107,11 +112,14 @@ def run(args: argparse.Namespace) -> int:
                          "digit (it names files and directories)")
     name = args.name or safe_name(out.resolve().name or "twin")
     track = lambda it: console.track(it, desc="twin", unit="photo", enabled=not args.no_progress)  # noqa: E731
-    if model is None:
+    tone_power = DEFAULT_TONE_POWER if args.tone_power is None else args.tone_power
+    circles = pattern is not None and not isinstance(pattern, tuple)  # a circle grid's BoardPattern
+    if circles:
+        m = measure_circles([p for _, p in photos], pattern, tone_power, channel=args.channel, progress=track)
+    elif model is None:
         m = measure_chessboard([p for _, p in photos], pattern, channel=args.channel, progress=track)
     else:
-        m = measure_squares([p for _, p in photos], model, DEFAULT_TONE_POWER if args.tone_power is None else
-                            args.tone_power, channel=args.channel, progress=track)
+        m = measure_squares([p for _, p in photos], model, tone_power, channel=args.channel, progress=track)
     assumptions = TwinAssumptions(pitch_um=args.pitch_um, f_number=args.f_number, white_noise_dn=args.white_noise_dn,
                                   dark_noise_e=args.read_noise_e, black_dn=args.black_dn)
     for o in m["left_out"]:
@@ -136,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
                 + (f" {spec.sensor.bits}-bit, K {spec.sensor.k0_dn_per_e:.4f} DN/e-, black "
                    f"{spec.sensor.dark_offset_dn:.1f} DN" if spec.sensor.output == "raw" else
                    f", output_gamma {tone['output_gamma']:g}")
-                + ("" if model is None else " (assumed, --tone-power)")
+                + ("" if model is None and not circles else " (assumed, --tone-power)")
                 + f"; {sum(p['white_saturated'] for p in m['photos'])} "
                 f"clipped" + ("; each board curled as its photo's" if args.bend else "") + f" -> {out / 'twin.toml'}")
     console.say(f"twin: render it with `edgetruth render {shlex.quote(str(out / 'twin.toml'))} -o RENDERS`")
@@ -146,6 +154,8 @@ def run(args: argparse.Namespace) -> int:
     given = [str(real_set(r)) if not Path(r).exists() and "/" not in r and r in shipped_real_set_names() else r
              for r in args.photos]
     board = ["--pattern", args.pattern] if model is None else ["--model", str(out / "model.txt")]
+    if circles:
+        board += ["--square", f"{unit_m:g}"]
     study = ["edgetruth", "study", "twin", *given, *board, "--twin", str(out / "twin.toml"),
              *(["--channel", args.channel] if args.channel != "luma" else []), "-o", "RUN"]
     console.say(f"twin: or render it beside the photos and compare: `{shlex.join(study)}`")
@@ -159,6 +169,17 @@ def _board(args):
         raise InputError("twin: give the board the photos show, either --pattern COLSxROWS --square-m METRES (a "
                          "chessboard) or --model FILE --model-unit-m METRES (separate squares), not both")
     if args.pattern is not None:
+        board = parse_board_pattern(args.pattern, kinds=("chessboard", "circles"))
+        if board.kind == "circles":
+            if args.model_unit_m is not None:
+                raise InputError("--model-unit-m: for --model (a board of separate squares); a circle grid's spacing "
+                                 "is --square-m; drop it")
+            if args.bend:
+                raise InputError("--bend: for chessboards only (a circle grid has no bend check); drop it")
+            if args.square_m is None:
+                raise InputError(f"--pattern {board.text} needs --square-m METRES: OpenCV's squareSize, the distance "
+                                 "between neighbouring centres (an asymmetric grid's row spacing), e.g. 0.025")
+            return board, None, parse_square_m(args.square_m)
         for flag, v in (("--model-unit-m", args.model_unit_m), ("--tone-power", args.tone_power)):
             if v is not None:
                 raise InputError(f"{flag}: for --model (a board of separate squares); a chessboard's "

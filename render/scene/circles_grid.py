@@ -133,8 +133,13 @@ class CirclesGrid:
                 "material": "Lambertian (diffuse) white plate and dark circles"}
 
     def resolved(self) -> dict:
-        return {"cols": self.cols, "rows": self.rows, "spacing_m": self.spacing_m, "diameter_m": self.diameter_m,
-                "asymmetric": self.asymmetric, "margin_m": self.margin_m}
+        out = {"cols": self.cols, "rows": self.rows, "spacing_m": self.spacing_m, "diameter_m": self.diameter_m,
+               "asymmetric": self.asymmetric, "margin_m": self.margin_m}
+        # the print's albedos only where not the defaults: specs written before them keep their identity
+        for key in ("circle_reflectance", "board_reflectance"):
+            if getattr(self, key) != getattr(_G, key):
+                out[key] = getattr(self, key)
+        return out
 
 
 _G = CirclesGrid()
@@ -147,6 +152,10 @@ CIRCLES_GRID_KEYS = [
     Key("asymmetric", "bool", _G.asymmetric, "", "every other row shifted by s (CALIB_CB_ASYMMETRIC_GRID); false: "
         "a symmetric grid (CALIB_CB_SYMMETRIC_GRID)"),
     Key("margin_m", "float", _G.margin_m, "m", "white margin beyond the circles", 0.0, 1.0),
+    Key("circle_reflectance", "float", _G.circle_reflectance, "", "Lambertian albedo of the circles (matte black "
+        "print)", 0.0, 1.0),
+    Key("board_reflectance", "float", _G.board_reflectance, "", "Lambertian albedo of the plate (white paper)",
+        0.0, 1.0),
 ]
 
 

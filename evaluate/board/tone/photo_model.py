@@ -234,7 +234,12 @@ def overshoot_pct(t: np.ndarray, esf: np.ndarray) -> tuple[float, float]:
 def blur(image: np.ndarray, lines: BoardLines) -> dict:
     """Per orientation: median ERF σ (stored and sRGB-decoded values), relative fit residuals, e-SFR MTF50 and
     overshoot of the pooled ESF (module docstring)."""
-    smp = side_samples(image, lines)
+    return blur_of_samples(side_samples(image, lines))
+
+
+def blur_of_samples(smp: SideSamples) -> dict:
+    """``blur`` of edge samples of any shape (a circle's arcs: ``twin.measure_circles``): per orientation, the
+    ERF fit of every edge's (distance, value) samples, pooled."""
     enc = fit_erf_batch(smp.d, smp.v)
     lin_v = [srgb_decode(v / 255.0) for v in smp.v]
     lin = fit_erf_batch(smp.d, lin_v)

@@ -183,7 +183,10 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     if twice:
         raise InputError(f"{twice[0]}: two photos share this name; a twin names one group per photo, so rename one")
     chess = "pattern" in m
-    if not chess and (bend or model_ref is None):
+    circles = m.get("board", {}).get("kind") == "circles"
+    if circles and bend:
+        raise InputError("--bend: for chessboards only (a circle grid has no bend check); drop it")
+    if not chess and not circles and (bend or model_ref is None):
         raise InputError("--bend: for chessboards only (a board of separate squares has no bend check); drop it"
                          if bend else "a board of separate squares' twin names its model file (model_ref)")
     cols, rows = m["pattern"] if chess else (0, 0)
@@ -326,6 +329,10 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
     cal_words = (f"Zhang's calibration on the {cols * rows} line corners of every photo (ERF4P-fixed11, the grid "
                  f"lines fitted in the undistorted image; `edgetruth calibrate --pattern {cols}x{rows} --corners "
                  f"lines`), RMS {m['rms_px']:.4f} px" if chess else
+                 f"Zhang's calibration on the {m['board']['cols'] * m['board']['rows']} circles' corrected centres "
+                 "of every photo (ERF4P-fixed11's points on each circle, an ellipse, the image of its centre; "
+                 f"`edgetruth calibrate --pattern {m['board']['pattern_text']} --centres corrected`), RMS "
+                 f"{m['rms_px']:.4f} px" if circles else
                  f"Zhang's calibration (k1, k2, as his) on the corners of the {4 * m['board']['squares']} squares' "
                  "side lines (Canny-Devernay points, edgetruth.evaluate.board.tone.photo_model.board_lines) of every "
                  f"photo, RMS {m['rms_px']:.4f} px")
@@ -333,7 +340,8 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
         f"The camera of {source}, as edgetruth measured it: {cal_words}.  Written by `edgetruth twin` "
         f"(edgetruth.evaluate.board.twin.derive).  Assumed (nothing published): the pixel pitch ({a.pitch_um} um), "
         f"the f-number (f/{a.f_number:g}) and the focus (the median board distance, with "
-        + (f"a square of {square_m * 1000:g} mm" if chess else f"a model unit of {square_m * 1000:g} mm")
+        + (f"a square of {square_m * 1000:g} mm" if chess else f"a spacing of {square_m * 1000:g} mm" if circles
+           else f"a model unit of {square_m * 1000:g} mm")
         + "); they set f = fx * pitch and the defocus, which is small here.  The lens blur is "
         f"the median of the unsaturated photos' ERF sigma per axis (edgetruth.evaluate.board.tone.photo_model: "
         f"{sig_x:.3f} px along x, {sig_y:.3f} px along y)"
@@ -345,7 +353,8 @@ def twin_texts(m: dict, name: str, description: str, camera_ref: str, square_m: 
            "aberration is fitted with the renderer's unsharp mask to each photo's pooled ESF "
            "(edgetruth.evaluate.board.twin.sharpening; here the median).  ") + (
             f"The lens shading (shading_a2, shading_a4: 1 + a2 h^2 + a4 h^4, h the field height) is what the "
-            f"unsaturated photos' {'light squares' if chess else 'white gaps between the squares'} show beyond "
+            f"unsaturated photos' {'light squares' if chess else 'white between the circles' if circles else ''}"
+            f"{'' if chess or circles else 'white gaps between the squares'} show beyond "
             "the twin's light (edgetruth.evaluate.board.twin.shading; "
             f"{shading['levels']} levels over {shading['photos']} photos): their RMS about the fit "
             f"{100 * shading['rms_after']:.1f} % of the level, {100 * shading['rms_before']:.1f} % with the light "
@@ -426,7 +435,7 @@ k3 = {dist[4]:.6f}
                    "the unsaturated photos' median"))
         groups.append(f"""[[group]]  # {p['photo']}: {note}
 name = "{group_name(p['photo'])}"
-kind = "squares"
+kind = "{'circles_grid' if circles else 'squares'}"
 {"" if curl is None else f"board_bend_mm = {curl}"}
 irradiance_w_m2 = {irradiance(lin(white - offset), rel):.4f}
 light_position_m = {light}
@@ -436,9 +445,12 @@ camera = {{ aberration_sigma_um = {ab_x:.3f}, aberration_sigma_y_um = {ab_y:.3f}
 poses = [{{ R = [{R}], t = [{t}] }}]
 """.replace("\n\n", "\n"))
     sat = [p for p in photos if p["white_saturated"]]
-    margin_m = 0.0 if chess else m["board"]["side_model"] * square_m
+    margin_m = 0.0 if chess else square_m if circles else m["board"]["side_model"] * square_m
     board_keys = (f'chessboard = "{cols}x{rows}"\nside_m = {square_m}\nring = [{ring[0]:.3f}, {ring[1]:.3f}]\n'
                   f'margin_m = {0.35 * square_m:.5f}' if chess else
+                  f'cols = {m["board"]["cols"]}\nrows = {m["board"]["rows"]}\nspacing_m = {square_m}\n'
+                  f'diameter_m = {2.0 * m["board"]["radius_spacings"] * square_m:.6f}\n'
+                  f'asymmetric = {str(m["board"]["asymmetric"]).lower()}\nmargin_m = {margin_m:.5f}' if circles else
                   f'model = {_toml_str(model_ref)}\nmodel_unit_m = {square_m}\nmargin_m = {margin_m:.5f}')
     prnu_line = f"prnu_pct = {100 * rn.prnu:.3f}\n" if raw and round(100 * rn.prnu, 3) > 0 else ""
     tone = m["tone"]
@@ -449,9 +461,22 @@ poses = [{{ R = [{R}], t = [{t}] }}]
              if unsat else "no unsaturated photo")
     sensor_lines = [f'output = "{output}"'] + ([f"jpeg_quality = {quality}"] if quality is not None else []) + (
         [f'sharpen_axis = "{axes}"'] if axes else [])
-    by_top = not chess and not raw  # a model's ring: clipped at its top, the level before from the share there
+    by_top = not chess and not raw  # a model's or circle grid's white  # a model's ring: clipped at its top, the level before from the share there
     clip = f" at {_range([p['white_top' if by_top else 'white'] for p in sat], '.0f')}" if sat else ""
-    if chess:
+    if circles:
+        cb = m["board"]
+        board_lines = [
+            _comment(f"A digital twin of {source}: a {cb['pattern_text']} grid of circles {square_m * 1000:g} mm "
+                     f"apart (OpenCV's squareSize), the camera edgetruth calibrated on them ({camera_ref}), one group "
+                     "per photo at the pose its circles' corrected centres give (cv2.solvePnP on OpenCV's object "
+                     "points; t in spacings).  Written by `edgetruth twin` (edgetruth.evaluate.board.twin.derive, "
+                     "measure_circles); docs/board.md.  Measured on the photos:"),
+            _comment(f"the board: circles of diameter {2000 * cb['radius_spacings'] * square_m:.3f} mm (each "
+                     "fitted ellipse's area at its circle's depth, median) on a white plate one spacing beyond "
+                     f"them (assumed: {margin_m * 1000:.1f} mm; the sheet's edge is not measured);", True)]
+        where_white, flat_rule, beyond = "between its circles", \
+            "noise SD < half the dark's, or over 30 % of it at its top", "the sheet's true extent"
+    elif chess:
         board_lines = [
             _comment(f"A digital twin of {source}: a {cols}x{rows} chessboard, the camera edgetruth calibrated on "
                      f"them ({camera_ref}), one group per photo at the pose its line corners give (cv2.solvePnP on the "
@@ -492,8 +517,8 @@ poses = [{{ R = [{R}], t = [{t}] }}]
         _comment(f"tone: {tone_words}: output_gamma = {gamma:g};", True),
         _comment(f"output: {output_words};", True),
         _comment(f"levels: each photo's white {where_white} (its exposure, irradiance_w_m2 here); the "
-                 f"print's contrast, white / dark = {ratio:.2f} (median of the unsaturated photos), sets the squares' "
-                 "reflectance" + ("" if not any(offsets) else
+                 f"print's contrast, white / dark = {ratio:.2f} (median of the unsaturated photos), sets the "
+                 + ("circles'" if circles else "squares'") + " reflectance" + ("" if not any(offsets) else
                                   ", and what each photo's dark holds beyond it an offset of its stored values (a "
                                   "camera's black level, flare: output_offset_dn, "
                                   f"{min(offsets):+.2f} to {max(offsets):+.2f} DN), its white rendered that much "
@@ -525,9 +550,9 @@ camera = {_toml_str(camera_ref)}
 spp = 256
 sampler = "multijitter"
 {_board_mode(bend)}
-[spec.squares]
+[spec.{'circles_grid' if circles else 'squares'}]
 {board_keys}
-square_reflectance = {a.board_reflectance / ratio ** gamma:.4f}
+{'circle' if circles else 'square'}_reflectance = {a.board_reflectance / ratio ** gamma:.4f}
 board_reflectance = {a.board_reflectance}
 
 [sensor]

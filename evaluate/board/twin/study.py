@@ -51,6 +51,7 @@ from edgetruth.evaluate.board.study import _jsonable, compute_board_study, write
 from edgetruth.evaluate.board.tone.photo_model import PALETTE_LEVELS, derive_twin, measure_photo
 from edgetruth.evaluate.board.twin.budget import (BUDGET_SEEDS, SEED_PREFIX, budget_rows, per_method_rows, term_scenes,
                                                   write_budget)
+from edgetruth.evaluate.board.twin.circle_study import run_circle_twin_study
 from edgetruth.evaluate.board.twin.derive import group_name
 from edgetruth.evaluate.board.twin.flatness import board_flatness
 from edgetruth.evaluate.board.twin.report import PAE_DEFAULT, ranks, spearman, write_twin_report  # noqa: F401
@@ -226,9 +227,6 @@ def own_inputs(photos: list[str], twin: str | None, model_path=None, pattern=Non
                          "photos with their twin scene, --twin FILE (`edgetruth twin PHOTOS --pattern ... -o DIR` "
                          "writes DIR/twin.toml)")
     real = resolve_inputs(list(photos), model_path, pattern, square)
-    if real.circles is not None:
-        raise InputError(f"--pattern {real.circles.pattern.text}: the twin renders boards of squares (a model file, a "
-                         "chessboard); study a circle grid's photos with `edgetruth study board`")
     return real.set_name, real, twin
 
 
@@ -307,6 +305,12 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
     if spec.n_images != len(real_all.photos):
         real_all = photos_by_group(real_all, spec, spec_name)
     keep = check_images(images, len(real_all.photos))
+    if real_all.circles is not None:  # a circle grid's twin: its own study (``circle_study``)
+        if budget is not None:
+            raise InputError("--budget: for twins of chessboards and boards of squares; a circle grid's twin has no "
+                             "budget yet, drop it")
+        return run_circle_twin_study(real_all, spec, spec_name, out, methods=methods, keep=keep,
+                                     thresholds=thresholds, channel=channel, variant=variant, progress=progress)
     # all methods but those that need a camera model (patch_esf_fit's PSF tables): there is none here
     methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:

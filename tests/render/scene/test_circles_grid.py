@@ -208,3 +208,17 @@ def job_pose_of(gt):
 
     p = gt["pose"]
     return ExplicitPose.from_rt(np.asarray(p["R_cam_from_board"]), np.asarray(p["t_cam_from_board_m"]))
+
+
+def test_the_prints_albedos_are_keys_kept_out_of_old_specs_identity():
+    """``circle_reflectance`` and ``board_reflectance`` (a twin's print contrast) reach the grid and its truth;
+    at their defaults they stay out of ``resolved`` (what a spec's identity hashes), so specs written before them
+    keep their identity."""
+    from edgetruth.render.scene.circles_grid import circles_grid_from_dict
+
+    plain = circles_grid_from_dict({}, "t")
+    assert "circle_reflectance" not in plain.resolved() and "board_reflectance" not in plain.resolved()
+    g = circles_grid_from_dict({"circle_reflectance": 0.02, "board_reflectance": 0.7}, "t")
+    assert g.resolved()["circle_reflectance"] == 0.02 and g.resolved()["board_reflectance"] == 0.7
+    assert g.square_reflectance == 0.02
+    assert g.to_dict()["black_reflectance"] == 0.02 and g.to_dict()["white_reflectance"] == 0.7
