@@ -181,6 +181,13 @@ def resolve_inputs(items: list[str], model_path: str | None = None, pattern: str
             return BoardInputs(list(s["photos"]), None, set_name=name, circles=board)
         if s is not None and "chessboard" in s:
             b = s["chessboard"]
+            if str(b["pattern"]).strip().lower().startswith("charuco:"):  # a ChArUco board: its marker side too
+                if "marker" not in b:
+                    raise InputError(f"{s['source']}: a ChArUco pattern needs marker = SIDE (the printed marker, its "
+                                     "black border included, in the unit of square)")
+                model = _charuco_model(str(b["pattern"]), float(b["square"]), str(b["units"]), b["marker"])
+                model = replace(model, source=f"{model.source} ({s['source']})")
+                return BoardInputs(list(s["photos"]), model, set_name=name)
             model = chessboard_model(parse_pattern(str(b["pattern"])), float(b["square"]), str(b["units"]),
                                      source=s["source"])
             return BoardInputs(list(s["photos"]), model, set_name=name)

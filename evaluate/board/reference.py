@@ -47,9 +47,10 @@ def read_zhang_calibration(path) -> dict:
             "k2": float(k2), "skew": float(gamma), "poses": poses}
 
 
-#: A shipped chessboard or circle-grid set's board (TOML): ``pattern = "COLSxROWS"`` (a chessboard's inner corners)
-#: or ``"circles:COLSxROWS[:asymmetric]"`` (a circle grid), ``square`` (a chessboard's square; a circle grid's
-#: spacing, OpenCV's squareSize), ``units``, and for a circle grid optionally ``diameter``.
+#: A shipped chessboard, ChArUco or circle-grid set's board (TOML): ``pattern = "COLSxROWS"`` (a chessboard's inner
+#: corners), ``"charuco:COLSxROWS:DICT"`` (a ChArUco board's squares) or ``"circles:COLSxROWS[:asymmetric]"`` (a circle
+#: grid), ``square`` (a chessboard's square; a circle grid's spacing, OpenCV's squareSize), ``units``; for a ChArUco
+#: board ``marker`` (the printed marker's side, in the unit of ``square``), for a circle grid optionally ``diameter``.
 CHESSBOARD_FILE = "board.toml"
 
 

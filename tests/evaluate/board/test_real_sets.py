@@ -92,3 +92,78 @@ def test_sony_hx5v_circles_resolves_to_its_circle_grid():
     assert inp.model is None and inp.circles.pattern.text == "circles:10x8"
     assert (inp.circles.spacing, inp.circles.units, inp.circles.diameter) == (25.0, "mm", 15.0)
     assert len(inp.photos) == 6
+
+
+def _pycalib_plain_opencv(photos):
+    """Plain OpenCV on pycalib's ChArUco photos: CharucoDetector.detectBoard on each photo (gray), every corner it
+    finds, matchImagePoints, calibrateCamera with flags 0 (OpenCV's 5-term lens)."""
+    import cv2
+
+    board = cv2.aruco.CharucoBoard((18, 9), 1.0, 0.8, cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_250))
+    detector = cv2.aruco.CharucoDetector(board)
+    counts, obj, img = [], [], []
+    for p in photos:
+        cc, ids, _, _ = detector.detectBoard(cv2.imread(str(p), cv2.IMREAD_GRAYSCALE))
+        counts.append(0 if ids is None else len(ids))
+        o, i = board.matchImagePoints(cc, ids)
+        obj.append(o)
+        img.append(i)
+    return counts, cv2.calibrateCamera(obj, img, (1280, 720), None, None, flags=0)
+
+
+def test_pycalib_gopro_charuco_is_pycalibs_18x9_board_with_its_licence():
+    inp = resolve_inputs(["pycalib_gopro_charuco"])
+    assert [p.name for p in inp.photos] == [f"{i:08d}.jpg" for i in range(1, 10)]
+    board = inp.model.charuco.board
+    assert (board.cols, board.rows, board.dictionary) == (18, 9, "DICT_4X4_250")
+    assert board.marker_m / board.square_m == pytest.approx(0.8) and inp.model.units == "squares"
+    assert inp.model.pattern == (17, 8) and len(inp.model) == 56
+    assert "Apache License" in (real_set("pycalib_gopro_charuco") / "LICENSE-pycalib").read_text()
+
+
+def test_pycalib_gopro_charuco_plain_opencv_calibration_as_stated():
+    """Plain OpenCV on the shipped ChArUco set (assets/real/README.md): 136 of 136 corners in 8 photos, 132 in
+    00000007.jpg; RMS 0.322 px, fx 587.3, fy 586.9, cx 640.3, cy 355.4 px (3 significant digits and better)."""
+    import numpy as np
+
+    counts, (rms, k_mat, dist, _, _) = _pycalib_plain_opencv(resolve_inputs(["pycalib_gopro_charuco"]).photos)
+    assert counts == [136] * 6 + [132, 136, 136]
+    assert rms == pytest.approx(0.3220, abs=5e-4)
+    np.testing.assert_allclose([k_mat[0, 0], k_mat[1, 1], k_mat[0, 2], k_mat[1, 2]],
+                               [587.33, 586.93, 640.29, 355.43], atol=0.05)
+    np.testing.assert_allclose(dist.ravel()[:2], [-0.2718, 0.1042], atol=5e-4)
+
+
+def test_pycalib_gopro_charuco_study_reference_row_is_opencvs_corners_as_the_study_calibrates_them(tmp_path):
+    """`edgetruth study board pycalib_gopro_charuco`: its reference row is OpenCV's ChArUco corners, but calibrated as
+    every row of the chessboard study is (docs/board.md): the 8 photos where every corner is found (00000007.jpg,
+    132 of 136, is left out), each corner once per dark square it bounds, k1 k2 only.  So it is *not* plain OpenCV's
+    calibration of the set (the test above): measured RMS 0.572 px, fx 581.39, fy 581.43, cx 633.30, cy 355.77."""
+    import csv
+
+    import numpy as np
+
+    from edgetruth.cli import main
+
+    out = tmp_path / "run"
+    assert main(["study", "board", "pycalib_gopro_charuco", "-o", str(out), "--methods", "erf4p_fixed11",
+                 "--no-progress"]) == 0
+    with open(out / "summary.csv", newline="") as fh:
+        ref = {r["row"]: r for r in csv.DictReader(fh)}["opencv_corners"]
+    assert int(ref["corners_used"]) == 8 * 224
+    assert float(ref["calib_rms_px"]) == pytest.approx(0.572, abs=5e-4)
+    np.testing.assert_allclose([float(ref[k]) for k in ("fx", "fy", "cx", "cy")], [581.39, 581.43, 633.30, 355.77],
+                               atol=0.01)
+
+
+def test_a_charuco_board_toml_without_marker_is_one_line(monkeypatch):
+    """A shipped set's board.toml naming a ChArUco pattern must give its marker side (one InputError line)."""
+    from edgetruth.errors import InputError
+    from edgetruth.evaluate.board import inputs
+
+    folder = real_set("pycalib_gopro_charuco")
+    monkeypatch.setattr(inputs, "shipped_set", lambda name: {
+        "name": name, "photos": sorted(folder.glob("*.jpg")), "source": f"{name}/board.toml",
+        "chessboard": {"pattern": "charuco:18x9:DICT_4X4_250", "square": 1.0, "units": "squares"}})
+    with pytest.raises(InputError, match="needs marker = SIDE"):
+        inputs.resolve_inputs(["pycalib_gopro_charuco"])
