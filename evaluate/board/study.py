@@ -33,6 +33,7 @@ from edgetruth.errors import InputError
 from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board.circle_grid.study import compute_circle_study, write_circle_run
 from edgetruth.evaluate.board.detect import chessboard as cb
+from edgetruth.evaluate.board.detect.charuco import plain_opencv_calibration as charuco_plain
 from edgetruth.evaluate.board.detect.squares import locate_squares
 from edgetruth.evaluate.board.inputs import MIN_PHOTOS, BoardInputs, load_photos, load_photos_scaled, resolve_inputs
 from edgetruth.evaluate.board.measure.compare import compare_all
@@ -127,9 +128,18 @@ def compute_board_study(inp: BoardInputs, methods: list[str], options: dict, cha
         calibrate_row(r, inp.model, (w, h))
 
     reference = None
+    if inp.reference_calibration is None and model.charuco is not None:
+        # a ChArUco set's reference: plain OpenCV's own calibration of every photo with corners (its 5-term lens,
+        # each corner once), beside the rows (k1, k2, the squares' corners, the photos with every corner)
+        plain = charuco_plain(inp.photos, model.charuco.board)
+        if plain is not None:
+            inp = replace(inp, reference_calibration={**plain, "row_label": "plain OpenCV"})
     if inp.reference_calibration is not None:
         reference = {k: inp.reference_calibration[k] for k in INTRINSICS}
         reference["source"] = inp.reference_calibration.get("source", "reference")
+        for k in ("row_label", "rms_px"):
+            if k in inp.reference_calibration:
+                reference[k] = inp.reference_calibration[k]
     ref_corners = [inp.reference_corners[i] for i in keep] if inp.reference_corners is not None else None
     summaries = [row_summary(r, inp.model, reference, ref_corners) for r in rows]
     comparisons = compare_all(rows)

@@ -16,6 +16,7 @@ squares hold ArUco markers; its (cols - 1) x (rows - 1) inner corners are number
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -105,3 +106,39 @@ def charuco_view(image: np.ndarray, board: CharucoBoard, corners: np.ndarray,
     view = cb.ChessboardView(Correspondence(quads, found, hom, residual, False, rotation_deg(hom, model)),
                              quads.copy(), model.parity, grid.reshape(-1, 2))
     return model, view
+
+
+#: a photo takes part in plain OpenCV's calibration with at least this many corners (calibrateCamera's DLT start)
+PLAIN_MIN_CORNERS = 6
+
+
+def plain_opencv_calibration(photos: list, board: CharucoBoard) -> dict | None:
+    """Plain OpenCV's calibration of a ChArUco photo set, as its tutorial does it: each photo file read by
+    ``cv2.imread(..., IMREAD_GRAYSCALE)``, ``CharucoDetector.detectBoard`` on it, ``board.matchImagePoints`` on the corners found (each inner corner once; a partial view counts, with
+    ``PLAIN_MIN_CORNERS`` or more), ``cv2.calibrateCamera`` with flags 0 (k1, k2, p1, p2, k3).  {fx, fy, cx, cy, k1,
+    k2, p1, p2, k3, rms_px, photos, corners, source}, or None with fewer than 3 photos."""
+    cvb = board.cv_board()
+    det = cv2.aruco.CharucoDetector(cvb)
+    obj, img, used, size = [], [], [], None
+    for path in photos:
+        g8 = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        if g8 is None:
+            continue
+        size = g8.shape[::-1]
+        cc, ids, _, _ = det.detectBoard(g8)
+        if ids is None or len(ids) < PLAIN_MIN_CORNERS:
+            continue
+        o, i = cvb.matchImagePoints(cc, ids)
+        obj.append(o.astype(np.float32))
+        img.append(i.astype(np.float32))
+        used.append(Path(path).name)
+    if len(used) < 3:
+        return None
+    rms, K, dist, _, _ = cv2.calibrateCamera(obj, img, size, None, None, flags=0)
+    d = np.ravel(dist)
+    n = int(sum(len(o) for o in obj))
+    return {"fx": float(K[0, 0]), "fy": float(K[1, 1]), "cx": float(K[0, 2]), "cy": float(K[1, 2]),
+            **{k: float(v) for k, v in zip(("k1", "k2", "p1", "p2", "k3"), d[:5])}, "rms_px": float(rms),
+            "photos": used, "corners": n,
+            "source": f"plain OpenCV (CharucoDetector, matchImagePoints, calibrateCamera flags 0; {len(used)} photos, "
+                      f"{n} corners): RMS {rms:.4f} px"}

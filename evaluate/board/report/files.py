@@ -217,7 +217,10 @@ def _calibration_table(sums, reference) -> str:
                      num(s["fy"], 2), num(s["cx"], 2), num(s["cy"], 2),
                      num(s["k1"], 4), num(s["k2"], 4), f"{s['corners_used']}/{s['corners_total']}"])
     if reference:
-        body.append([f"published ({reference.get('source', 'reference')})", "—", "—", "—", "—", "—", "—",
+        # a reference computed here names itself (its source), a published one says so
+        first = (reference.get("source", "reference") if "row_label" in reference
+                 else f"published ({reference.get('source', 'reference')})")
+        body.append([first, num(reference["rms_px"]) if "rms_px" in reference else "—", "—", "—", "—", "—", "—",
                      *(num(reference[k], 2) for k in ("fx", "fy", "cx", "cy")), num(reference["k1"], 4),
                      num(reference["k2"], 4), "—"])
     return table(["row", "calib RMS (px)", "95 % CI (corners)", "95 % CI (photos)", "LOO RMS (px)",
@@ -415,6 +418,8 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
     tone_table = _tone_table(tone["fit"]) if tone and tone.get("fit") else []
     for row, s in zip(rows, summaries):
         write_json(out / "calibration" / f"{row.label}.json", calibration_json(row, s, photo_names))
+    if reference:  # the intrinsics every row is compared with, and where they come from
+        write_json(out / "calibration" / "reference.json", json_safe(reference))
     errors_px = {r.label: np.concatenate([e.ravel() for e in r.lengths["error_px"]]) for r in rows if r.lengths}
     figs = [figures.straightness(summaries, out / "figures"), figures.calibration_rms(summaries, out / "figures"),
             figures.side_length_error(summaries, errors_px, out / "figures")]
@@ -475,7 +480,8 @@ def write_outputs(out: Path, *, title: str, header_lines: list[str], photos_tabl
     lines += ["## Files", "",
               "`summary.csv` (one line per row, every figure above), `per_side.csv` (one line per photo, square, side "
               "and row; squares and sides numbered from 0 in the model's order), `per_photo.csv`, `paired_tests.csv`, "
-              "`calibration/<row>.json` (intrinsics, poses, per-photo and LOO RMS, the corners used), `figures/`"
+              "`calibration/<row>.json` (intrinsics, poses, per-photo and LOO RMS, the corners used; `reference.json`: the "
+              "reference intrinsics, where there are any), `figures/`"
               + (", `locator.json` (edgetruth's locator against the best method, its misfit per photo)" if locator
                  else "") + ".",
               ""]

@@ -137,9 +137,12 @@ def test_pycalib_gopro_charuco_plain_opencv_calibration_as_stated():
 def test_pycalib_gopro_charuco_study_reference_row_is_opencvs_corners_as_the_study_calibrates_them(tmp_path):
     """`edgetruth study board pycalib_gopro_charuco`: its reference row is OpenCV's ChArUco corners, but calibrated as
     every row of the chessboard study is (docs/board.md): the 8 photos where every corner is found (00000007.jpg,
-    132 of 136, is left out), each corner once per dark square it bounds, k1 k2 only.  So it is *not* plain OpenCV's
-    calibration of the set (the test above): measured RMS 0.572 px, fx 581.39, fy 581.43, cx 633.30, cy 355.77."""
+    132 of 136, is left out), each corner once per dark square it bounds, k1 k2 only: measured RMS 0.572 px, fx
+    581.39, fy 581.43, cx 633.30, cy 355.77.  Plain OpenCV's own calibration of the set (the test above) is the
+    reference every row's intrinsics are compared with: `calibration/reference.json` and the report's calibration
+    table."""
     import csv
+    import json
 
     import numpy as np
 
@@ -150,6 +153,12 @@ def test_pycalib_gopro_charuco_study_reference_row_is_opencvs_corners_as_the_stu
                  "--no-progress"]) == 0
     with open(out / "summary.csv", newline="") as fh:
         ref = {r["row"]: r for r in csv.DictReader(fh)}["opencv_corners"]
+    # the reference the rows are compared with is plain OpenCV's own calibration (the test above), to 3 digits
+    plain = json.loads((out / "calibration" / "reference.json").read_text())
+    assert plain["source"].startswith("plain OpenCV") and plain["rms_px"] == pytest.approx(0.3220, abs=5e-4)
+    np.testing.assert_allclose([plain[k] for k in ("fx", "fy", "cx", "cy")], [587.33, 586.93, 640.29, 355.43],
+                               atol=0.05)
+    assert "| plain OpenCV (CharucoDetector" in (out / "report.md").read_text()
     assert int(ref["corners_used"]) == 8 * 224
     assert float(ref["calib_rms_px"]) == pytest.approx(0.572, abs=5e-4)
     np.testing.assert_allclose([float(ref[k]) for k in ("fx", "fy", "cx", "cy")], [581.39, 581.43, 633.30, 355.77],
