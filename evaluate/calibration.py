@@ -30,7 +30,7 @@ from edgetruth import console
 from edgetruth.errors import InputError
 from edgetruth.evaluate.board_bend import MIN_CORNERS, bend_check
 from edgetruth.evaluate.pattern import parse_board_pattern
-from edgetruth.evaluate.residual_field import residual_structure
+from edgetruth.evaluate.residual_field import board_point_transfer, image_field_transfer, residual_structure
 from edgetruth.fileio import check_input_file, read_json
 from edgetruth.image_io import SUFFIXES, read_gray
 from edgetruth.opencv_threads import calibrate_camera
@@ -636,7 +636,10 @@ def calibrate_photos(photos: list[tuple[str, Path]], pattern_size: tuple[int, in
     cal = Calibration(K=K, dist=dist, image_size=size, rms_px=rms, n_views=len(used), per_view_rms_px=per_view,
                       used=used, rejected=[r.photo for r in results if not r.found],
                       method=f"Zhang (cv2.calibrateCamera, {words}), {corners_used}",
-                      residual_structure=residual_structure([o[:, :2] for o in obj_list], residuals, square_m),
+                      residual_structure={**residual_structure([o[:, :2] for o in obj_list], residuals, square_m),
+                                          **image_field_transfer(img_list, residuals, size),
+                                          **board_point_transfer([o[:, :2] for o in obj_list], residuals, K, dist,
+                                                                 [r for r, _ in poses], [t for _, t in poses])},
                       board_bend=bend_check([o[:, :2] for o in obj_list], img_list, K, dist, [r for r, _ in poses],
                                             [t for _, t in poses], free_dist(flags)))
     return cal, results

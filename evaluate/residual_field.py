@@ -83,6 +83,137 @@ def residual_structure(board_xy: list[np.ndarray], residuals: list[np.ndarray], 
             "views": n_views, "points": n_points, "permutations": PERMUTATIONS}
 
 
+#: the image field's polynomial degree in (x, y) (10 terms per axis at 3): a lens term beyond the model
+IMAGE_FIELD_DEGREE = 3
+#: shuffles for the image field's permutation test (each refits every held-out photo)
+IMAGE_FIELD_PERMUTATIONS = 200
+
+
+def _image_design(xy: np.ndarray, size, degree: int) -> np.ndarray:
+    """(n, m) monomials x^i y^j, i + j <= ``degree``, of image positions scaled to [-1, 1] over the image."""
+    w, h = size
+    x = (np.asarray(xy, float)[:, 0] - 0.5 * (w - 1)) / (0.5 * w)
+    y = (np.asarray(xy, float)[:, 1] - 0.5 * (h - 1)) / (0.5 * h)
+    return np.stack([x ** i * y ** j for i in range(degree + 1) for j in range(degree + 1 - i)], axis=1)
+
+
+def _held_out_share(views: list, size, degree: int) -> float:
+    """The share of all views' residual energy that a field over the image, fitted to the *other* views' residuals
+    at their image positions, predicts (1 − Σ|r − f|² / Σ|r|², pooled; ≤ 0 when it predicts nothing)."""
+    design = [_image_design(xy, size, degree) for xy, _ in views]
+    miss = total = 0.0
+    for k, (_, r) in enumerate(views):
+        a = np.vstack([d for i, d in enumerate(design) if i != k])
+        b = np.vstack([v for i, (_, v) in enumerate(views) if i != k])
+        coef, *_ = np.linalg.lstsq(a, b, rcond=None)
+        miss += float(np.sum((r - design[k] @ coef) ** 2))
+        total += float(np.sum(r * r))
+    return 1.0 - miss / total if total > 0 else float("nan")
+
+
+def image_field_transfer(image_xy: list, residuals: list, size, degree: int = IMAGE_FIELD_DEGREE,
+                         seed: int = 0) -> dict:
+    """Is a calibration's residual a field fixed in the image (a lens term the model lacks: the same at the same
+    pixel in every photo), or does it move with each view (the board's shape, the print)?  Leave one photo out: a
+    degree-``degree`` polynomial field over the image, fitted to the other photos' residuals at their image
+    positions, predicts the held-out photo's; ``image_field_share`` is the share of the residual energy so
+    predicted, pooled over the photos (noise and per-view fields predict nothing: ≤ 0).  ``p_value``: the share of
+    ``IMAGE_FIELD_PERMUTATIONS`` shuffles of each photo's residuals among its own points whose share reaches it.
+    ``image_xy``, ``residuals``: per photo (n, 2) px; ``size`` (w, h).  Empty with fewer than 3 photos."""
+    views = []
+    for xy, r in zip(image_xy, residuals):
+        xy, r = np.asarray(xy, float).reshape(-1, 2), np.asarray(r, float).reshape(-1, 2)
+        ok = np.all(np.isfinite(xy), axis=1) & np.all(np.isfinite(r), axis=1)
+        if ok.sum() >= 4:
+            views.append((xy[ok], r[ok]))
+    terms = (degree + 1) * (degree + 2) // 2
+    if len(views) < 3 or sum(len(v) for _, v in views) < 4 * terms:
+        return {}
+    share = _held_out_share(views, size, degree)
+    rng = np.random.default_rng(seed)
+    null = np.array([_held_out_share([(xy, r[rng.permutation(len(r))]) for xy, r in views], size, degree)
+                     for _ in range(IMAGE_FIELD_PERMUTATIONS)])
+    return {"image_field_share": share, "image_field_degree": degree, "image_field_terms": terms,
+            "image_field_p_value": float((1 + np.sum(null >= share)) / (1 + IMAGE_FIELD_PERMUTATIONS)),
+            "image_field_null_median": float(np.median(null)), "image_field_views": len(views),
+            "image_field_points": int(sum(len(v) for _, v in views))}
+
+
+#: the step (board units) of the numerical Jacobian of the projection in ``board_point_transfer``
+JACOBIAN_STEP = 1e-4
+
+
+def _board_offsets(board_xy: np.ndarray, residuals: np.ndarray, K, dist, rvec, tvec) -> tuple[np.ndarray, np.ndarray]:
+    """(offsets (n, 2) on the board, jacobians (n, 2, 2) px per board unit): the board displacement of each point
+    that moves its projection by its residual (the residual through the inverse of d(image)/d(board) at it)."""
+    import cv2  # lazy: only the calibration paths call this, and they have cv2 loaded already
+
+    xy = np.asarray(board_xy, float)
+    h = JACOBIAN_STEP * max(float(np.ptp(xy)), 1e-9)
+    pts = np.concatenate([np.c_[xy + d, np.zeros(len(xy))] for d in ((h, 0), (-h, 0), (0, h), (0, -h))])
+    uv, _ = cv2.projectPoints(pts, np.asarray(rvec, float), np.asarray(tvec, float), K, np.asarray(dist, float))
+    uv = uv.reshape(4, len(xy), 2)
+    jac = np.stack([(uv[0] - uv[1]) / (2 * h), (uv[2] - uv[3]) / (2 * h)], axis=2)  # (n, 2 image, 2 board)
+    return np.linalg.solve(jac, np.asarray(residuals, float)[..., None])[..., 0], jac
+
+
+def _point_share(views: list) -> float:
+    """Leave one view out: each point's board offset predicted by the mean of its offsets in the other views where
+    it is seen, carried to the image by the view's Jacobian; the share of the residual energy so predicted."""
+    miss = total = 0.0
+    for k, (keys, off, jac, r) in enumerate(views):
+        sums: dict = {}
+        for i, (kk, oo, _, _) in enumerate(views):
+            if i == k:
+                continue
+            for key, o in zip(kk, oo):
+                a = sums.setdefault(key, [np.zeros(2), 0])
+                a[0] += o
+                a[1] += 1
+        pred = np.array([sums[key][0] / sums[key][1] if key in sums else np.zeros(2) for key in keys])
+        miss += float(np.sum((r - np.einsum("nij,nj->ni", jac, pred)) ** 2))
+        total += float(np.sum(r * r))
+    return 1.0 - miss / total if total > 0 else float("nan")
+
+
+def board_point_transfer(board_xy: list, residuals: list, K, dist, rvecs: list, tvecs: list, seed: int = 0) -> dict:
+    """Is a calibration's residual each board point's own (the print: a point printed off its nominal place is off
+    it in every photo), or not?  Each residual is carried to the board (``_board_offsets``: the displacement of the
+    point that moves its image by it); leave one photo out, the mean of a point's offsets in the other photos
+    predicts its residual in the held-out one.  ``print_share``: the share of the residual energy so predicted,
+    pooled (≤ 0 for noise, a bend or a lens term that differ between photos); ``print_offset_rms``: the RMS over
+    the points of their mean offset (board units); ``print_p_value``: the share of ``IMAGE_FIELD_PERMUTATIONS``
+    shuffles of each photo's residuals among its points whose share reaches it.  Empty with fewer than 3 photos."""
+    views = []
+    for xy, r, rv, tv in zip(board_xy, residuals, rvecs, tvecs):
+        xy, r = np.asarray(xy, float).reshape(-1, 2), np.asarray(r, float).reshape(-1, 2)
+        off, jac = _board_offsets(xy, r, K, dist, rv, tv)
+        keys = [tuple(np.round(p, 9)) for p in xy]
+        views.append((keys, off, jac, r))
+    if len(views) < 3:
+        return {}
+    share = _point_share(views)
+    rng = np.random.default_rng(seed)
+    null = []
+    for _ in range(IMAGE_FIELD_PERMUTATIONS):
+        shuffled = []
+        for keys, off, jac, r in views:
+            p = rng.permutation(len(r))
+            o2, _ = np.linalg.solve(jac, r[p][..., None])[..., 0], None
+            shuffled.append((keys, o2, jac, r[p]))
+        null.append(_point_share(shuffled))
+    means: dict = {}
+    for keys, off, _, _ in views:
+        for key, o in zip(keys, off):
+            means.setdefault(key, []).append(o)
+    mean_off = np.array([np.mean(v, axis=0) for v in means.values() if len(v) >= 2]).reshape(-1, 2)
+    return {"print_share": share, "print_p_value": float((1 + np.sum(np.asarray(null) >= share))
+                                                          / (1 + IMAGE_FIELD_PERMUTATIONS)),
+            "print_null_median": float(np.median(null)),
+            "print_offset_rms": float(np.sqrt(np.mean(np.sum(mean_off ** 2, axis=1)))) if len(mean_off) else
+            float("nan"), "print_points": int(len(mean_off))}
+
+
 def reading(s: dict, alpha: float = 0.01) -> str:
     """One line on what the structure says."""
     if not s:

@@ -24,10 +24,11 @@ import numpy as np
 
 from edgetruth import locate
 from edgetruth.errors import InputError
+from edgetruth.evaluate.board_bend import bend_check
 from edgetruth.evaluate.calibration import (DEFAULT_DIST_MODEL, DIST_MODELS, Calibration, PhotoResult, distort_px,
-                                            solve_points, undistort_px)
+                                            free_dist, solve_points, undistort_px)
 from edgetruth.evaluate.conic import algebraic_residual_px, centre_image, fit_ellipse
-from edgetruth.evaluate.residual_field import residual_structure
+from edgetruth.evaluate.residual_field import board_point_transfer, image_field_transfer, residual_structure
 from edgetruth.render.edge_truth import closed_polyline_signed_distance
 from edgetruth.render.scene.circle_conic import conic_centre
 
@@ -309,8 +310,9 @@ def calibrate_circles(views, pattern, spacing_m: float, centres: str = "blobs", 
         for r, m in zip([r for r in results if r.found], ok):
             r.corners = int(m.sum())
     residuals: list = []
-    solve_points(obj_list, [p[np.all(np.isfinite(p), axis=1)].astype(np.float32).reshape(-1, 1, 2) for p in pts],
-                 size, flags, residuals, None)
+    final_poses: list = []
+    img_list = [p[np.all(np.isfinite(p), axis=1)].astype(np.float32).reshape(-1, 1, 2) for p in pts]
+    solve_points(obj_list, img_list, size, flags, residuals, final_poses)
     for r, v in zip([r for r in results if r.found], per_view):
         r.rms_px = v
     how = {"blobs": "cv2.findCirclesGrid's blob centroids",
@@ -321,6 +323,13 @@ def calibrate_circles(views, pattern, spacing_m: float, centres: str = "blobs", 
     cal = Calibration(K=K, dist=dist, image_size=size, rms_px=rms, n_views=len(used), per_view_rms_px=per_view,
                       used=used, rejected=[r.photo for r in results if not r.found],
                       method=f"Zhang (cv2.calibrateCamera, {words}), {how}{rounds} (edgetruth.evaluate.board.circles)",
-                      residual_structure=residual_structure([o[:, :2] for o in obj_list], residuals, spacing_m))
+                      residual_structure={**residual_structure([o[:, :2] for o in obj_list], residuals, spacing_m),
+                                          **image_field_transfer(img_list, residuals, size),
+                                          **board_point_transfer([o[:, :2] for o in obj_list], residuals, K, dist,
+                                                                 [r for r, _ in final_poses],
+                                                                 [t for _, t in final_poses])},
+                      board_bend=bend_check([o[:, :2] for o in obj_list], img_list, K, dist,
+                                            [r for r, _ in final_poses], [t for _, t in final_poses],
+                                            free_dist(flags)))
     info["image_points"] = pts
     return cal, results, info
