@@ -31,9 +31,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+import cv2
 import numpy as np
 
 from edgetruth.evaluate.report_format import num, table
+from edgetruth.evaluate.residual_field import board_point_transfer, image_field_transfer
 from edgetruth.fileio import atomic_write_text, read_toml, write_json
 from edgetruth.render.dataset.spec import resolve_spec_path
 from edgetruth.render.optics.camera import resolve_camera_path
@@ -269,14 +271,58 @@ def budget_section(rows: list[dict], n_methods: int, photos: dict[str, int]) -> 
             table(head, body), ""]
 
 
+def measured_terms(run, method: str) -> dict | None:
+    """Where the photos' calibration residual lives, for ``method``'s row of the board study ``run``
+    (``residual_field``: the print, each board point's own offset, and a lens field fixed in the image, each
+    photo held out), with what each is in pixels (√share · RMS); None without that row's calibration."""
+    row = next((r for r in run.rows if r.label == method and r.cal is not None), None)
+    if row is None:
+        return None
+    cal, obj = row.cal, np.asarray(run.inp.model.corners, float)
+    board, image, res = [], [], []
+    for corners, rv, tv in zip(row.corners, cal.rvecs, cal.tvecs):
+        c = np.asarray(corners, float)
+        ok = np.all(np.isfinite(c), axis=2)
+        xy, uv = obj[ok], c[ok]
+        proj, _ = cv2.projectPoints(np.c_[xy, np.zeros(len(xy))], rv, tv, cal.K, cal.dist)
+        board.append(xy)
+        image.append(uv)
+        res.append(uv - proj.reshape(-1, 2))
+    e = np.concatenate(res)
+    rms = float(np.sqrt(np.mean(np.sum(e * e, axis=1))))
+    out = {"method": method, "calib_rms_px": rms, **board_point_transfer(board, res, cal.K, cal.dist, cal.rvecs,
+                                                                          cal.tvecs),
+           **image_field_transfer(image, res, run.size)}
+    for key in ("print", "image_field"):
+        if f"{key}_share" in out:
+            out[f"{key}_px"] = math.sqrt(max(out[f"{key}_share"], 0.0)) * rms
+    return out
+
+
+def measured_lines(m: dict | None) -> list[str]:
+    """The report's lines for ``measured_terms``."""
+    if not m or "print_share" not in m:
+        return []
+    return ["Measured on the photos, not rendered (docs/board.md, 'Where the calibration residual lives'; "
+            f"{m['method']}'s calibration, RMS {m['calib_rms_px']:.3f} px, each photo held out): **the print** (each "
+            f"board point's own offset, the same in every photo) predicts {100 * m['print_share']:.0f} % of the "
+            f"residual energy (shuffled: {100 * m['print_null_median']:.0f} %, p {m['print_p_value']:.3f}; "
+            f"≈ {m['print_px']:.3f} px), **a lens field** fixed in the image "
+            f"{100 * m.get('image_field_share', float('nan')):.0f} % (shuffled: "
+            f"{100 * m.get('image_field_null_median', float('nan')):.0f} %; ≈ {m.get('image_field_px', float('nan')):.3f}"
+            " px).", ""]
+
+
 def write_budget(out: Path, rows: list[dict], method_rows: list[dict], n_methods: int,
-                 photos: dict[str, int]) -> list[str]:
-    """Write ``budget.json`` and ``budget.csv`` into ``out``; return the report's lines."""
-    write_json(out / "budget.json", {"rows": rows, "per_method": method_rows, "photos": photos})
+                 photos: dict[str, int], measured: dict | None = None) -> list[str]:
+    """Write ``budget.json`` and ``budget.csv`` into ``out``; return the report's lines (with ``measured_terms``'
+    when given)."""
+    write_json(out / "budget.json", {"rows": rows, "per_method": method_rows, "photos": photos,
+                                     "measured_on_photos": measured})
     buf = io.StringIO()
     if method_rows:
         w = csv.DictWriter(buf, fieldnames=list(method_rows[0]))
         w.writeheader()
         w.writerows(method_rows)
     atomic_write_text(out / "budget.csv", buf.getvalue())
-    return budget_section(rows, n_methods, photos)
+    return budget_section(rows, n_methods, photos) + measured_lines(measured)

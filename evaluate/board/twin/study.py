@@ -49,8 +49,8 @@ from edgetruth.evaluate.board.measure.summary import row_summary
 from edgetruth.evaluate.board.sides.lines import fit_lines
 from edgetruth.evaluate.board.study import _jsonable, compute_board_study, write_board_run
 from edgetruth.evaluate.board.tone.photo_model import PALETTE_LEVELS, derive_twin, measure_photo
-from edgetruth.evaluate.board.twin.budget import (BUDGET_SEEDS, SEED_PREFIX, budget_rows, per_method_rows, term_scenes,
-                                                  write_budget)
+from edgetruth.evaluate.board.twin.budget import (BUDGET_SEEDS, SEED_PREFIX, budget_rows, measured_terms,
+                                                  per_method_rows, term_scenes, write_budget)
 from edgetruth.evaluate.board.twin.circle_study import run_circle_twin_study
 from edgetruth.evaluate.board.twin.derive import group_name
 from edgetruth.evaluate.board.twin.flatness import board_flatness
@@ -443,7 +443,8 @@ def run_budget(out: Path, spec_name, terms: list[str], spp, keep: list[int], rea
     real_s = {s["row"]: s for s in real_run.summaries}
     twin_s = {s["row"]: s for s in twin_run.summaries}
     rows = budget_rows(real_s, twin_s, off, methods)
-    return write_budget(out, rows, per_method_rows(real_s, twin_s, off, methods), len(methods), photos)
+    return write_budget(out, rows, per_method_rows(real_s, twin_s, off, methods), len(methods), photos,
+                        measured_terms(real_run, PER_PHOTO_METHOD))
 
 
 def closed_loop_noise(pm_real: list[dict], pm_twin: list[dict], sensors) -> list[dict]:

@@ -125,3 +125,8 @@ def test_study_twin_budget_runs_and_writes_its_table(tmp_path):
     assert lo <= data["rows"][1]["straightness_px"] <= hi and lo < hi  # other seeds, other noise
     assert np.isfinite(jpeg["straightness_px"]) and jpeg["straightness_px"] != data["rows"][1]["straightness_px"]
     assert (tmp_path / "budget" / "jpeg" / "twin.toml").is_file() and (tmp_path / "budget.csv").is_file()
+    # where the photos' calibration residual lives, measured on them (erf4p_fixed11's row), beside the table
+    m = data["measured_on_photos"]
+    assert m["method"] == "erf4p_fixed11" and m["calib_rms_px"] > 0 and -1.0 < m["print_share"] < 1.0
+    assert m["print_px"] == pytest.approx(np.sqrt(max(m["print_share"], 0.0)) * m["calib_rms_px"])
+    assert "Measured on the photos, not rendered" in text and "**the print**" in text
