@@ -157,23 +157,22 @@ def _board_offsets(board_xy: np.ndarray, residuals: np.ndarray, K, dist, rvec, t
     return np.linalg.solve(jac, np.asarray(residuals, float)[..., None])[..., 0], jac
 
 
-def _point_share(views: list) -> float:
+def _point_share(keys: list, offsets: list, jacobians: list, residuals: list, n_keys: int) -> float:
     """Leave one view out: each point's board offset predicted by the mean of its offsets in the other views where
-    it is seen, carried to the image by the view's Jacobian; the share of the residual energy so predicted."""
-    miss = total = 0.0
-    for k, (keys, off, jac, r) in enumerate(views):
-        sums: dict = {}
-        for i, (kk, oo, _, _) in enumerate(views):
-            if i == k:
-                continue
-            for key, o in zip(kk, oo):
-                a = sums.setdefault(key, [np.zeros(2), 0])
-                a[0] += o
-                a[1] += 1
-        pred = np.array([sums[key][0] / sums[key][1] if key in sums else np.zeros(2) for key in keys])
+    it is seen (0 where none), carried to the image by the view's Jacobian; the share of the residual energy so
+    predicted.  ``keys``: per view each point's index among the ``n_keys`` board points."""
+    total = np.zeros((n_keys, 2))
+    count = np.zeros(n_keys)
+    for k, o in zip(keys, offsets):
+        np.add.at(total, k, o)
+        np.add.at(count, k, 1.0)
+    miss = energy = 0.0
+    for k, o, jac, r in zip(keys, offsets, jacobians, residuals):
+        others = count[k] - 1.0
+        pred = np.where(others[:, None] > 0, (total[k] - o) / np.maximum(others, 1.0)[:, None], 0.0)
         miss += float(np.sum((r - np.einsum("nij,nj->ni", jac, pred)) ** 2))
-        total += float(np.sum(r * r))
-    return 1.0 - miss / total if total > 0 else float("nan")
+        energy += float(np.sum(r * r))
+    return 1.0 - miss / energy if energy > 0 else float("nan")
 
 
 def board_point_transfer(board_xy: list, residuals: list, K, dist, rvecs: list, tvecs: list, seed: int = 0) -> dict:
@@ -182,36 +181,44 @@ def board_point_transfer(board_xy: list, residuals: list, K, dist, rvecs: list, 
     point that moves its image by it); leave one photo out, the mean of a point's offsets in the other photos
     predicts its residual in the held-out one.  ``print_share``: the share of the residual energy so predicted,
     pooled (≤ 0 for noise, a bend or a lens term that differ between photos); ``print_offset_rms``: the RMS over
-    the points of their mean offset (board units); ``print_p_value``: the share of ``IMAGE_FIELD_PERMUTATIONS``
-    shuffles of each photo's residuals among its points whose share reaches it.  Empty with fewer than 3 photos."""
-    views = []
-    for xy, r, rv, tv in zip(board_xy, residuals, rvecs, tvecs):
-        xy, r = np.asarray(xy, float).reshape(-1, 2), np.asarray(r, float).reshape(-1, 2)
-        off, jac = _board_offsets(xy, r, K, dist, rv, tv)
-        keys = [tuple(np.round(p, 9)) for p in xy]
-        views.append((keys, off, jac, r))
-    if len(views) < 3:
+    the points seen in 2 or more photos of their mean offset (board units); ``print_p_value``: the share of
+    ``IMAGE_FIELD_PERMUTATIONS`` shuffles of each photo's residuals among its points whose share reaches it.  Empty
+    with fewer than 3 photos."""
+    xy = [np.asarray(b, float).reshape(-1, 2) for b in board_xy]
+    res = [np.asarray(r, float).reshape(-1, 2) for r in residuals]
+    if len(xy) < 3:
         return {}
-    share = _point_share(views)
+    every = np.round(np.concatenate(xy), 9)
+    _, inverse = np.unique(every, axis=0, return_inverse=True)
+    inverse = np.ravel(inverse)
+    bounds = np.cumsum([0] + [len(b) for b in xy])
+    keys = [inverse[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+    n_keys = int(inverse.max()) + 1
+    jacs, offs = [], []
+    for b, r, rv, tv in zip(xy, res, rvecs, tvecs):
+        o, j = _board_offsets(b, r, K, dist, rv, tv)
+        offs.append(o)
+        jacs.append(j)
+    share = _point_share(keys, offs, jacs, res, n_keys)
     rng = np.random.default_rng(seed)
     null = []
     for _ in range(IMAGE_FIELD_PERMUTATIONS):
-        shuffled = []
-        for keys, off, jac, r in views:
-            p = rng.permutation(len(r))
-            o2, _ = np.linalg.solve(jac, r[p][..., None])[..., 0], None
-            shuffled.append((keys, o2, jac, r[p]))
-        null.append(_point_share(shuffled))
-    means: dict = {}
-    for keys, off, _, _ in views:
-        for key, o in zip(keys, off):
-            means.setdefault(key, []).append(o)
-    mean_off = np.array([np.mean(v, axis=0) for v in means.values() if len(v) >= 2]).reshape(-1, 2)
+        perm = [rng.permutation(len(r)) for r in res]
+        shuffled = [r[p] for r, p in zip(res, perm)]
+        null.append(_point_share(keys, [np.linalg.solve(j, r[..., None])[..., 0] for j, r in zip(jacs, shuffled)],
+                                 jacs, shuffled, n_keys))
+    total = np.zeros((n_keys, 2))
+    count = np.zeros(n_keys)
+    for k, o in zip(keys, offs):
+        np.add.at(total, k, o)
+        np.add.at(count, k, 1.0)
+    seen = count >= 2
+    mean_off = total[seen] / count[seen][:, None]
     return {"print_share": share, "print_p_value": float((1 + np.sum(np.asarray(null) >= share))
                                                           / (1 + IMAGE_FIELD_PERMUTATIONS)),
             "print_null_median": float(np.median(null)),
-            "print_offset_rms": float(np.sqrt(np.mean(np.sum(mean_off ** 2, axis=1)))) if len(mean_off) else
-            float("nan"), "print_points": int(len(mean_off))}
+            "print_offset_rms": float(np.sqrt(np.mean(np.sum(mean_off ** 2, axis=1)))) if seen.any() else
+            float("nan"), "print_points": int(seen.sum())}
 
 
 def reading(s: dict, alpha: float = 0.01) -> str:
