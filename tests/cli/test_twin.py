@@ -196,7 +196,8 @@ def test_twin_and_study_twin_of_a_circle_grid(tmp_path, capsys, fast_variant):
     found on (4 of 6, the others named), a circles_grid twin; the `study twin` it prints, run at 16 spp with three
     methods, writes a report with the twin ÷ real figures and rankings, and on the twin every method's corrected
     centres lie within 0.05 px RMS of the truth (measured 0.01-0.02 px at 256 spp; CannyPixel 0.085) and OpenCV's
-    blob centroids farther (0.15 px: their perspective and threshold bias)."""
+    blob centroids farther (0.15 px: their perspective and threshold bias); with `--budget jpeg` the error budget's
+    table, the ellipse residual in straightness' place."""
     out = tmp_path / "tw"
     assert main(["twin", "sony_hx5v_circles", "--pattern", "circles:10x8", "--square-m", "0.025", "-o", str(out),
                  "--no-progress"]) == 0
@@ -207,11 +208,17 @@ def test_twin_and_study_twin_of_a_circle_grid(tmp_path, capsys, fast_variant):
     study = shlex.split(re.search(r"compare: `(.*)`", text.out).group(1))
     assert study[4:9] == ["--pattern", "circles:10x8", "--square", "0.025", "--twin"]
     run = tmp_path / "run"
-    assert main(["study", "twin", *study[3:-2], "-o", str(run), "--spp", "16", "--methods",
-                 "erf4p_fixed11,canny_devernay,canny_pixel", "--variant", fast_variant, "--no-progress"]) == 0
+    assert main(["study", "twin", *study[3:-2], "-o", str(run), "--spp", "16", "--images", "1,2,3", "--methods",
+                 "erf4p_fixed11,canny_devernay,canny_pixel", "--variant", fast_variant, "--budget", "jpeg",
+                 "--no-progress"]) == 0
     report = (run / "report.md").read_text()
     assert "twin ÷ real" in report and "ellipse residual: real vs twin" in report
     lines = {ln["row"]: ln for ln in json.loads((run / "twin_vs_real.json").read_text())["rows"]}
     assert lines["erf4p_fixed11"]["centre_rms_px"] < 0.05 and lines["canny_devernay"]["centre_rms_px"] < 0.05
     assert lines["opencv_blobs"]["centre_rms_px"] > lines["erf4p_fixed11"]["centre_rms_px"]
     assert (run / "real" / "report.md").is_file() and (run / "twin" / "report.md").is_file()
+    # the error budget of the circle twin: the ellipse residual in straightness' place, the JPEG term off
+    budget = json.loads((run / "budget.json").read_text())
+    assert [r["term"] for r in budget["rows"]] == ["", "all", "seeds", "jpeg", "unexplained"]
+    assert "ellipse residual (px) | ÷ real" in report
+    assert (run / "budget" / "jpeg" / "twin.toml").is_file()

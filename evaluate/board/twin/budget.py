@@ -250,19 +250,21 @@ def per_method_rows(real: dict, twin: dict, off: dict[str, dict], methods: list[
     return out
 
 
-def budget_section(rows: list[dict], n_methods: int, photos: dict[str, int]) -> list[str]:
-    """Markdown lines of the budget table (``write_budget``)."""
+def budget_section(rows: list[dict], n_methods: int, photos: dict[str, int],
+                   first: str = "straightness") -> list[str]:
+    """Markdown lines of the budget table (``write_budget``); ``first``: what the first figure is (a circle grid's:
+    the ellipse residual, ``circle_figures``)."""
     body = []
     for r in rows:
         cells = [r["row"]]
         for k in FIGURES:
             lo_hi = r.get(f"range_{k}")
-            first = f"{lo_hi[0]:.3f}–{lo_hi[1]:.3f}" if lo_hi else num(r.get(k), 3)
+            value = f"{lo_hi[0]:.3f}–{lo_hi[1]:.3f}" if lo_hi else num(r.get(k), 3)
             inside = {True: "real inside", False: "real outside"}.get(r.get(f"real_inside_{k}"))
-            cells += [first, inside or num(r.get(f"ratio_{k}"), 2), num(r.get(f"share_{k}"), 3)]
+            cells += [value, inside or num(r.get(f"ratio_{k}"), 2), num(r.get(f"share_{k}"), 3)]
         cells.append(str(photos.get(r["term"], "")))
         body.append(cells)
-    head = ["", "straightness (px)", "÷ real", "share (px)", "calib RMS (px)", "÷ real", "share (px)", "photos"]
+    head = ["", f"{first} (px)", "÷ real", "share (px)", "calib RMS (px)", "÷ real", "share (px)", "photos"]
     return ["## Error budget", "",
             f"Median over the {n_methods} ranked methods of each figure; the twin rendered again with one term off at "
             "a time (the same seeds, poses and samples: only the term differs; `budget/<term>/twin.toml`).  A term's "
@@ -313,10 +315,18 @@ def measured_lines(m: dict | None) -> list[str]:
             " px).", ""]
 
 
+def circle_figures(summaries: list[dict]) -> dict:
+    """A circle-grid study's summaries as the budget's figures {row: {figure: value}}: the ellipse residual (the
+    circle grid's straightness) in the first figure's place, the calibration RMS as it is."""
+    return {s["row"]: {"straightness_px": s.get("ellipse_rms_px", np.nan), "calib_rms_px": s.get("calib_rms_px",
+                                                                                                  np.nan)}
+            for s in summaries}
+
+
 def write_budget(out: Path, rows: list[dict], method_rows: list[dict], n_methods: int,
-                 photos: dict[str, int], measured: dict | None = None) -> list[str]:
+                 photos: dict[str, int], measured: dict | None = None, first: str = "straightness") -> list[str]:
     """Write ``budget.json`` and ``budget.csv`` into ``out``; return the report's lines (with ``measured_terms``'
-    when given)."""
+    when given; ``first``: the first figure's name)."""
     write_json(out / "budget.json", {"rows": rows, "per_method": method_rows, "photos": photos,
                                      "measured_on_photos": measured})
     buf = io.StringIO()
@@ -325,4 +335,4 @@ def write_budget(out: Path, rows: list[dict], method_rows: list[dict], n_methods
         w.writeheader()
         w.writerows(method_rows)
     atomic_write_text(out / "budget.csv", buf.getvalue())
-    return budget_section(rows, n_methods, photos) + measured_lines(measured)
+    return budget_section(rows, n_methods, photos, first) + measured_lines(measured)

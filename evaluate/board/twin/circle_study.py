@@ -31,12 +31,15 @@ from edgetruth.evaluate import method_order as mo
 from edgetruth.evaluate.board.circle_grid.rows import REFERENCE_ROW
 from edgetruth.evaluate.board.circle_grid.study import compute_circle_study, write_circle_run
 from edgetruth.evaluate.board.inputs import BoardInputs
+from edgetruth.evaluate.board.twin.budget import (BUDGET_SEEDS, budget_rows, circle_figures, per_method_rows,
+                                                  term_scenes, write_budget)
 from edgetruth.evaluate.run_dir import check_same_settings, prepare_run_dir
 from edgetruth.evaluate.stats import spearman
 from edgetruth.fileio import atomic_write_text, write_json
 from edgetruth.locate.registry import camera_free
 from edgetruth.render.dataset.driver import check_variant_name, render_spec
 from edgetruth.render.dataset.reader import open_dataset
+from edgetruth.render.dataset.spec import load_spec
 
 KIND = "study twin (circle grid)"
 #: the figures compared, real against twin: (summary key, words)
@@ -104,8 +107,8 @@ def _f(v, fmt=".4f") -> str:
 
 
 def write_report(out: Path, set_name: str, spec_name, lines: list[dict], agree: dict, names: list[str],
-                 timings: dict) -> Path:
-    """report.md, twin_vs_real.csv and twin_vs_real.json of the study."""
+                 timings: dict, budget_lines: list[str] | None = None) -> Path:
+    """report.md, twin_vs_real.csv and twin_vs_real.json of the study (and the budget's section, when given)."""
     keys = list(lines[0])
     with open(out / "twin_vs_real.csv.tmp", "w", newline="") as fh:
         w = csv.DictWriter(fh, keys, extrasaction="ignore")
@@ -135,16 +138,53 @@ def write_report(out: Path, set_name: str, spec_name, lines: list[dict], agree: 
                     f"{_f(ln['real_calib_rms_px'])} | {_f(ln['twin_calib_rms_px'])} | {_f(ln['real_loo_rms_px'])} | "
                     f"{_f(ln['twin_loo_rms_px'])} | {_f(ln.get('centre_rms_px'))} | "
                     f"{_f(ln.get('centre_mean_x_px'), '+.4f')}, {_f(ln.get('centre_mean_y_px'), '+.4f')} |")
-    text += ["", f"Timings: " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items()) + ".",
+    text += ["", *(budget_lines or [])]
+    text += [f"Timings: " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items()) + ".",
              "Each study's own report: `real/report.md`, `twin/report.md`.", ""]
     atomic_write_text(out / "report.md", "\n".join(text))
     return out / "report.md"
 
 
+def circle_pngs(spec, render_dir: Path, keep: list[int], variant, progress: bool) -> tuple[list, list]:
+    """Render ``spec``'s images ``keep`` into ``render_dir`` (resumable) -> (their PNG paths, samples), in order."""
+    render_spec(spec, render_dir, variant=variant, progress=progress, only=keep,
+                announce=lambda s: console.say(s) if progress else None)
+    by_index = {s.index: s for s in open_dataset(render_dir) if s.kind == "circles_grid"}
+    missing = [i for i in keep if i not in by_index]
+    if missing:
+        raise InputError(f"{render_dir}: image(s) {', '.join(str(i) for i in missing)} did not render (or are not "
+                         "circle grids); run again, or check --twin")
+    samples = [by_index[i] for i in keep]
+    return [s.dataset.path / s.dataset.manifest["images"][s.name]["files"]["png"]["path"] for s in samples], samples
+
+
+def circle_budget(out: Path, spec_name, terms: list[str], spp, keep: list[int], real: BoardInputs, real_run,
+                  twin_run, methods: list[str], options: dict, channel: str, variant, progress: bool) -> list[str]:
+    """The error budget (``twin.budget``) of a circle grid's twin: each term's scene rendered and studied as the
+    twin is, the ellipse residual in straightness' place; returns the report's lines."""
+    scenes = term_scenes(spec_name, out / "budget", names=terms or None, spp=spp, seeds=BUDGET_SEEDS)
+    off, photos = {}, {"": len(real_run.setup.names), "all": len(twin_run.setup.names)}
+    for name, path in scenes.items():
+        pngs, _ = circle_pngs(load_spec(path), path.parent / "renders", keep, variant, False)
+        try:
+            run = compute_circle_study(replace(real, photos=pngs, set_name=f"{real.set_name} {name}"), methods,
+                                       options, channel, progress)
+        except InputError as exc:  # too few grids found with the term off: say so, keep the others
+            console.say(f"budget: {name}: {exc}")
+            continue
+        off[name] = circle_figures(run.summaries)
+        photos[name] = len(run.setup.names)
+    real_s, twin_s = circle_figures(real_run.summaries), circle_figures(twin_run.summaries)
+    return write_budget(out, budget_rows(real_s, twin_s, off, methods), per_method_rows(real_s, twin_s, off, methods),
+                        len(methods), photos, first="ellipse residual")
+
+
 def run_circle_twin_study(real_all: BoardInputs, spec, spec_name, out, methods=None, keep=None, thresholds=None,
-                          channel: str = "luma", variant: str | None = None, progress: bool = True) -> Path:
+                          channel: str = "luma", variant: str | None = None, progress: bool = True,
+                          budget: list[str] | None = None, spp: int | None = None) -> Path:
     """Steps 1-4 (module docstring) for the photos ``real_all`` (a circle grid's ``BoardInputs``, paired with the
-    twin ``spec``'s images, ``keep`` their indices); returns report.md."""
+    twin ``spec``'s images, ``keep`` their indices); ``budget``: also the error budget (``circle_budget``: [] every
+    term the twin renders, or those named), ``spp`` the samples its scenes take; returns report.md."""
     t0 = time.perf_counter()
     methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:
@@ -154,21 +194,14 @@ def run_circle_twin_study(real_all: BoardInputs, spec, spec_name, out, methods=N
     set_name = real_all.set_name or spec.name
     settings = {"set": set_name, "methods": methods, "images": [i + 1 for i in keep], "spp": spec.render.spp,
                 "spec_identity": spec.identity_sha256, "channel": channel, "board": "circles"}
+    if budget is not None:  # only then: an earlier run without a budget keeps its settings
+        settings["budget"] = sorted(budget) or "all"
     out = check_same_settings(Path(out), KIND, settings, "a twin study")
     out = prepare_run_dir(out, KIND, settings)
-    render_dir = out / "renders"
     t_r = time.perf_counter()
-    render_spec(spec, render_dir, variant=variant, progress=progress, only=keep,
-                announce=lambda s: console.say(s) if progress else None)
+    pngs, samples = circle_pngs(spec, out / "renders", keep, variant, progress)
     render_s = time.perf_counter() - t_r
-    by_index = {s.index: s for s in open_dataset(render_dir) if s.kind == "circles_grid"}
-    missing = [i for i in keep if i not in by_index]
-    if missing:
-        raise InputError(f"{render_dir}: image(s) {', '.join(str(i) for i in missing)} did not render (or are not "
-                         "circle grids); run again, or check --twin")
-    samples = [by_index[i] for i in keep]
     real = replace(real_all, photos=[real_all.photos[i] for i in keep])
-    pngs = [s.dataset.path / s.dataset.manifest["images"][s.name]["files"]["png"]["path"] for s in samples]
     twin = replace(real, photos=pngs, set_name=f"{set_name} twin")
     t_s = time.perf_counter()
     real_run = compute_circle_study(real, methods, options, channel, progress)
@@ -187,9 +220,16 @@ def run_circle_twin_study(real_all: BoardInputs, spec, spec_name, out, methods=N
                             ("twin", twin_run, f"Board study (circle grid) — {set_name} twin (renders)")):
         (out / sub).mkdir(exist_ok=True)
         write_circle_run(run, out / sub, channel, methods, options, thresholds, title=title)
-    timings = {"render_s": render_s, "studies_s": study_s, "total_s": time.perf_counter() - t0}
+    timings = {"render_s": render_s, "studies_s": study_s}
+    budget_lines = None
+    if budget is not None:
+        t_b = time.perf_counter()
+        budget_lines = circle_budget(out, spec_name, budget, spp, keep, real, real_run, twin_run, methods, options,
+                                     channel, variant, progress)
+        timings["budget_s"] = time.perf_counter() - t_b
+    timings["total_s"] = time.perf_counter() - t0
     r = agree["ratio"]
     console.say(f"study twin: twin ÷ real (median over {len(methods)} methods): ellipse residual "
                 f"{r['ellipse_rms_px']:.2f}, calibration RMS {r['calib_rms_px']:.2f}; ρ "
                 + ", ".join(f"{a['rho']:.2f}" for a in agree["rank"][:2]) + " (ellipse, calibration)")
-    return write_report(out, set_name, spec_name, lines, agree, real.names, timings)
+    return write_report(out, set_name, spec_name, lines, agree, real.names, timings, budget_lines)

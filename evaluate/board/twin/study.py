@@ -306,11 +306,9 @@ def run_twin_study(set_name, out, methods=None, images=None, spp: int | None = N
         real_all = photos_by_group(real_all, spec, spec_name)
     keep = check_images(images, len(real_all.photos))
     if real_all.circles is not None:  # a circle grid's twin: its own study (``circle_study``)
-        if budget is not None:
-            raise InputError("--budget: for twins of chessboards and boards of squares; a circle grid's twin has no "
-                             "budget yet, drop it")
         return run_circle_twin_study(real_all, spec, spec_name, out, methods=methods, keep=keep,
-                                     thresholds=thresholds, channel=channel, variant=variant, progress=progress)
+                                     thresholds=thresholds, channel=channel, variant=variant, progress=progress,
+                                     budget=budget, spp=spp)
     # all methods but those that need a camera model (patch_esf_fit's PSF tables): there is none here
     methods = mo.ordered(camera_free() if methods is None else methods)
     for m in methods:
