@@ -94,8 +94,9 @@ def register(sub) -> None:
     p.add_argument("--budget", nargs="?", const="all", default=None, metavar="TERMS",
                    help="twin: the error budget -- the twin rendered again with each term it renders switched off in "
                         "turn (noise, fpn, jpeg, sharpening, clip, bend, lens_shading; or a comma-separated list), "
-                        "the same board study on each, and a budget table of straightness and calibration RMS "
-                        "against the photos' (docs/board.md, 'Error budget'); ~30 s a term for opencv_left")
+                        "the same board study on each, and a budget table of straightness (a circle grid: the ellipse "
+                        "residual) and calibration RMS against the photos' (docs/board.md, 'Error budget'); ~30 s a "
+                        "term for opencv_left")
     p.add_argument("--spec", default=None, metavar="SPEC",
                    help=f"pattern: the boards to compare, a shipped spec or a TOML path (default {PATTERN_SPEC}: "
                         "copy it to change the camera, boards, poses, focus or light)")
