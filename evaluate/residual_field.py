@@ -230,8 +230,25 @@ def reading(s: dict, alpha: float = 0.01) -> str:
             f"{100 * s['smooth_share']:.0f} % of their energy ({100 * s['smooth_share_chance']:.0f} % by chance, "
             f"p {'<=' if floor else '='} {s['p_value']:.2g})")
     if s["p_value"] < alpha and s["smooth_excess"] >= SMOOTH_EXCESS:
-        return head + (": smooth per view, not noise (a board that is not flat, corners biased along it, or lens terms "
-                       "the distortion model leaves out)")
-    if s["p_value"] < alpha:
-        return head + ": mostly noise, with a small smooth part"
-    return head + ": no smooth field found"
+        head += (": smooth per view, not noise (a board that is not flat, corners biased along it, or lens terms "
+                 "the distortion model leaves out)")
+    elif s["p_value"] < alpha:
+        head += ": mostly noise, with a small smooth part"
+    else:
+        head += ": no smooth field found"
+    return head + where_reading(s, alpha)
+
+
+def where_reading(s: dict, alpha: float = 0.01) -> str:
+    """``reading``'s tail: where the residual lives (``image_field_transfer``, ``board_point_transfer``), each photo
+    held out; empty when they were not measured."""
+    parts = []
+    for key, words in (("print", "each board point's own offset (the print)"),
+                       ("image_field", "a field fixed in the image (a lens term)")):
+        if f"{key}_share" not in s:
+            continue
+        share, p = s[f"{key}_share"], s[f"{key}_p_value"]
+        parts.append(f"{words} {100 * max(share, 0.0):.0f} %" + ("" if p < alpha and share > 0 else
+                                                                   " (not significant)"))
+    return ("; of a held-out photo's residual energy the other photos predict by " + ", by ".join(parts)
+            if parts else "")
