@@ -164,3 +164,13 @@ def test_a_misprinted_board_lives_on_the_board():
     assert pr["print_share"] > 0.8 and pr["print_p_value"] <= 0.01
     assert pr["print_offset_rms"] == pytest.approx(np.sqrt(np.mean(np.sum(offset ** 2, axis=1))), rel=0.15)
     assert img["image_field_share"] < 0.1
+
+
+def test_the_reading_says_where_the_residual_lives():
+    """``reading`` ends with the held-out shares when they were measured, and says when one is not significant."""
+    base = {"neighbour_correlation": 0.6, "smooth_share": 0.46, "smooth_share_chance": 0.11, "smooth_excess": 0.4,
+            "p_value": 0.0005, "permutations": 2000}
+    assert "held-out" not in reading(base)
+    line = reading({**base, "print_share": 0.45, "print_p_value": 0.005, "image_field_share": -0.02,
+                    "image_field_p_value": 0.4})
+    assert "the print) 45 %" in line and "a lens term) 0 % (not significant)" in line
