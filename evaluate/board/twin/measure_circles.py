@@ -42,7 +42,7 @@ from edgetruth.evaluate.board.circles import calibrate_circles, circle_edges, ob
 from edgetruth.evaluate.board.tone.photo_model import (ESF_HALF_WIDTH_PX, FLAT_MARGIN_PX, MIN_SIDE_PIXELS,
                                                        SideSamples, blur_of_samples, region_noise)
 from edgetruth.evaluate.board.twin.measure import edge_shape, jpeg_quality, read_photo
-from edgetruth.evaluate.board.twin.measure_squares import CLIPPED_SHARE, gap_points
+from edgetruth.evaluate.board.twin.measure_squares import assumed_tone, gap_points, white_saturated
 from edgetruth.evaluate.board.twin.shading import light_levels, project
 from edgetruth.render.edge_truth import closed_polyline_signed_distance
 from edgetruth.render.sensor.pipeline import jpeg_round_trip
@@ -251,7 +251,7 @@ def measure_circles(photos: list[Path], pattern, tone_power: float = 2.2, channe
                              "leave it out or give photos whose blacks are not clipped")
         top = float(img.max())
         clip = 255.0 if scale == 255.0 else (top if np.count_nonzero(img == top) >= 10 else None)
-        sat = bool((dark["sd"] > 0 and white["sd"] < 0.5 * dark["sd"]) or white["at_max_fraction"] > CLIPPED_SHARE)
+        sat = white_saturated(dark, white)
         b = circle_blur(img, outlines)
         sx, sy = (b[k]["sigma_px"] for k in ("vertical", "horizontal"))
         q = jpeg_quality(p)
@@ -271,13 +271,7 @@ def measure_circles(photos: list[Path], pattern, tone_power: float = 2.2, channe
             "jpeg_quality": None if q is None else {"quality": q[0], "exact": q[1]},
             "light_levels": light_levels(img, project(gaps, R, tvec.ravel(), K, dist), clip),
         })
-    if scale == 255.0:
-        tone = {"power": None, "ci": None, "output_gamma": float(tone_power),
-                "note": f"not measurable on circles (no junctions); a power of {tone_power:g} assumed (--tone-power)"}
-    else:
-        tone = {"power": None, "ci": None, "output_gamma": 1.0,
-                "note": "16-bit photos, taken as a linear sensor's values (raw) with a black level; not checked (a "
-                        "circle grid has no junctions to read a tone at)"}
+    tone = assumed_tone(scale, tone_power, "circles")
     lo, hi = obj[:, :2].min(0), obj[:, :2].max(0)
     h, w = size
     all_images = [images[n] for n in used]

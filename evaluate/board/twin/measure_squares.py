@@ -76,6 +76,23 @@ def gap_points(corners: np.ndarray) -> np.ndarray:
     return np.array([mids[i] for i, g in enumerate(groups) if min(g) == i]).reshape(-1, 2)
 
 
+def white_saturated(dark: dict, white: dict) -> bool:
+    """A white region is saturated where its noise SD is below half the dark's (``levels.saturated``'s rule) or
+    more than ``CLIPPED_SHARE`` of it sits at its top (``photo_model.region_noise``'s records)."""
+    return bool((dark["sd"] > 0 and white["sd"] < 0.5 * dark["sd"]) or white["at_max_fraction"] > CLIPPED_SHARE)
+
+
+def assumed_tone(scale: float, tone_power: float, board: str) -> dict:
+    """The tone of photos of a ``board`` without junctions to measure it at (separate squares, circles): 8-bit photos
+    (``scale`` 255) the power given, 16-bit ones linear (raw), unchecked; ``note`` says so."""
+    if scale == 255.0:
+        return {"power": None, "ci": None, "output_gamma": float(tone_power),
+                "note": f"not measurable on {board} (no junctions); a power of {tone_power:g} assumed (--tone-power)"}
+    return {"power": None, "ci": None, "output_gamma": 1.0,
+            "note": "16-bit photos, taken as a linear sensor's values (raw) with a black level; not checked (no "
+                    f"junctions on {board} to read a tone at)"}
+
+
 def measure_squares(photos: list[Path], model, tone_power: float = 2.2, channel: str = "luma",
                     progress=None) -> dict:
     """Every measurement a twin of these photos of the board ``model`` (``board.model.BoardModel``, separate
@@ -120,7 +137,7 @@ def measure_squares(photos: list[Path], model, tone_power: float = 2.2, channel:
         if not (dark["mean"] > 0):
             raise InputError(f"{p}: its dark squares read {dark['mean']:.3g}, so the print's contrast cannot be "
                              "measured; leave it out or give photos whose blacks are not clipped")
-        sat = bool((dark["sd"] > 0 and white["sd"] < 0.5 * dark["sd"]) or white["at_max_fraction"] > CLIPPED_SHARE)
+        sat = white_saturated(dark, white)
         b = edge_blur(img, lines)
         sx, sy = (b[k]["sigma_px"] for k in ("vertical", "horizontal"))
         q = jpeg_quality(p)
@@ -140,14 +157,7 @@ def measure_squares(photos: list[Path], model, tone_power: float = 2.2, channel:
             "jpeg_quality": None if q is None else {"quality": q[0], "exact": q[1]},
             "light_levels": light_levels(img, project(gaps, R, tvec.ravel(), K, dist), clip),
         })
-    if scale == 255.0:
-        tone = {"power": None, "ci": None, "output_gamma": float(tone_power),
-                "note": f"not measurable on separate squares (no junctions); a power of {tone_power:g} assumed "
-                        "(--tone-power)"}
-    else:
-        tone = {"power": None, "ci": None, "output_gamma": 1.0,
-                "note": "16-bit photos, taken as a linear sensor's values (raw) with a black level; not checked (a "
-                        "board of separate squares has no junctions to read a tone at)"}
+    tone = assumed_tone(scale, tone_power, "separate squares")
     q = model.corners.reshape(-1, 2)
     return {"board": {"kind": "model", "source": model.source, "squares": len(model),
                       "centre_model": (0.5 * (q.min(0) + q.max(0))).tolist(),
